@@ -1,0 +1,17 @@
+"""mechsim: simulated classical mechanics streamed as ROS 2 topics.
+
+Pure-Python API (no ROS needed)::
+
+    import mechsim
+    model = mechsim.load_system("pendulum", **{"initial.angle": 1.0})
+    run = mechsim.simulate(model, t_end=10.0, output_dt=0.01)
+    run.total, run.invariants, run.observables["tension"]
+"""
+
+from mechsim.errors import IntegrationError, MechsimError, ParameterError, UnknownSystemError
+from mechsim.simulate import SimulationResult, simulate
+from mechsim.systems import load_system, system_ids
+
+__version__ = "0.1.0"
+__all__ = ["IntegrationError", "MechsimError", "ParameterError", "SimulationResult",
+           "UnknownSystemError", "load_system", "simulate", "system_ids", "__version__"]

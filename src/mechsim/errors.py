@@ -1,0 +1,32 @@
+"""Errors a user can cause: each carries a one-line message naming the field and the reason."""
+
+from __future__ import annotations
+
+
+class MechsimError(Exception):
+    """Base of every error mechsim reports to a user as one line (never a traceback)."""
+
+
+class ParameterError(MechsimError, ValueError):
+    """A parameter, initial condition or scene field is unknown, of the wrong type or out of range."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        self.field = field
+        self.reason = reason
+        super().__init__(f"{field}: {reason}")
+
+
+class UnknownSystemError(MechsimError, KeyError):
+    """No system has the requested id."""
+
+    def __init__(self, system_id: str, known: list[str]) -> None:
+        self.system_id = system_id
+        super().__init__(system_id)
+        self._msg = f"unknown system '{system_id}' (known: {', '.join(sorted(known))})"
+
+    def __str__(self) -> str:
+        return self._msg
+
+
+class IntegrationError(MechsimError, RuntimeError):
+    """The integrator stopped: non-finite state, step-size underflow or too many steps."""

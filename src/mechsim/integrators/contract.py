@@ -1,0 +1,45 @@
+"""Names a kernel module's model part must define; the integrator loops call them as globals.
+
+This module only documents the contract (and lets linters see the names in ``kernels.py``);
+the generated module defines the real ones. Sizes: N_Q coordinates, N_Y = 2 N_Q + 2 state
+entries, N_C constraints, N_INV invariants, N_OBS observables, N_FRAMES frames.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+N_Q = 1
+N_Y = 4
+N_C = 0
+N_INV = 0
+N_OBS = 0
+N_FRAMES = 0
+
+
+def rhs(t: float, y: np.ndarray, p: np.ndarray, dy: np.ndarray) -> None:
+    """dy = d/dt [q, v, work_external, work_dissipated]."""
+
+
+def project(t: float, y: np.ndarray, p: np.ndarray) -> None:
+    """Move q and v onto the constraint manifold in place (no-op without constraints)."""
+
+
+def accel_q(t: float, q: np.ndarray, p: np.ndarray, a: np.ndarray) -> None:
+    """Acceleration of a separable system, a function of q only."""
+
+
+def energy(t: float, y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """out = [kinetic, potential, energy_function]."""
+
+
+def invariants(t: float, y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """out[N_INV] = invariant values (constraint residuals included)."""
+
+
+def observables(t: float, y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """out[N_OBS] = observable values."""
+
+
+def frames(t: float, y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """out[N_FRAMES, 7] = translation xyz and quaternion xyzw of each frame in its parent."""

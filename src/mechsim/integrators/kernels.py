@@ -1,0 +1,342 @@
+"""Integrator loops, compiled by numba inside each model's generated kernel module.
+
+Everything below the marker line is pasted into the generated module (see ``mechsim.codegen``),
+where ``rhs``, ``project``, ``accel_q`` and the output functions are the model's own. The loops
+are resumable: their whole state lives in arrays the caller keeps between calls, so a node can
+advance a run output by output with no restart cost and no forced short steps.
+
+DOP853: Hairer's explicit Runge-Kutta 8(5,3) with the 7th-order dense output, the coefficients
+taken from scipy (``scipy.integrate._ivp.dop853_coefficients``), the same error norm and step
+control as scipy's ``DOP853`` so that tolerances mean the same thing in both.
+Composition: a symmetric composition of velocity Verlet (kick-drift-kick) with given weights.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from mechsim.integrators.contract import (
+    N_C,
+    N_FRAMES,
+    N_INV,
+    N_OBS,
+    N_Q,
+    N_Y,
+    accel_q,
+    energy,
+    frames,
+    invariants,
+    observables,
+    project,
+    rhs,
+)
+
+# === kernel body ===
+from scipy.integrate._ivp import dop853_coefficients as _dop  # noqa: E402
+
+# Status codes shared with mechsim.integrators.STATUS.
+OK = 0
+MAX_STEPS = 1
+STEP_UNDERFLOW = 2
+NOT_FINITE = 3
+
+_DOP_A = np.ascontiguousarray(_dop.A)
+_DOP_B = np.ascontiguousarray(_dop.B)
+_DOP_C = np.ascontiguousarray(_dop.C)
+_DOP_D = np.ascontiguousarray(_dop.D)
+_DOP_E3 = np.ascontiguousarray(_dop.E3)
+_DOP_E5 = np.ascontiguousarray(_dop.E5)
+
+
+@njit(cache=True)
+def _solve(A, b):
+    """Solve A x = b (small dense system) by Gaussian elimination with partial pivoting."""
+    n = b.size
+    M = A.copy()
+    x = b.copy()
+    for k in range(n):
+        piv = k
+        big = abs(M[k, k])
+        for i in range(k + 1, n):
+            if abs(M[i, k]) > big:
+                big = abs(M[i, k])
+                piv = i
+        if piv != k:
+            for j in range(n):
+                tmp = M[k, j]
+                M[k, j] = M[piv, j]
+                M[piv, j] = tmp
+            tmp = x[k]
+            x[k] = x[piv]
+            x[piv] = tmp
+        d = M[k, k]
+        for i in range(k + 1, n):
+            f = M[i, k] / d
+            if f != 0.0:
+                for j in range(k, n):
+                    M[i, j] -= f * M[k, j]
+                x[i] -= f * x[k]
+    for k in range(n - 1, -1, -1):
+        s = x[k]
+        for j in range(k + 1, n):
+            s -= M[k, j] * x[j]
+        x[k] = s / M[k, k]
+    return x
+
+
+@njit(cache=True)
+def _project_onto(G, r, x):
+    """x -= Gᵀ (G Gᵀ)⁻¹ r: the least-norm correction that removes the residual r."""
+    nc = r.size
+    GG = np.empty((nc, nc))
+    for i in range(nc):
+        for j in range(nc):
+            s = 0.0
+            for k in range(x.size):
+                s += G[i, k] * G[j, k]
+            GG[i, j] = s
+    mu = _solve(GG, r)
+    for k in range(x.size):
+        s = 0.0
+        for i in range(nc):
+            s += G[i, k] * mu[i]
+        x[k] -= s
+
+
+@njit(cache=True)
+def _rms_norm(x, scale):
+    s = 0.0
+    for i in range(x.size):
+        z = x[i] / scale[i]
+        s += z * z
+    return math.sqrt(s / x.size)
+
+
+@njit(cache=True)
+def dop853_initial_step(t, y, p, f0, rtol, atol):
+    n = y.size
+    scale = np.empty(n)
+    for i in range(n):
+        scale[i] = atol + abs(y[i]) * rtol
+    d0 = _rms_norm(y, scale)
+    d1 = _rms_norm(f0, scale)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    y1 = y + h0 * f0
+    f1 = np.empty(n)
+    rhs(t + h0, y1, p, f1)
+    d2 = _rms_norm(f1 - f0, scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+    return min(100.0 * h0, h1)
+
+
+@njit(cache=True)
+def _dense_eval(F, y_old, x, out):
+    n = y_old.size
+    for i in range(n):
+        acc = 0.0
+        for j in range(6, -1, -1):
+            acc += F[j, i]
+            if (6 - j) % 2 == 0:
+                acc *= x
+            else:
+                acc *= 1.0 - x
+        out[i] = acc + y_old[i]
+
+
+@njit(cache=True)
+def _dense_prepare(st, y, y_old, K, F, p):
+    """Extra stages and interpolation coefficients for the last accepted step (t_old, t]."""
+    n = y.size
+    t_old = st[2]
+    h = st[3]
+    ytmp = np.empty(n)
+    for s in range(13, 16):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += _DOP_A[s, j] * K[j, i]
+            ytmp[i] = y_old[i] + h * acc
+        rhs(t_old + _DOP_C[s] * h, ytmp, p, K[s])
+    for i in range(n):
+        dlt = y[i] - y_old[i]
+        F[0, i] = dlt
+        F[1, i] = h * K[0, i] - dlt
+        F[2, i] = 2.0 * dlt - h * (K[12, i] + K[0, i])
+        for r in range(4):
+            acc = 0.0
+            for j in range(16):
+                acc += _DOP_D[r, j] * K[j, i]
+            F[3 + r, i] = h * acc
+    st[4] = 1.0
+
+
+@njit(cache=True)
+def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps):
+    """Advance until every time in ``t_out`` (increasing, >= st[0] of the last step start) is
+    written to ``Y_out``. State ``st`` = [t, h_next, t_old, h_old, dense_ready, n_steps,
+    n_rejected, n_rhs]; ``y`` current state, ``y_old``/``K``/``F`` the last step's data, with
+    K[12] = f(t, y) on entry. Returns (status, number of outputs written)."""
+    n = y.size
+    y_new = np.empty(n)
+    ytmp = np.empty(n)
+    scale = np.empty(n)
+    err5 = np.empty(n)
+    err3 = np.empty(n)
+    n_out = t_out.size
+    k = 0
+    steps = 0
+    # Outputs that fall in the last accepted step (t_old, t].
+    while k < n_out and st[3] > 0.0 and t_out[k] <= st[0]:
+        if t_out[k] == st[0]:
+            Y_out[k, :] = y
+        else:
+            if st[4] == 0.0:
+                _dense_prepare(st, y, y_old, K, F, p)
+            _dense_eval(F, y_old, (t_out[k] - st[2]) / st[3], Y_out[k])
+            if N_C > 0:
+                project(t_out[k], Y_out[k], p)
+        k += 1
+    while k < n_out and t_out[k] == st[0]:
+        Y_out[k, :] = y
+        k += 1
+    rejected = False
+    while k < n_out:
+        if steps >= max_steps:
+            return MAX_STEPS, k
+        t = st[0]
+        h = min(st[1], h_max)
+        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        if h < min_step:
+            return STEP_UNDERFLOW, k
+        if not rejected:
+            # FSAL: f(t, y) of the last accepted step end becomes this step's first stage.
+            for i in range(n):
+                K[0, i] = K[12, i]
+        for s in range(1, 12):
+            for i in range(n):
+                acc = 0.0
+                for j in range(s):
+                    acc += _DOP_A[s, j] * K[j, i]
+                ytmp[i] = y[i] + h * acc
+            rhs(t + _DOP_C[s] * h, ytmp, p, K[s])
+        for i in range(n):
+            acc = 0.0
+            for j in range(12):
+                acc += _DOP_B[j] * K[j, i]
+            y_new[i] = y[i] + h * acc
+        rhs(t + h, y_new, p, K[12])
+        st[7] += 12.0
+        for i in range(n):
+            scale[i] = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+            a5 = 0.0
+            a3 = 0.0
+            for j in range(13):
+                a5 += _DOP_E5[j] * K[j, i]
+                a3 += _DOP_E3[j] * K[j, i]
+            err5[i] = a5 / scale[i]
+            err3[i] = a3 / scale[i]
+        e5 = 0.0
+        e3 = 0.0
+        for i in range(n):
+            e5 += err5[i] * err5[i]
+            e3 += err3[i] * err3[i]
+        if e5 == 0.0 and e3 == 0.0:
+            err = 0.0
+        else:
+            err = h * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+        if not math.isfinite(err):
+            err = 1e10
+        if err < 1.0:
+            if err == 0.0:
+                factor = 10.0
+            else:
+                factor = min(10.0, 0.9 * err ** (-1.0 / 8.0))
+            if rejected:
+                factor = min(1.0, factor)
+            rejected = False
+            for i in range(n):
+                if not math.isfinite(y_new[i]):
+                    return NOT_FINITE, k
+            y_old[:] = y
+            t_new = t + h
+            if N_C > 0:
+                project(t_new, y_new, p)
+                rhs(t_new, y_new, p, K[12])
+                st[7] += 1.0
+            y[:] = y_new
+            st[2] = t
+            st[3] = h
+            st[0] = t_new
+            st[4] = 0.0
+            st[1] = h * factor
+            steps += 1
+            st[5] += 1.0
+            while k < n_out and t_out[k] <= t_new:
+                if t_out[k] == t_new:
+                    Y_out[k, :] = y
+                else:
+                    if st[4] == 0.0:
+                        _dense_prepare(st, y, y_old, K, F, p)
+                    _dense_eval(F, y_old, (t_out[k] - t) / h, Y_out[k])
+                    if N_C > 0:
+                        project(t_out[k], Y_out[k], p)
+                k += 1
+        else:
+            st[1] = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
+            st[6] += 1.0
+            rejected = True
+    return OK, k
+
+
+@njit(cache=True)
+def composition_advance(st, y, p, n_out, n_sub, h, weights, Y_out, a):
+    """Fixed-step symmetric composition of velocity Verlet for separable systems.
+    ``st`` = [t, n_steps, n_force]; ``a`` holds accel_q(q) on entry and on exit. Writes the
+    state after each block of ``n_sub`` steps to Y_out[0..n_out). Returns (status, written)."""
+    nq = N_Q
+    q = y[:nq]
+    v = y[nq:2 * nq]
+    nw = weights.size
+    for k in range(n_out):
+        for _ in range(n_sub):
+            for s in range(nw):
+                hw = weights[s] * h
+                for i in range(nq):
+                    v[i] += 0.5 * hw * a[i]
+                for i in range(nq):
+                    q[i] += hw * v[i]
+                accel_q(st[0], q, p, a)
+                for i in range(nq):
+                    v[i] += 0.5 * hw * a[i]
+            st[0] += h
+            st[1] += 1.0
+        st[2] += n_sub * nw
+        for i in range(nq):
+            if not (math.isfinite(q[i]) and math.isfinite(v[i])):
+                return NOT_FINITE, k
+        Y_out[k, :] = y
+    return OK, n_out
+
+
+@njit(cache=True)
+def evaluate_outputs(ts, Y, p, want_energy, want_inv, want_obs, want_frames,
+                     E_out, I_out, O_out, F_out):
+    """Energy terms, invariants, observables and frames at each sample, only those wanted."""
+    for k in range(ts.size):
+        if want_energy:
+            energy(ts[k], Y[k], p, E_out[k])
+        if want_inv and N_INV > 0:
+            invariants(ts[k], Y[k], p, I_out[k])
+        if want_obs and N_OBS > 0:
+            observables(ts[k], Y[k], p, O_out[k])
+        if want_frames and N_FRAMES > 0:
+            frames(ts[k], Y[k], p, F_out[k])

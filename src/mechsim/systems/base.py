@@ -1,0 +1,187 @@
+"""The model interface every system implements, whether declared by a Lagrangian or written directly.
+
+A model owns its parameters, its generalized coordinates, the names of its invariants and
+observables, the frames it poses, the conservation laws that hold for it, and a compiled kernel
+module (see ``mechsim.codegen``) with the numeric functions the integrators and outputs call.
+State layout everywhere: ``y = [q (n), v = q̇ (n), work_external, work_dissipated]``.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Any, ClassVar
+
+import numpy as np
+
+from mechsim.params import Parameter, Value, resolve
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A named scalar with its SI unit."""
+
+    name: str
+    unit: str = ""
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class FrameSpec:
+    """A frame posed by the model: ``child`` relative to ``parent`` (names without namespace).
+
+    ``parent == "world"`` means the scene's fixed root. Static frames go on /tf_static.
+    """
+
+    child: str
+    parent: str
+    static: bool = False
+
+
+@dataclass(frozen=True)
+class Law:
+    """A conservation law the diagnostics node checks.
+
+    kind: "energy" | "energy_function" | "work_balance" | "invariant" | "constraint";
+    name: the quantity (invariant or constraint name; the kind itself for energy laws).
+    """
+
+    kind: str
+    name: str
+
+    @property
+    def key(self) -> str:
+        return self.kind if self.kind in ("energy", "energy_function", "work_balance") \
+            else f"{self.kind}:{self.name}"
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What the equations of motion look like, so `auto` can pick a method."""
+
+    separable: bool  # H = T(p) + V(q), constant mass matrix, no dissipation, forcing or constraints
+    n_constraints: int = 0
+    dissipative: bool = False
+    driven: bool = False
+    time_dependent: bool = False
+
+
+class Model(ABC):
+    """One system with one parameter set. Subclasses set the class attributes below."""
+
+    id: ClassVar[str]
+    title: ClassVar[str]
+    source: ClassVar[str]  # document and section, e.g. "seed 000 S1 (Simple pendulum)"
+    parameters: ClassVar[tuple[Parameter, ...]]
+    formulations: ClassVar[tuple[str, ...]] = ("default",)
+
+    def __init__(self, **values: Any) -> None:
+        self.values: dict[str, Value] = resolve(self.parameter_spec(), values)
+        self.check()
+
+    @classmethod
+    def parameter_spec(cls) -> tuple[Parameter, ...]:
+        spec = cls.parameters
+        if len(cls.formulations) > 1:
+            spec = (Parameter("formulation", cls.formulations[0], "",
+                              "which form of the equations of motion to integrate",
+                              choices=cls.formulations),) + spec
+        return spec
+
+    @property
+    def formulation(self) -> str:
+        return str(self.values.get("formulation", self.formulations[0]))
+
+    def check(self) -> None:
+        """Cross-parameter validation; raise ParameterError naming the field."""
+
+    def value(self, name: str) -> float:
+        return float(self.values[name])  # type: ignore[arg-type]
+
+    def with_values(self, **changes: Any) -> Model:
+        """A new model of the same system with some parameters changed (validated)."""
+        merged = dict(self.values)
+        merged.update(changes)
+        return type(self)(**merged)
+
+    # --- shape of the model -------------------------------------------------------------------
+    @property
+    @abstractmethod
+    def coordinates(self) -> tuple[Quantity, ...]: ...
+
+    @property
+    def invariants(self) -> tuple[Quantity, ...]:
+        return ()
+
+    @property
+    def observables(self) -> tuple[Quantity, ...]:
+        return ()
+
+    @property
+    def frames(self) -> tuple[FrameSpec, ...]:
+        return ()
+
+    @property
+    @abstractmethod
+    def structure(self) -> Structure: ...
+
+    @property
+    @abstractmethod
+    def kernels(self) -> ModuleType:
+        """The compiled kernel module (built on first use, cached on disk)."""
+
+    @abstractmethod
+    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Generalized coordinates and rates at t = 0."""
+
+    def laws(self) -> tuple[Law, ...]:
+        s = self.structure
+        laws = [Law("work_balance", "work_balance")]
+        if not (s.dissipative or s.driven or s.time_dependent):
+            laws.insert(0, Law("energy", "energy"))
+        laws += [Law("invariant", q.name) for q in self.invariants
+                 if not q.name.startswith("constraint_")]
+        laws += [Law("constraint", q.name) for q in self.invariants
+                 if q.name.startswith("constraint_")]
+        return tuple(laws)
+
+    def energy_function_conserved(self) -> bool:
+        """True when L has no explicit time dependence and nothing dissipates or drives."""
+        s = self.structure
+        return not (s.dissipative or s.driven or s.time_dependent)
+
+    def time_scale(self) -> float:
+        """A characteristic time (e.g. small-oscillation period), for step-size choices."""
+        return 1.0
+
+    def parameter_vector(self) -> np.ndarray:
+        """Numeric parameters in kernel order (all numeric parameters, in spec order)."""
+        return np.array([float(self.values[p.name]) for p in self.parameter_spec()  # type: ignore[arg-type]
+                         if p.is_numeric], dtype=np.float64)
+
+    def initial_y(self) -> np.ndarray:
+        q0, v0 = self.initial_state()
+        y0 = np.concatenate([q0, v0, [0.0, 0.0]]).astype(np.float64)
+        self.kernels.project(0.0, y0, self.parameter_vector())
+        return y0
+
+    def describe(self) -> dict[str, Any]:
+        return {
+            "id": self.id, "title": self.title, "source": self.source,
+            "formulations": list(self.formulations),
+            "parameters": [p.describe() for p in self.parameter_spec()],
+            "coordinates": [{"name": c.name, "unit": c.unit} for c in self.coordinates],
+            "invariants": [{"name": c.name, "unit": c.unit} for c in self.invariants],
+            "observables": [{"name": c.name, "unit": c.unit} for c in self.observables],
+            "frames": [{"child": f.child, "parent": f.parent, "static": f.static}
+                       for f in self.frames],
+            "laws": [law.key for law in self.laws()],
+        }
+
+
+def quaternion_about(axis: tuple[float, float, float], angle: float) -> tuple[float, ...]:
+    """Quaternion (x, y, z, w) of a right-handed rotation by ``angle`` about a unit ``axis``."""
+    s = math.sin(angle / 2.0)
+    return (axis[0] * s, axis[1] * s, axis[2] * s, math.cos(angle / 2.0))

@@ -1,0 +1,96 @@
+"""Harmonically driven, damped oscillator: resonance, Q factor, power balance.
+
+Source: seed 003 §1.3–1.5 (PHYS0500 ch. 1, "Damped Oscillations", "Driven Oscillations",
+"Resonance"), m ẍ + b ẋ + k x = F₀ cos ωt (eq. at line 183).
+
+Typos of the document fixed here (see the catalog, 003 §1.4–1.5): ω₀² (not ω₀) multiplies x in
+line 101; D = A/√((ω₀² − ω²)² + 4ω²β²) with a minus sign (line 213 has a plus); ⟨T⟩ has
++4ω²β² in its denominator (line 280). Damping enters through the Rayleigh function
+D = ½ b ẋ² (dissipated power b ẋ²), the drive as the generalized force F₀ cos ωt.
+Q follows the document: Q = ω_R / (2β) (line 258); it needs ω₀² > 2β².
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sympy as sp
+
+from mechsim.params import number, nonnegative, positive
+from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+
+class DrivenOscillator(LagrangianModel):
+    id = "driven_oscillator"
+    title = "Driven damped harmonic oscillator"
+    source = "seed 003 §1.3–1.5: Damped and driven oscillations, resonance and Q"
+    parameters = (
+        positive("mass", 1.0, "kg", "mass m"),
+        positive("spring_constant", 4.0, "N/m", "spring constant k"),
+        nonnegative("damping", 0.4, "kg/s", "linear damping coefficient b (force −b ẋ)"),
+        nonnegative("drive_amplitude", 1.0, "N", "drive force amplitude F₀"),
+        nonnegative("drive_frequency", 1.8, "rad/s", "drive angular frequency ω"),
+        number("initial.x", 0.0, "m", "initial displacement"),
+        number("initial_rate.x", 0.0, "m/s", "initial velocity"),
+    )
+
+    def declare(self, b: LagrangianBuilder) -> None:
+        x, dx = b.coordinate("x", "m")
+        m, k = b.param("mass"), b.param("spring_constant")
+        c, F0, w = b.param("damping"), b.param("drive_amplitude"), b.param("drive_frequency")
+        b.kinetic = m * dx**2 / 2
+        b.potential = k * x**2 / 2
+        b.rayleigh = c * dx**2 / 2
+        drive = F0 * sp.cos(w * b.t)
+        b.forces = [drive]
+        b.observable("drive_force", "N", drive)
+        b.observable("power_in", "W", drive * dx)
+        b.observable("power_dissipated", "W", c * dx**2)
+        b.frame("anchor", "world", (0, 0, 0))
+        b.frame("mass", "anchor", (x, 0, 0))
+
+    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([self.value("initial.x")]), np.array([self.value("initial_rate.x")])
+
+    def time_scale(self) -> float:
+        return 2 * math.pi / self.natural_frequency()
+
+    # --- analytic oracles (seed 003 §1.4–1.5, corrected) ------------------------------------
+    def natural_frequency(self) -> float:
+        """ω₀ = √(k/m)."""
+        return math.sqrt(self.value("spring_constant") / self.value("mass"))
+
+    def beta(self) -> float:
+        """β = b / 2m."""
+        return self.value("damping") / (2 * self.value("mass"))
+
+    def steady_state(self) -> tuple[float, float]:
+        """Amplitude D and phase lag δ ∈ [0, π] of x_p = D cos(ωt − δ)."""
+        w0, b, w = self.natural_frequency(), self.beta(), self.value("drive_frequency")
+        A = self.value("drive_amplitude") / self.value("mass")
+        D = A / math.sqrt((w0**2 - w**2) ** 2 + 4 * w**2 * b**2)
+        return D, math.atan2(2 * w * b, w0**2 - w**2)
+
+    def resonance_frequency(self) -> float:
+        """Amplitude resonance ω_R = √(ω₀² − 2β²) (exists only for ω₀² > 2β²)."""
+        w0, b = self.natural_frequency(), self.beta()
+        if w0**2 <= 2 * b**2:
+            raise ValueError("no amplitude resonance: ω₀² ≤ 2β²")
+        return math.sqrt(w0**2 - 2 * b**2)
+
+    def quality_factor(self) -> float:
+        """Q = ω_R / (2β), the document's definition (line 258)."""
+        return self.resonance_frequency() / (2 * self.beta())
+
+    def exact_solution(self, t: np.ndarray) -> np.ndarray:
+        """x(t) for an underdamped oscillator (ω₀ > β): steady state plus decaying transient."""
+        w0, b, w = self.natural_frequency(), self.beta(), self.value("drive_frequency")
+        if b >= w0:
+            raise ValueError("exact_solution covers the underdamped case only")
+        D, delta = self.steady_state()
+        w1 = math.sqrt(w0**2 - b**2)
+        C = self.value("initial.x") - D * math.cos(delta)
+        E = (self.value("initial_rate.x") - D * w * math.sin(delta) + b * C) / w1
+        return D * np.cos(w * t - delta) + np.exp(-b * t) * (C * np.cos(w1 * t)
+                                                              + E * np.sin(w1 * t))

@@ -1,0 +1,88 @@
+"""Kepler problem: relative motion of two bodies under U = −k/r, in the orbital plane.
+
+Source: seed 003 ch. 4 (PHYS0500 "Central Force Motion", §4.1 reduced mass, §4.6 planetary
+motion; conic table line 996). The Laplace–Runge–Lenz vector is not in the document (catalog:
+[SUPPLEMENT]); it is used here as an invariant because it is conserved only for 1/r.
+
+Conventions: Cartesian coordinates (x, y) of the relative position r = r₁ − r₂ in the orbital
+plane, z along the angular momentum (right-handed, counter-clockwise orbit). The orbit is given
+by its elements: ``semi_major_axis`` a and ``eccentricity`` e (0 ≤ e < 1), starting at
+pericentre on +x. k = μ GM with ``reduced_mass`` μ and ``gravitational_parameter`` GM = G(m₁+m₂);
+the document's ε = √(1 + 2El²/(μk²)) (its line 988 has √(2 + 2El²/(μk)), a typo).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sympy as sp
+
+from mechsim.params import Parameter, positive
+from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+
+class Kepler(LagrangianModel):
+    id = "kepler"
+    title = "Kepler problem (two-body relative orbit)"
+    source = "seed 003 ch. 4: Central Force Motion, §4.1 and §4.6 (Kepler problem)"
+    parameters = (
+        positive("gravitational_parameter", 1.0, "m^3/s^2", "GM = G (m₁ + m₂)"),
+        positive("reduced_mass", 1.0, "kg", "reduced mass μ = m₁m₂/(m₁+m₂)"),
+        positive("semi_major_axis", 1.0, "m", "semi-major axis a"),
+        Parameter("eccentricity", 0.5, "", "eccentricity e of the ellipse", minimum=0.0,
+                  maximum=1.0, exclusive_maximum=True),
+    )
+
+    def declare(self, b: LagrangianBuilder) -> None:
+        x, dx = b.coordinate("x", "m")
+        y, dy = b.coordinate("y", "m")
+        GM, mu = b.param("gravitational_parameter"), b.param("reduced_mass")
+        r = sp.sqrt(x**2 + y**2)
+        k = mu * GM
+        b.kinetic = mu * (dx**2 + dy**2) / 2
+        b.potential = -k / r
+        Lz = mu * (x * dy - y * dx)
+        b.invariant("angular_momentum", "kg m^2/s", Lz)
+        b.invariant("runge_lenz_x", "kg^2 m^3/s^2", mu * Lz * dy - mu * k * x / r)
+        b.invariant("runge_lenz_y", "kg^2 m^3/s^2", -mu * Lz * dx - mu * k * y / r)
+        b.observable("radius", "m", r)
+        b.observable("true_anomaly", "rad", sp.atan2(y, x))
+        b.observable("areal_velocity", "m^2/s", Lz / (2 * mu))
+        b.frame("perifocal", "world", (0, 0, 0))
+        b.frame("body", "perifocal", (x, y, 0))
+
+    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        a, e, GM = self.value("semi_major_axis"), self.value("eccentricity"), \
+            self.value("gravitational_parameter")
+        rp = a * (1 - e)
+        return np.array([rp, 0.0]), np.array([0.0, math.sqrt(GM * (1 + e) / rp)])
+
+    def time_scale(self) -> float:
+        """Pericentre passage time 2π √(r_p³ / (GM (1 + e))): what limits a fixed step."""
+        a, e = self.value("semi_major_axis"), self.value("eccentricity")
+        return 2 * math.pi * math.sqrt((a * (1 - e)) ** 3 /
+                                       (self.value("gravitational_parameter") * (1 + e)))
+
+    # --- analytic oracles (seed 003 §4.6; Kepler's equation is a catalog supplement) -------
+    def period(self) -> float:
+        """τ = 2π √(a³ / GM) (Kepler III, line 1042 with k = μ GM)."""
+        return 2 * math.pi * math.sqrt(self.value("semi_major_axis") ** 3
+                                       / self.value("gravitational_parameter"))
+
+    def apsides(self) -> tuple[float, float]:
+        """r_min = a(1 − e), r_max = a(1 + e) (lines 1014–1016)."""
+        a, e = self.value("semi_major_axis"), self.value("eccentricity")
+        return a * (1 - e), a * (1 + e)
+
+    def position_at(self, t: np.ndarray) -> np.ndarray:
+        """Exact (x, y) at times t from Kepler's equation M = E − e sin E (Newton iteration)."""
+        a, e = self.value("semi_major_axis"), self.value("eccentricity")
+        M = 2 * math.pi * np.asarray(t, dtype=float) / self.period()
+        E = M + e * np.sin(M) if e < 0.8 else np.full_like(M, math.pi) + 0 * M
+        for _ in range(50):
+            dE = (E - e * np.sin(E) - M) / (1 - e * np.cos(E))
+            E = E - dE
+            if np.max(np.abs(dE)) < 1e-15:
+                break
+        return np.stack([a * (np.cos(E) - e), a * math.sqrt(1 - e * e) * np.sin(E)], axis=-1)

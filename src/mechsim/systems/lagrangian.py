@@ -1,0 +1,371 @@
+"""Systems declared by their Lagrangian; one engine derives everything else.
+
+A system writes T and V in its generalized coordinates, its holonomic constraints g(q, t) = 0,
+its Rayleigh dissipation function D(q, q̇, t) and any other generalized forces Q(q, q̇, t). From
+that declaration sympy derives, once per declaration (the generated module is cached on disk):
+
+- the mass matrix M = ∂²T/∂q̇², and the forcing f = ∂L/∂q − (∂²L/∂q̇∂q) q̇ − ∂²L/∂q̇∂t − ∂D/∂q̇ + Q,
+  so that M q̈ = f + Gᵀλ, with G = ∂g/∂q and G q̈ = −γ (the constraints differentiated twice);
+- the energy function h = Σ q̇ ∂L/∂q̇ − L;
+- the power balance: dissipated power P_d = Σ q̇ ∂D/∂q̇, and the external power
+  P_ext = dE/dt + P_d with dE/dt from the chain rule on E = T + V, so the integrated work terms
+  close total − total₀ = W_ext − W_d by construction of the equations, not of the outputs;
+- constraint projection, invariants, observables (which may use the multipliers λ) and frames.
+
+No equation of motion is typed by hand, so no typo of the source documents can reach the code.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from functools import cached_property
+from types import ModuleType
+from typing import ClassVar
+
+import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
+
+from mechsim import codegen
+from mechsim.systems.base import FrameSpec, Model, Quantity, Structure
+
+Expr = sp.Expr
+
+
+@dataclass
+class _Frame:
+    spec: FrameSpec
+    translation: tuple[Expr, Expr, Expr]
+    rotation: tuple[Expr, Expr, Expr, Expr]
+
+
+@dataclass
+class LagrangianBuilder:
+    """What a system's ``declare`` fills in. Symbols: ``t``, coordinates, parameters, λ."""
+
+    model: Model
+    t: sp.Symbol = field(default_factory=lambda: sp.Symbol("t", real=True))
+    coords: list[Quantity] = field(default_factory=list)
+    q: list[sp.Symbol] = field(default_factory=list)
+    v: list[sp.Symbol] = field(default_factory=list)
+    kinetic: Expr = sp.Integer(0)
+    potential: Expr = sp.Integer(0)
+    rayleigh: Expr = sp.Integer(0)
+    forces: list[Expr] = field(default_factory=list)
+    constraints: list[tuple[str, Expr]] = field(default_factory=list)
+    invariants: list[tuple[Quantity, Expr]] = field(default_factory=list)
+    observables: list[tuple[Quantity, Expr]] = field(default_factory=list)
+    frames: list[_Frame] = field(default_factory=list)
+    params: dict[str, sp.Symbol] = field(default_factory=dict)
+
+    def coordinate(self, name: str, unit: str) -> tuple[sp.Symbol, sp.Symbol]:
+        """Declare a generalized coordinate; returns (q, q̇) symbols."""
+        q = sp.Symbol(f"q_{name}", real=True)
+        v = sp.Symbol(f"v_{name}", real=True)
+        self.coords.append(Quantity(name, unit))
+        self.q.append(q)
+        self.v.append(v)
+        return q, v
+
+    def param(self, name: str) -> sp.Symbol:
+        """The symbol of a numeric parameter (its value is read from the parameter vector)."""
+        spec = {p.name: p for p in self.model.parameter_spec()}
+        if name not in spec or not spec[name].is_numeric:
+            raise KeyError(f"{type(self.model).__name__} has no numeric parameter {name!r}")
+        if name not in self.params:
+            p = spec[name]
+            positive = p.minimum is not None and p.minimum >= 0 and p.exclusive_minimum
+            self.params[name] = sp.Symbol("p_" + name.replace(".", "_"), real=True,
+                                          positive=positive or None)
+        return self.params[name]
+
+    def multiplier(self, index: int) -> sp.Symbol:
+        """λ of constraint ``index``: M q̈ = f + Gᵀλ, so λ·∂g/∂q is the constraint force."""
+        return sp.Symbol(f"lam_{index}", real=True)
+
+    def constraint(self, name: str, g: Expr) -> None:
+        """Holonomic constraint g(q, t) = 0; its residual is published as constraint_<name>."""
+        self.constraints.append((name, g))
+
+    def invariant(self, name: str, unit: str, expr: Expr) -> None:
+        self.invariants.append((Quantity(name, unit), expr))
+
+    def observable(self, name: str, unit: str, expr: Expr) -> None:
+        self.observables.append((Quantity(name, unit), expr))
+
+    def frame(self, child: str, parent: str, translation: tuple[Expr, Expr, Expr],
+              rotation: tuple[Expr, Expr, Expr, Expr] | None = None) -> None:
+        """A frame's pose in its parent; rotation is a quaternion (x, y, z, w), identity if None."""
+        rot = rotation or (sp.Integer(0), sp.Integer(0), sp.Integer(0), sp.Integer(1))
+        tr = tuple(sp.sympify(c) for c in translation)
+        ro = tuple(sp.sympify(c) for c in rot)
+        free = set().union(*(e.free_symbols for e in tr + ro))
+        static = not (free & (set(self.q) | set(self.v) | {self.t}))
+        self.frames.append(_Frame(FrameSpec(child, parent, static), tr, ro))  # type: ignore[arg-type]
+
+
+class LagrangianModel(Model):
+    """A model whose equations come from ``declare``; see the module docstring."""
+
+    declaration_version: ClassVar[int] = 1
+
+    def declare(self, b: LagrangianBuilder) -> None:
+        raise NotImplementedError
+
+    @cached_property
+    def declaration(self) -> LagrangianBuilder:
+        b = LagrangianBuilder(self)
+        self.declare(b)
+        return b
+
+    @property
+    def coordinates(self) -> tuple[Quantity, ...]:
+        return tuple(self.declaration.coords)
+
+    @property
+    def invariants(self) -> tuple[Quantity, ...]:
+        d = self.declaration
+        return tuple(q for q, _ in d.invariants) + tuple(
+            Quantity(f"constraint_{name}", "") for name, _ in d.constraints)
+
+    @property
+    def observables(self) -> tuple[Quantity, ...]:
+        return tuple(q for q, _ in self.declaration.observables)
+
+    @property
+    def frames(self) -> tuple[FrameSpec, ...]:
+        return tuple(f.spec for f in self.declaration.frames)
+
+    @cached_property
+    def structure(self) -> Structure:
+        d = self.declaration
+        qs, vs, t = set(d.q), set(d.v), d.t
+        M = sp.hessian(d.kinetic, d.v)
+        constant_mass = not (M.free_symbols & (qs | vs | {t}))
+        time_dep = t in (d.kinetic.free_symbols | d.potential.free_symbols) or any(
+            t in g.free_symbols for _, g in d.constraints)
+        dissipative = d.rayleigh != 0
+        driven = any(f != 0 for f in d.forces)
+        separable = (constant_mass and not d.constraints and not dissipative and not driven
+                     and not time_dep and not (d.potential.free_symbols & vs)
+                     and not (d.kinetic.free_symbols & qs)
+                     and (len(d.q) <= 4 or M.is_diagonal()))
+        return Structure(separable=separable, n_constraints=len(d.constraints),
+                         dissipative=dissipative, driven=driven, time_dependent=time_dep)
+
+    @cached_property
+    def kernels(self) -> ModuleType:
+        return codegen.build(self.kernel_source())
+
+    def _param_index(self) -> dict[str, int]:
+        numeric = [p.name for p in self.parameter_spec() if p.is_numeric]
+        return {name: i for i, name in enumerate(numeric)}
+
+    def kernel_source(self) -> codegen.KernelSource:
+        d = self.declaration
+        key = hashlib.sha256(repr((type(self).__qualname__, self.declaration_version,
+                                   self.formulation, sp.srepr(d.kinetic), sp.srepr(d.potential),
+                                   sp.srepr(d.rayleigh), [sp.srepr(f) for f in d.forces],
+                                   [(n, sp.srepr(g)) for n, g in d.constraints],
+                                   [(q.name, sp.srepr(e)) for q, e in d.invariants],
+                                   [(q.name, sp.srepr(e)) for q, e in d.observables],
+                                   [(f.spec, [sp.srepr(e) for e in f.translation + f.rotation])
+                                    for f in d.frames])).encode()).hexdigest()[:12]
+        name = f"{self.id}_{self.formulation}_{key}"
+        cached = codegen.cache_dir() / "derived" / f"{name}.py"
+        if cached.exists():
+            body = cached.read_text()
+        else:
+            body = _derive(d, self._param_index(), self.structure)
+            cached.parent.mkdir(parents=True, exist_ok=True)
+            tmp = cached.with_suffix(".tmp")
+            tmp.write_text(body)
+            tmp.replace(cached)
+        n = len(d.q)
+        return codegen.KernelSource(name=name, constants={
+            "N_Q": n, "N_Y": 2 * n + 2, "N_C": len(d.constraints),
+            "N_INV": len(self.invariants), "N_OBS": len(self.observables),
+            "N_FRAMES": len(d.frames)}, body=body)
+
+    def energy_function_conserved(self) -> bool:
+        d = self.declaration
+        L = d.kinetic - d.potential
+        return (d.t not in L.free_symbols and d.rayleigh == 0
+                and not any(f != 0 for f in d.forces)
+                and not any(d.t in g.free_symbols for _, g in d.constraints))
+
+    def laws(self):  # type: ignore[override]
+        laws = list(super().laws())
+        from mechsim.systems.base import Law
+        if self.energy_function_conserved():
+            laws.insert(1 if laws[0].kind == "energy" else 0,
+                        Law("energy_function", "energy_function"))
+        return tuple(laws)
+
+
+# ---------------------------------------------------------------------------------------------
+# Derivation and code printing
+
+
+def _printer() -> PythonCodePrinter:
+    return PythonCodePrinter({"fully_qualified_modules": True})
+
+
+def _emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
+    """Common-subexpression-eliminated assignments ``target = expr``."""
+    if not assign:
+        return []
+    pr = _printer()
+    targets = [a for a, _ in assign]
+    exprs = [sp.sympify(e) for _, e in assign]
+    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic")
+    lines = [f"{indent}{s} = {pr.doprint(e)}" for s, e in repl]
+    lines += [f"{indent}{tgt} = {pr.doprint(e)}" for tgt, e in zip(targets, reduced, strict=True)]
+    return lines
+
+
+def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
+             q_name: str = "y") -> list[str]:
+    lines = ["    t = t"]
+    n = len(d.q)
+    for i, qs in enumerate(d.q):
+        lines.append(f"    {qs.name} = {q_name}[{i}]")
+    if with_v:
+        for i, vs in enumerate(d.v):
+            lines.append(f"    {vs.name} = y[{n + i}]")
+    for name, sym in d.params.items():
+        lines.append(f"    {sym.name} = p[{pindex[name]}]")
+    return lines
+
+
+def _func(name: str, args: str, body: list[str]) -> str:
+    return "\n".join(["@njit(cache=True)", f"def {name}({args}):", *body, "    return", ""])
+
+
+def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
+    n, nc = len(d.q), len(d.constraints)
+    t, q, v = d.t, sp.Matrix(d.q), sp.Matrix(d.v)
+    T, V, D = d.kinetic, d.potential, d.rayleigh
+    L = T - V
+    dL_dv = sp.Matrix([sp.diff(L, vi) for vi in d.v])
+    M = sp.hessian(T, d.v)
+    forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
+    f = sp.Matrix([
+        sp.diff(L, d.q[i]) - sum(sp.diff(dL_dv[i], d.q[j]) * d.v[j] for j in range(n))
+        - sp.diff(dL_dv[i], t) - sp.diff(D, d.v[i]) + forces[i] for i in range(n)])
+    g = sp.Matrix([c for _, c in d.constraints]) if nc else sp.zeros(0, 1)
+    G = g.jacobian(q) if nc else sp.zeros(0, n)
+    g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
+    gdot = (G * v + g_t) if nc else sp.zeros(0, 1)
+    gamma = (gdot.jacobian(q) * v + sp.diff(gdot, t)) if nc else sp.zeros(0, 1)
+    E = T + V
+    h = (v.T * dL_dv)[0, 0] - L
+    P_diss = sum(d.v[i] * sp.diff(D, d.v[i]) for i in range(n)) if D != 0 else sp.Integer(0)
+    a_syms = [sp.Symbol(f"a_{i}", real=True) for i in range(n)]
+    dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * a_syms[i]
+                             for i in range(n))
+    lam = [d.multiplier(k) for k in range(nc)]
+
+    out: list[str] = []
+    pre = _prelude(d, pindex)
+    # accel(t, y, p, a, lam): M a = f + Gᵀ λ, G a = −γ
+    body = list(pre)
+    diagonal = nc == 0 and M.is_diagonal()
+    if diagonal:
+        body += _emit([(f"a[{i}]", sp.simplify(f[i] / M[i, i])) for i in range(n)])
+    else:
+        m = n + nc
+        body.append(f"    A = np.zeros(({m}, {m}))")
+        body.append(f"    b = np.empty({m})")
+        assign: list[tuple[str, Expr]] = []
+        for i in range(n):
+            for j in range(n):
+                if M[i, j] != 0:
+                    assign.append((f"A[{i}, {j}]", M[i, j]))
+            assign.append((f"b[{i}]", f[i]))
+        for k in range(nc):
+            for j in range(n):
+                if G[k, j] != 0:
+                    assign.append((f"A[{n + k}, {j}]", G[k, j]))
+                    assign.append((f"A[{j}, {n + k}]", -G[k, j]))
+            assign.append((f"b[{n + k}]", -gamma[k]))
+        body += _emit(assign)
+        body.append("    x = _solve(A, b)")
+        body += [f"    a[{i}] = x[{i}]" for i in range(n)]
+        body += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
+    out.append(_func("accel", "t, y, p, a, lam", body))
+
+    # rhs
+    body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+            "    accel(t, y, p, acc, lam)"]
+    body += pre
+    body += [f"    a_{i} = acc[{i}]" for i in range(n)]
+    body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
+    body += [f"    dy[{n + i}] = acc[{i}]" for i in range(n)]
+    body += _emit([("P_diss", P_diss), ("dE", dE)])
+    body += [f"    dy[{2 * n}] = dE + P_diss", f"    dy[{2 * n + 1}] = P_diss"]
+    out.append(_func("rhs", "t, y, p, dy", body))
+
+    # project
+    if nc:
+        body = list(pre)
+        body[1:1 + n] = []  # q read inside the loop
+        body += [f"    G = np.empty(({nc}, {n}))", f"    r = np.empty({nc})",
+                 f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
+        inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
+        inner += _emit([(f"r[{k}]", g[k]) for k in range(nc)]
+                       + [(f"G[{k}, {j}]", G[k, j]) for k in range(nc) for j in range(n)],
+                       indent="        ")
+        inner += ["        _project_onto(G, r, qq)",
+                  "        if np.max(np.abs(r)) < 1e-15:", "            break"]
+        body += inner
+        body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
+        body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
+        body += _emit([(f"r[{k}]", gdot[k]) for k in range(nc)]
+                      + [(f"G[{k}, {j}]", G[k, j]) for k in range(nc) for j in range(n)])
+        body += ["    _project_onto(G, r, vv)"]
+    else:
+        body = ["    pass"]
+    out.append(_func("project", "t, y, p", body))
+
+    # accel_q for separable systems
+    if st.separable:
+        Minv = M.inv()
+        gradV = sp.Matrix([sp.diff(V, qi) for qi in d.q])
+        acc = Minv * (-gradV)
+        body = _prelude(d, pindex, with_v=False, q_name="q")
+        body += _emit([(f"a[{i}]", sp.simplify(acc[i])) for i in range(n)])
+    else:
+        body = ["    pass"]
+    out.append(_func("accel_q", "t, q, p, a", body))
+
+    # energy
+    body = list(pre) + _emit([("out[0]", T), ("out[1]", V), ("out[2]", h)])
+    out.append(_func("energy", "t, y, p, out", body))
+
+    # invariants (declared ones, then constraint residuals)
+    inv = [e for _, e in d.invariants] + [c for _, c in d.constraints]
+    body = list(pre) + (_emit([(f"out[{i}]", e) for i, e in enumerate(inv)]) or ["    pass"])
+    out.append(_func("invariants", "t, y, p, out", body))
+
+    # observables (may use the multipliers)
+    obs = [e for _, e in d.observables]
+    body = list(pre)
+    uses_lam = any(set(lam) & e.free_symbols for e in obs)
+    if uses_lam or any(set(a_syms) & e.free_symbols for e in obs):
+        body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+                 "    accel(t, y, p, acc, lam)"]
+        body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
+        body += [f"    a_{i} = acc[{i}]" for i in range(n)]
+    body += _emit([(f"out[{i}]", e) for i, e in enumerate(obs)]) or ["    pass"]
+    out.append(_func("observables", "t, y, p, out", body))
+
+    # frames
+    assign = []
+    for k, fr in enumerate(d.frames):
+        for c, e in enumerate(fr.translation + fr.rotation):
+            assign.append((f"out[{k}, {c}]", e))
+    body = list(pre) + (_emit(assign) or ["    pass"])
+    out.append(_func("frames", "t, y, p, out", body))
+    return "\n\n".join(out)
+
