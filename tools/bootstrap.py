@@ -1,0 +1,302 @@
+#!/usr/bin/env python3
+"""Create or update the project's virtual environment (stdlib only; run with the system python3).
+
+Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-bootstrap.json):
+
+1. venv      create ./.venv with a Python 3.11 interpreter;
+2. pip       pip install -r requirements.txt;
+3. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
+             .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
+4. project   pip install -e . --no-deps --no-build-isolation;
+5. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
+             src/mechsim_msgs into the venv (build trees under .cache/build/).
+
+Usage: python3 tools/bootstrap.py [--force]. Logs go to .cache/bootstrap/<step>.log.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+VENV = ROOT / ".venv"
+VENV_PY = VENV / "bin" / "python"
+STAMP = VENV / ".mechsim-bootstrap.json"
+CACHE = ROOT / ".cache"
+LOG_DIR = CACHE / "bootstrap"
+BUILD_DIR = CACHE / "build"
+REQUIREMENTS = ROOT / "requirements.txt"
+PY_VERSION = (3, 11)
+# Order matters: mechsim_msgs may one day use tf2_msgs; tf2_msgs needs only the wheels.
+INTERFACE_PACKAGES = ("tf2_msgs", "mechsim_msgs")
+# Where the ROS wheels were built (manylinux image); see ROS_NOTES "pitfall 1".
+WHEEL_BUILD_PYTHON = "/opt/python/cp311-cp311"
+
+# Variables from a sourced ROS install or an outer venv that must not leak into the build.
+_SCRUB_ENV = (
+    "AMENT_PREFIX_PATH",
+    "CMAKE_PREFIX_PATH",
+    "COLCON_PREFIX_PATH",
+    "PYTHONPATH",
+    "PYTHONHOME",
+    "VIRTUAL_ENV",
+    "_ROS_WHEELS_BOOTSTRAP_COMPLETE",
+)
+
+
+class StepFailed(Exception):
+    def __init__(self, reason: str, log: Path | None = None) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.log = log
+
+
+def say(msg: str) -> None:
+    print(f"bootstrap: {msg}", flush=True)
+
+
+def sha256_files(paths: list[Path], extra: str = "") -> str:
+    h = hashlib.sha256(extra.encode())
+    for p in sorted(paths):
+        h.update(str(p.relative_to(ROOT)).encode() + b"\0")
+        h.update(p.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def package_files(pkg: str) -> list[Path]:
+    base = ROOT / "src" / pkg
+    return [p for p in base.rglob("*") if p.is_file() and "__pycache__" not in p.parts]
+
+
+def clean_env() -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in _SCRUB_ENV}
+    env["PATH"] = f"{VENV / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    env["PIP_DISABLE_PIP_VERSION_CHECK"] = "1"
+    return env
+
+
+def run_logged(step: str, cmd: list[str], *, append: bool = False) -> None:
+    """Run cmd with output to the step's log; raise StepFailed with a one-line reason."""
+    LOG_DIR.mkdir(parents=True, exist_ok=True)
+    log = LOG_DIR / f"{step}.log"
+    with log.open("a" if append else "w") as f:
+        f.write(f"$ {' '.join(cmd)}\n")
+        f.flush()
+        rc = subprocess.call(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT, env=clean_env())
+    if rc != 0:
+        raise StepFailed(f"`{Path(cmd[0]).name} {cmd[1] if len(cmd) > 1 else ''}` exited "
+                         f"{rc}: {last_error_line(log)}", log)
+
+
+def last_error_line(log: Path) -> str:
+    lines = [ln.strip() for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
+    pattern = re.compile(r"error|not found|no matching|could not|failed", re.IGNORECASE)
+    for ln in reversed(lines):
+        if pattern.search(ln):
+            return ln[:200]
+    return lines[-1][:200] if lines else "(empty log)"
+
+
+def find_python() -> str:
+    if sys.version_info[:2] == PY_VERSION:
+        return sys.executable
+    name = f"python{PY_VERSION[0]}.{PY_VERSION[1]}"
+    found = shutil.which(name)
+    if found is None:
+        raise StepFailed(f"need Python {name} (the ROS wheels are cp311); not on PATH")
+    return found
+
+
+# --------------------------------------------------------------------------------------- steps
+
+
+def venv_python_ok() -> bool:
+    if not VENV_PY.exists():
+        return False
+    want = f"{PY_VERSION[0]}.{PY_VERSION[1]}"
+    code = "import sys; print('%d.%d' % sys.version_info[:2])"
+    out = subprocess.run([str(VENV_PY), "-c", code], capture_output=True, text=True,
+                         env=clean_env(), check=False)
+    return out.returncode == 0 and out.stdout.strip().endswith(want)
+
+
+def step_venv() -> None:
+    if venv_python_ok():
+        say("reusing existing .venv")
+        return
+    if VENV.exists():
+        shutil.rmtree(VENV)
+    python = find_python()
+    say(f"creating .venv with {python}")
+    run_logged("venv", [python, "-m", "venv", str(VENV)])
+
+
+def step_pip() -> None:
+    say("pip install -r requirements.txt (cold: 1-2 min)")
+    run_logged("pip", [str(VENV_PY), "-m", "pip", "install", "-r", str(REQUIREMENTS)])
+
+
+def venv_paths() -> dict[str, str]:
+    code = (
+        "import json, sysconfig, numpy; "
+        "print(json.dumps({'include': sysconfig.get_paths()['include'], "
+        "'purelib': sysconfig.get_paths()['purelib'], 'numpy': numpy.get_include()}))"
+    )
+    out = subprocess.run([str(VENV_PY), "-c", code], capture_output=True, text=True,
+                         env=clean_env(), check=False)
+    if out.returncode != 0:
+        raise StepFailed(f"venv python cannot report its paths: {out.stderr.strip()[-200:]}")
+    paths: dict[str, str] = json.loads(out.stdout.strip().splitlines()[-1])
+    return paths
+
+
+def step_cmake_paths() -> None:
+    paths = venv_paths()
+    old_sp = f"{WHEEL_BUILD_PYTHON}/lib/python3.11/site-packages"
+    old_inc = f"{WHEEL_BUILD_PYTHON}/include/python3.11"
+    repl = [(f"{old_sp}/numpy/_core/include", paths["numpy"]), (old_sp, paths["purelib"]),
+            (old_inc, paths["include"])]
+    for _, new in repl:
+        if not Path(new).is_dir():
+            raise StepFailed(f"expected directory missing: {new}")
+    changed = 0
+    for f in sorted((VENV / "share").glob("*/cmake/*.cmake")):
+        text = f.read_text()
+        if WHEEL_BUILD_PYTHON not in text:
+            continue
+        for old, new in repl:
+            text = text.replace(old, new)
+        f.write_text(text)
+        changed += 1
+    say(f"rewrote {WHEEL_BUILD_PYTHON} include paths in {changed} cmake files")
+
+
+def step_project() -> None:
+    say("pip install -e . (mechsim, no deps)")
+    run_logged("project", [str(VENV_PY), "-m", "pip", "install", "--no-deps",
+                           "--no-build-isolation", "-e", str(ROOT)])
+
+
+def step_interface(pkg: str) -> None:
+    say(f"building {pkg} (cmake, ~10 s)")
+    src = ROOT / "src" / pkg
+    build = BUILD_DIR / pkg
+    if build.exists():  # from scratch: the message set may have changed
+        shutil.rmtree(build)
+    build.mkdir(parents=True)
+    jobs = str(os.cpu_count() or 2)
+    step = f"build-{pkg}"
+    run_logged(step, [
+        "cmake", "-S", str(src), "-B", str(build),
+        f"-DCMAKE_PREFIX_PATH={VENV}",
+        f"-DCMAKE_INSTALL_PREFIX={VENV}",
+        f"-DPython3_EXECUTABLE={VENV_PY}",
+        "-DBUILD_TESTING=OFF",
+        "-DCMAKE_BUILD_TYPE=Release",
+    ])
+    run_logged(step, ["cmake", "--build", str(build), "-j", jobs], append=True)
+    run_logged(step, ["cmake", "--install", str(build)], append=True)
+
+
+# ----------------------------------------------------------------------------------- driver
+
+
+@contextlib.contextmanager
+def locked() -> Iterator[None]:
+    CACHE.mkdir(parents=True, exist_ok=True)
+    with (CACHE / "bootstrap.lock").open("w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def load_stamp() -> dict[str, str]:
+    try:
+        data = json.loads(STAMP.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def save_stamp(stamp: dict[str, str]) -> None:
+    tmp = STAMP.with_suffix(".tmp")
+    tmp.write_text(json.dumps(stamp, indent=1, sort_keys=True) + "\n")
+    tmp.replace(STAMP)
+
+
+def plan() -> list[tuple[str, str, Callable[[], None]]]:
+    """(step name, input hash, action), in order. A step's hash includes what it builds on."""
+    venv_key = hashlib.sha256(f"{VENV}|{PY_VERSION}".encode()).hexdigest()[:16]
+    pip_key = sha256_files([REQUIREMENTS], venv_key)
+    # The interface builds depend on the ROS/catkin/setuptools pins, not on e.g. pytest's.
+    build_reqs = "\n".join(
+        ln for ln in REQUIREMENTS.read_text().splitlines()
+        if re.match(r"\s*(ros-|catkin|setuptools)", ln, re.IGNORECASE)
+    )
+    build_key = hashlib.sha256(f"{venv_key}|{build_reqs}".encode()).hexdigest()[:16]
+    steps: list[tuple[str, str, Callable[[], None]]] = [
+        ("venv", venv_key, step_venv),
+        ("pip", pip_key, step_pip),
+        ("cmake-paths", pip_key, step_cmake_paths),
+        ("project", sha256_files([ROOT / "pyproject.toml", ROOT / "setup.cfg"], venv_key),
+         step_project),
+    ]
+    for pkg in INTERFACE_PACKAGES:
+        steps.append((pkg, sha256_files(package_files(pkg), build_key),
+                      lambda pkg=pkg: step_interface(pkg)))
+    return steps
+
+
+def bootstrap(force: bool = False) -> int:
+    t0 = time.monotonic()
+    stamp = {} if force or not VENV_PY.exists() else load_stamp()
+    steps = plan()
+    if all(stamp.get(name) == key for name, key, _ in steps):
+        say(f"up to date ({time.monotonic() - t0:.2f} s)")
+        return 0
+    with locked():
+        stamp = {} if force or not VENV_PY.exists() else load_stamp()
+        for name, key, action in steps:
+            if stamp.get(name) == key:
+                continue
+            try:
+                action()
+            except StepFailed as e:
+                where = f" (log: {e.log})" if e.log else ""
+                print(f"bootstrap: FAILED at step '{name}': {e.reason}{where}",
+                      file=sys.stderr, flush=True)
+                return 1
+            if name == "venv":
+                stamp = {}
+            stamp[name] = key
+            save_stamp(stamp)
+    say(f"done ({time.monotonic() - t0:.1f} s)")
+    return 0
+
+
+def main(argv: list[str]) -> int:
+    if any(a in ("-h", "--help") for a in argv):
+        print(__doc__)
+        return 0
+    unknown = [a for a in argv if a != "--force"]
+    if unknown:
+        print(f"bootstrap: unknown argument(s): {' '.join(unknown)}", file=sys.stderr)
+        return 2
+    return bootstrap(force="--force" in argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
