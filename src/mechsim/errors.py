@@ -8,7 +8,7 @@ class MechsimError(Exception):
 
 
 class ParameterError(MechsimError, ValueError):
-    """A parameter, initial condition or scene field is unknown, of the wrong type or out of range."""
+    """A parameter, initial condition or scene field is unknown, mistyped or out of range."""
 
     def __init__(self, field: str, reason: str) -> None:
         self.field = field

@@ -1,4 +1,4 @@
-"""Typed, validated parameters with units: the one spelling used by the API, scenes, the CLI and ROS."""
+"""Typed, validated parameters with units: one spelling for the API, scenes, CLI and ROS."""
 
 from __future__ import annotations
 
@@ -48,7 +48,8 @@ class Parameter:
             if not isinstance(value, str):
                 raise ParameterError(name, f"must be a string (got {value!r})")
             if self.choices is not None and value not in self.choices:
-                raise ParameterError(name, f"must be one of {', '.join(self.choices)} (got {value!r})")
+                raise ParameterError(
+                    name, f"must be one of {', '.join(self.choices)} (got {value!r})")
             return value
         if isinstance(value, bool):
             raise ParameterError(name, f"must be a number (got {value!r})")

@@ -1,4 +1,4 @@
-"""The model interface every system implements, whether declared by a Lagrangian or written directly.
+"""The model interface every system implements, declared by a Lagrangian or written directly.
 
 A model owns its parameters, its generalized coordinates, the names of its invariants and
 observables, the frames it poses, the conservation laws that hold for it, and a compiled kernel
@@ -41,6 +41,26 @@ class FrameSpec:
 
 
 @dataclass(frozen=True)
+class Visual:
+    """How a 3D viewer (Rerun) draws part of the model, in terms of its frames.
+
+    kind: "sphere" (at ``frame``'s origin), "link" (segment from ``frame`` to ``to_frame``),
+    "trail" (path of ``frame``'s origin over time), "polyline" (fixed ``points`` in ``frame``,
+    e.g. a wire or a surface outline), "box" (half-sizes ``size`` centred on ``frame``),
+    "axes" (the frame's axes, length ``radius``), "arrow" (from ``frame``'s origin along the
+    vector ``points[0]`` in that frame).
+    """
+
+    kind: str
+    frame: str
+    to_frame: str | None = None
+    radius: float = 0.05
+    points: tuple[tuple[float, float, float], ...] = ()
+    size: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    color: tuple[int, int, int] = (220, 220, 220)
+
+
+@dataclass(frozen=True)
 class Law:
     """A conservation law the diagnostics node checks.
 
@@ -76,6 +96,8 @@ class Model(ABC):
     source: ClassVar[str]  # document and section, e.g. "seed 000 S1 (Simple pendulum)"
     parameters: ClassVar[tuple[Parameter, ...]]
     formulations: ClassVar[tuple[str, ...]] = ("default",)
+    # One line for the README systems table: which analytic results the tests check.
+    oracles: ClassVar[str] = ""
 
     def __init__(self, **values: Any) -> None:
         self.values: dict[str, Value] = resolve(self.parameter_spec(), values)
@@ -122,6 +144,17 @@ class Model(ABC):
     @property
     def frames(self) -> tuple[FrameSpec, ...]:
         return ()
+
+    def visuals(self) -> tuple[Visual, ...]:
+        """Default look: a sphere and a trail on every moving frame, a link to its parent."""
+        out: list[Visual] = []
+        moving = [f for f in self.frames if not f.static]
+        for f in moving:
+            out.append(Visual("sphere", f.child))
+            out.append(Visual("trail", f.child, color=(120, 170, 255)))
+            if f.parent != "world":
+                out.append(Visual("link", f.parent, to_frame=f.child, radius=0.01))
+        return tuple(out)
 
     @property
     @abstractmethod

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import sympy as sp
 
-from mechsim.params import number, nonnegative, positive
+from mechsim.params import nonnegative, number, positive
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 
@@ -25,6 +25,7 @@ class DrivenOscillator(LagrangianModel):
     id = "driven_oscillator"
     title = "Driven damped harmonic oscillator"
     source = "seed 003 §1.3–1.5: Damped and driven oscillations, resonance and Q"
+    oracles = "full solution (transient + steady state), amplitude D and phase δ, ω_R, Q = ω_R/2β"
     parameters = (
         positive("mass", 1.0, "kg", "mass m"),
         positive("spring_constant", 4.0, "N/m", "spring constant k"),
@@ -94,3 +95,5 @@ class DrivenOscillator(LagrangianModel):
         E = (self.value("initial_rate.x") - D * w * math.sin(delta) + b * C) / w1
         return D * np.cos(w * t - delta) + np.exp(-b * t) * (C * np.cos(w1 * t)
                                                               + E * np.sin(w1 * t))
+
+MODEL = DrivenOscillator

@@ -26,6 +26,7 @@ class Kepler(LagrangianModel):
     id = "kepler"
     title = "Kepler problem (two-body relative orbit)"
     source = "seed 003 ch. 4: Central Force Motion, §4.1 and §4.6 (Kepler problem)"
+    oracles = "Kepler equation position, period 2π√(a³/GM), apsides a(1±e), |A| = μke"
     parameters = (
         positive("gravitational_parameter", 1.0, "m^3/s^2", "GM = G (m₁ + m₂)"),
         positive("reduced_mass", 1.0, "kg", "reduced mass μ = m₁m₂/(m₁+m₂)"),
@@ -86,3 +87,5 @@ class Kepler(LagrangianModel):
             if np.max(np.abs(dE)) < 1e-15:
                 break
         return np.stack([a * (np.cos(E) - e), a * math.sqrt(1 - e * e) * np.sin(E)], axis=-1)
+
+MODEL = Kepler

@@ -30,6 +30,7 @@ class Pendulum(LagrangianModel):
     title = "Simple pendulum (reduced and Lagrange-multiplier forms)"
     source = "seed 000 S1: Dynamical Systems and Constraints, Part 3 – Simple Pendulum"
     formulations = ("reduced", "multiplier")
+    oracles = "exact period 4√(R/g)K(k); tension mg(3cosφ − 2cosφ₀); λ = −T; both forms agree"
     parameters = (
         positive("mass", 1.0, "kg", "bob mass m"),
         positive("length", 1.0, "m", "rod length R"),
@@ -94,3 +95,5 @@ class Pendulum(LagrangianModel):
         """Rod tension at angle φ: T = m g (3 cos φ − 2 cos φ_max) (from energy conservation)."""
         return self.value("mass") * self.value("gravity") * (
             3 * np.cos(phi) - 2 * math.cos(self.amplitude()))
+
+MODEL = Pendulum
