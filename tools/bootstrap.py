@@ -95,16 +95,22 @@ def run_logged(step: str, cmd: list[str], *, append: bool = False) -> None:
         f.flush()
         rc = subprocess.call(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT, env=clean_env())
     if rc != 0:
-        raise StepFailed(f"`{Path(cmd[0]).name} {cmd[1] if len(cmd) > 1 else ''}` exited "
-                         f"{rc}: {last_error_line(log)}", log)
+        what = " ".join([Path(cmd[0]).name, *cmd[1:4]])
+        raise StepFailed(f"`{what}` exited {rc}: {last_error_line(log)}", log)
 
 
 def last_error_line(log: Path) -> str:
+    """The most telling line of a failed command's log (Python exception, compiler/pip error)."""
     lines = [ln.strip() for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
-    pattern = re.compile(r"error|not found|no matching|could not|failed", re.IGNORECASE)
-    for ln in reversed(lines):
-        if pattern.search(ln):
-            return ln[:200]
+    patterns = (
+        (r"^\w*(Error|Exception): ", True),  # Python traceback: its last line
+        (r"\berror\b:|^ERROR:", False),  # gcc / pip: the first one
+        (r"CMake Error|error|not found|failed", False),
+    )
+    for pattern, last in patterns:
+        hits = [ln for ln in lines if re.search(pattern, ln, re.IGNORECASE if not last else 0)]
+        if hits:
+            return (hits[-1] if last else hits[0])[:200]
     return lines[-1][:200] if lines else "(empty log)"
 
 
@@ -143,7 +149,7 @@ def step_venv() -> None:
 
 
 def step_pip() -> None:
-    say("pip install -r requirements.txt (cold: 1-2 min)")
+    say("pip install -r requirements.txt (1-2 min in a new venv)")
     run_logged("pip", [str(VENV_PY), "-m", "pip", "install", "-r", str(REQUIREMENTS)])
 
 
@@ -263,7 +269,11 @@ def plan() -> list[tuple[str, str, Callable[[], None]]]:
 def bootstrap(force: bool = False) -> int:
     t0 = time.monotonic()
     stamp = {} if force or not VENV_PY.exists() else load_stamp()
-    steps = plan()
+    try:
+        steps = plan()
+    except OSError as e:
+        print(f"bootstrap: FAILED: cannot read inputs: {e}", file=sys.stderr, flush=True)
+        return 1
     if all(stamp.get(name) == key for name, key, _ in steps):
         say(f"up to date ({time.monotonic() - t0:.2f} s)")
         return 0
@@ -272,6 +282,12 @@ def bootstrap(force: bool = False) -> int:
         for name, key, action in steps:
             if stamp.get(name) == key:
                 continue
+            # Not current until the step succeeds again; a pip run may restore the wheels'
+            # original cmake files, so it also invalidates the path rewrite.
+            for stale in (name, "cmake-paths") if name == "pip" else (name,):
+                stamp.pop(stale, None)
+            if VENV.is_dir():
+                save_stamp(stamp)
             try:
                 action()
             except StepFailed as e:
