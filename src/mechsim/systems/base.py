@@ -3,7 +3,8 @@
 A model owns its parameters, its generalized coordinates, the names of its invariants and
 observables, the frames it poses, the conservation laws that hold for it, and a compiled kernel
 module (see ``mechsim.codegen``) with the numeric functions the integrators and outputs call.
-State layout everywhere: ``y = [q (n), v = q̇ (n), work_external, work_dissipated]``.
+State layout everywhere: ``y = [q (n), v = q̇ (n), work_external, work_dissipated]``, followed
+by the model's discrete mode entries, if it declares any (``modes``; see ``Event``).
 """
 
 from __future__ import annotations
@@ -78,6 +79,20 @@ class Law:
 
 
 @dataclass(frozen=True)
+class Event:
+    """A state event: the kernel function ``event(t, y, p, out)`` gives one value per event and
+    the event happens where ``out[index]`` changes sign in ``direction``: +1 rising (− to +),
+    −1 falling (+ to −), 0 either. The integrator locates the time on its dense output and
+    stops there; the model's ``handle_event`` returns the state to continue from (a velocity
+    jump, a new discrete mode, or the state unchanged to merely record the time).
+    """
+
+    name: str
+    direction: int = 0
+    description: str = ""
+
+
+@dataclass(frozen=True)
 class Structure:
     """What the equations of motion look like, so `auto` can pick a method."""
 
@@ -145,6 +160,26 @@ class Model(ABC):
     def frames(self) -> tuple[FrameSpec, ...]:
         return ()
 
+    @property
+    def events(self) -> tuple[Event, ...]:
+        """State events (see ``Event``); none by default."""
+        return ()
+
+    @property
+    def modes(self) -> tuple[Quantity, ...]:
+        """Discrete mode entries appended to the state after the work terms (e.g. a contact
+        phase 0/1). Constant between events; only ``handle_event`` changes them."""
+        return ()
+
+    def initial_modes(self) -> np.ndarray:
+        return np.zeros(len(self.modes))
+
+    def handle_event(self, index: int, t: float, y: np.ndarray) -> np.ndarray:
+        """The state to continue from after event ``index`` at time ``t`` (``y`` is a copy of
+        the state there, which may be modified and returned). Default: call the method
+        ``on_<event name>(t, y)``."""
+        return getattr(self, f"on_{self.events[index].name}")(t, y)  # type: ignore[no-any-return]
+
     def visuals(self) -> tuple[Visual, ...]:
         """Default look: a sphere and a trail on every moving frame, a link to its parent."""
         out: list[Visual] = []
@@ -185,6 +220,31 @@ class Model(ABC):
         s = self.structure
         return not (s.dissipative or s.driven or s.time_dependent)
 
+    def energy_scale(self) -> float:
+        """Energy that drifts are measured against: |T₀| + |V₀|, or 1 J if both vanish.
+        Override where the initial energies are not representative (e.g. starting at rest)."""
+        e = np.zeros(3)
+        self.kernels.energy(0.0, self.initial_y(), self.parameter_vector(), e)
+        scale = abs(e[0]) + abs(e[1])
+        return scale if scale > 0 else 1.0
+
+    def law_scales(self) -> dict[str, float]:
+        """Scale of each law's quantity (key: ``Law.key``): relative drift = |change| / scale.
+        Invariants: their initial magnitude (1 if zero); constraints: 1 (residual in SI)."""
+        inv = np.zeros(max(len(self.invariants), 1))
+        self.kernels.invariants(0.0, self.initial_y(), self.parameter_vector(), inv)
+        values = {q.name: abs(float(inv[i])) for i, q in enumerate(self.invariants)}
+        e = self.energy_scale()
+        out: dict[str, float] = {}
+        for law in self.laws():
+            if law.kind in ("energy", "energy_function", "work_balance"):
+                out[law.key] = e
+            elif law.kind == "invariant":
+                out[law.key] = values.get(law.name) or 1.0
+            else:
+                out[law.key] = 1.0
+        return out
+
     def time_scale(self) -> float:
         """A characteristic time (e.g. small-oscillation period), for step-size choices."""
         return 1.0
@@ -196,7 +256,7 @@ class Model(ABC):
 
     def initial_y(self) -> np.ndarray:
         q0, v0 = self.initial_state()
-        y0 = np.concatenate([q0, v0, [0.0, 0.0]]).astype(np.float64)
+        y0 = np.concatenate([q0, v0, [0.0, 0.0], self.initial_modes()]).astype(np.float64)
         self.kernels.project(0.0, y0, self.parameter_vector())
         return y0
 
@@ -211,6 +271,9 @@ class Model(ABC):
             "frames": [{"child": f.child, "parent": f.parent, "static": f.static}
                        for f in self.frames],
             "laws": [law.key for law in self.laws()],
+            **({"events": [{"name": e.name, "direction": e.direction} for e in self.events]}
+               if self.events else {}),
+            **({"modes": [c.name for c in self.modes]} if self.modes else {}),
         }
 
 

@@ -1,0 +1,74 @@
+"""The one output path: every message a node sends goes through an Outlet, which publishes it
+on ROS and hands it, with its topic and time, to any attached sinks (the bag recorder, the
+Rerun logger). In-process sinks see every message, so a recording cannot drop one."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+# QoS by role (ROS_CONVENTIONS §1, §2, §5).
+STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+TF_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                         history=HistoryPolicy.KEEP_LAST)
+CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
+                       durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.VOLATILE,
+                             history=HistoryPolicy.KEEP_LAST)
+
+
+class Sink(Protocol):
+    """Receives every message an outlet sends: ``write(topic, type_name, msg, qos, ns)``."""
+
+    def write(self, topic: str, type_name: str, msg: Any, qos: QoSProfile, ns: int) -> None: ...
+
+
+@dataclass
+class _Channel:
+    publisher: Publisher
+    type_name: str
+    qos: QoSProfile
+
+
+def type_name(msg_type: type) -> str:
+    """'sensor_msgs/msg/JointState' for the class JointState."""
+    module = msg_type.__module__.split(".")
+    return f"{module[0]}/msg/{msg_type.__name__}"
+
+
+class Outlet:
+    """Publishers of one node plus the process's sinks (shared list, attached by the runner)."""
+
+    def __init__(self, node: Node, sinks: list[Sink] | None = None) -> None:
+        self.node = node
+        self.sinks: list[Sink] = sinks if sinks is not None else []
+        self.channels: dict[str, _Channel] = {}
+        self.counts: dict[str, int] = {}
+
+    def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
+        resolved = self.node.resolve_topic_name(topic)
+        if resolved not in self.channels:
+            pub = self.node.create_publisher(msg_type, resolved, qos)
+            self.channels[resolved] = _Channel(pub, type_name(msg_type), qos)
+            self.counts[resolved] = 0
+        return resolved
+
+    def wanted(self, topic: str) -> bool:
+        """Does anything consume ``topic`` (a subscriber anywhere, or a sink)? Cheap (~µs)."""
+        return bool(self.sinks) or self.channels[topic].publisher.get_subscription_count() > 0
+
+    def publish(self, topic: str, msg: Any, ns: int) -> None:
+        ch = self.channels[topic]
+        ch.publisher.publish(msg)
+        self.counts[topic] += 1
+        for sink in self.sinks:
+            sink.write(topic, ch.type_name, msg, ch.qos, ns)
