@@ -191,6 +191,8 @@ def test_work_balance_and_rate(run: mechsim.SimulationResult) -> None:
                        rtol=1e-12)
     assert [law.key for law in m.laws()] == ["work_balance", "invariant:ric_omega_y",
                                               "invariant:frenet_omega_y"]
+    scales = m.law_scales()
+    assert scales["invariant:ric_omega_y"] == pytest.approx(2 * 0.38983, abs=1e-4)
 
 
 def test_parameter_validation() -> None:

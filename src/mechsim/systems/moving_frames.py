@@ -247,6 +247,17 @@ class MovingFrames(DirectModel):
         return (np.array([self.value("initial.curve_parameter")]),
                 np.array([self.value("initial_rate.curve_parameter")]))
 
+    def law_scales(self) -> dict[str, float]:
+        """The ω_y ≡ 0 invariants start at round-off: measure them against the frame's |ω|."""
+        out = super().law_scales()
+        obs = np.zeros(len(self.observables))
+        self.kernels.observables(0.0, self.initial_y(), self.parameter_vector(), obs)
+        names = [o.name for o in self.observables]
+        for frame in ("ric", "frenet"):
+            speed = float(obs[names.index(f"{frame}_angular_speed")])
+            out[f"invariant:{frame}_omega_y"] = speed if speed > 0 else 1.0
+        return out
+
     def time_scale(self) -> float:
         rate = abs(self.value("initial_rate.curve_parameter"))
         return 1.0 / rate if rate > 0 else 1.0
