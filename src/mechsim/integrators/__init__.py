@@ -9,7 +9,23 @@ Methods:
   every step (keeps constraint residuals at round-off). Works for every model.
 - ``yoshida8`` / ``yoshida6`` / ``verlet``: symmetric compositions of velocity Verlet (orders
   8, 6, 2), symplectic and time-reversible, for separable Hamiltonians (bounded energy error).
-- ``auto``: ``yoshida8`` for separable models, else ``dop853``.
+- ``auto``: ``yoshida8`` for separable models, else ``dop853`` (always ``dop853`` for models
+  with events).
+
+Events (``dop853`` only). A model may declare state events (``Model.events``, each an
+``Event(name, direction)``), computed by the kernel function ``event(t, y, p, out)``, and
+discrete modes (``Model.modes``), extra state entries after the work terms that stay constant
+between events. The kernel checks the event functions after every accepted step, locates the
+earliest sign change (in the event's direction) on the dense output to ~1e-14 relative in t,
+writes the outputs up to it and stops there with status EVENT. ``DOP853.advance`` then calls
+``model.handle_event(index, t, y) -> y_new`` (a velocity jump, a new mode, or y unchanged to
+record a time), restarts the integration at (t, y_new) (projection, new first stage and
+initial step; counters kept) and goes on, so ``advance(t_out)`` still returns every requested
+row (rows before an event come from the dense output of the step that crossed it, even when
+a later call asks for them; a row at exactly the event time holds the state after the
+handler). Events are handled when met, also past the last requested time. Each event is
+recorded in ``stepper.events`` as (t, name). Models without events compile the event code out
+and behave bit for bit as before.
 """
 
 from __future__ import annotations
@@ -22,7 +38,9 @@ import numpy as np
 from mechsim.errors import IntegrationError, ParameterError
 from mechsim.systems.base import Model
 
-STATUS = {0: "ok", 1: "too many steps", 2: "step size underflow", 3: "non-finite state"}
+STATUS = {0: "ok", 1: "too many steps", 2: "step size underflow", 3: "non-finite state",
+          4: "event"}
+EVENT = 4
 
 # Yoshida (1990), symmetric compositions of a 2nd-order symmetric method; each tuple lists
 # w_m ... w_1 and the central weight is 1 - 2 Σ w_i.
@@ -48,7 +66,10 @@ def choose_method(model: Model, method: str) -> str:
     if method not in METHODS:
         raise ParameterError("method", f"must be one of {', '.join(METHODS)} (got {method!r})")
     if method == "auto":
-        return "yoshida8" if model.structure.separable else "dop853"
+        return "yoshida8" if model.structure.separable and not model.events else "dop853"
+    if method in COMPOSITIONS and model.events:
+        raise ParameterError("method", f"{method} does not handle events; {model.id} has "
+                             "events: use dop853 or auto")
     if method in COMPOSITIONS and not model.structure.separable:
         raise ParameterError("method", f"{method} needs a separable Hamiltonian; "
                              f"{model.id} ({model.formulation}) is not: use dop853 or auto")
@@ -69,6 +90,7 @@ class Stepper(ABC):
         self.tolerance = float(tolerance)
         self.y = np.array(y0, dtype=np.float64)
         self.t = float(t0)
+        self.events: list[tuple[float, str]] = []  # (time, event name), in order
 
     @abstractmethod
     def advance(self, t_out: np.ndarray) -> np.ndarray: ...
@@ -95,16 +117,27 @@ class DOP853(Stepper):
         self.max_step = max_step
         self.max_steps = max_steps
         self.atol = self.tolerance
+        self.ev_dir = np.array([e.direction for e in model.events] or [0], dtype=np.int64)
+        self.g_old = np.zeros(self.ev_dir.size)
+        self._stalled = 0
         self._reset(self.t, self.y)
 
-    def _reset(self, t: float, y: np.ndarray) -> None:
+    def _reset(self, t: float, y: np.ndarray, keep_dense: bool = False) -> None:
+        """Start afresh at (t, y); step, rejection, evaluation and event counters are kept.
+        ``keep_dense``: the last step's dense output still serves outputs before t (after an
+        event at t, for output times a later ``advance`` asks for)."""
         k = self.kernels
         self.y[:] = y
         k.project(t, self.y, self.p)
         k.rhs(t, self.y, self.p, self.K[12])
         h0 = k.dop853_initial_step(t, self.y, self.p, self.K[12].copy(), self.tolerance,
                                    self.atol)
-        self.st = np.array([t, h0, t, 0.0, 0.0, 0.0, 0.0, 2.0])
+        counts = self.st[5:8] if hasattr(self, "st") else (0.0, 0.0, 2.0)
+        n_events = self.st[9] if hasattr(self, "st") else 0.0
+        last = self.st[2:5].copy() if keep_dense else (t, 0.0, 0.0)
+        self.st = np.array([t, h0, *last, *counts, -1.0, n_events])
+        if self.model.events:
+            k.event(t, self.y, self.p, self.g_old)
 
     def set_parameters(self, p: np.ndarray) -> None:
         super().set_parameters(p)
@@ -117,14 +150,38 @@ class DOP853(Stepper):
     def advance(self, t_out: np.ndarray) -> np.ndarray:
         t_out = np.ascontiguousarray(t_out, dtype=np.float64)
         Y = np.empty((t_out.size, self.y.size))
-        status, written = self.kernels.dop853_advance(
-            self.st, self.y, self.y_old, self.K, self.F, self.p, t_out, Y, self.tolerance,
-            self.atol, self.max_step, self.max_steps)
-        self.t = float(self.st[0])
+        done = 0
+        while True:
+            status, written = self.kernels.dop853_advance(
+                self.st, self.y, self.y_old, self.K, self.F, self.p, t_out[done:], Y[done:],
+                self.tolerance, self.atol, self.max_step, self.max_steps, self.g_old,
+                self.ev_dir)
+            done += written
+            self.t = float(self.st[0])
+            if status != EVENT:
+                break
+            self._handle_event(int(self.st[8]))
         if status != 0:
             raise IntegrationError(f"{self.model.id}: dop853 stopped at t = {self.st[0]:.6g}: "
                                    f"{STATUS[status]}", ) from None
-        return Y[:written]
+        return Y[:done]
+
+    def _handle_event(self, index: int) -> None:
+        """Apply the model's event handler at the event time and restart there."""
+        t = self.t
+        y_new = np.array(self.model.handle_event(index, t, self.y.copy()), dtype=np.float64)
+        if y_new.shape != self.y.shape or not np.all(np.isfinite(y_new)):
+            raise IntegrationError(f"{self.model.id}: handler of event "
+                                   f"{self.model.events[index].name} returned a bad state")
+        if self.events and t - self.events[-1][0] <= 1e-12 * max(1.0, abs(t)):
+            self._stalled += 1
+            if self._stalled > 100:
+                raise IntegrationError(f"{self.model.id}: events accumulate at t = {t:.6g} "
+                                       "(Zeno behaviour); the model must change mode there")
+        else:
+            self._stalled = 0
+        self.events.append((t, self.model.events[index].name))
+        self._reset(t, y_new, keep_dense=True)
 
 
 class Composition(Stepper):
@@ -137,7 +194,7 @@ class Composition(Stepper):
         self.weights, order = COMPOSITIONS[method]
         # Error per unit time ~ (h/τ)^order: pick h so that it is about the tolerance.
         self.h_max = step if step is not None else (
-            model.time_scale() * 0.5 * self.tolerance ** (1.0 / order))
+            model.time_scale() * 0.07 * self.tolerance ** (1.0 / order))
         self.st = np.array([self.t, 0.0, 0.0])
         self.a = np.empty(model.coordinates.__len__())
         self.kernels.accel_q(self.t, self.y[: self.a.size], self.p, self.a)
