@@ -66,6 +66,9 @@ class SimulationResult:
     outputs: Outputs
     wall_time: float
     n_steps: int
+    # Events met on the way, as (time, event name); the discrete mode entries at each sample.
+    events: list[tuple[float, str]] = field(default_factory=list)
+    modes: np.ndarray | None = None
 
     @property
     def kinetic(self) -> np.ndarray:
@@ -98,6 +101,14 @@ class SimulationResult:
     def balance_residual(self) -> np.ndarray:
         """(total − total₀) − (W_ext − W_diss): zero up to integration error."""
         return (self.total - self.total[0]) - (self.work_external - self.work_dissipated)
+
+    def event_times(self, name: str | None = None) -> np.ndarray:
+        """Times of the events met (of one event name, if given)."""
+        return np.array([t for t, n in self.events if name is None or n == name])
+
+    def mode(self, name: str) -> np.ndarray:
+        assert self.modes is not None
+        return self.modes[:, [c.name for c in self.model.modes].index(name)]
 
     def coordinate(self, name: str) -> np.ndarray:
         names = [c.name for c in self.model.coordinates]
@@ -142,4 +153,6 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
     return SimulationResult(model=model, method=stepper.method, tolerance=tolerance, t=t,
                             q=Y[:, :n], v=Y[:, n:2 * n], work_external=Y[:, 2 * n],
                             work_dissipated=Y[:, 2 * n + 1], outputs=out, wall_time=wall,
-                            n_steps=stepper.n_steps)
+                            n_steps=stepper.n_steps,
+                            events=[e for e in stepper.events if e[0] <= t[-1]],
+                            modes=Y[:, 2 * n + 2:])

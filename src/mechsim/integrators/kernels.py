@@ -8,6 +8,14 @@ advance a run output by output with no restart cost and no forced short steps.
 DOP853: Hairer's explicit Runge-Kutta 8(5,3) with the 7th-order dense output, the coefficients
 taken from scipy (``scipy.integrate._ivp.dop853_coefficients``), the same error norm and step
 control as scipy's ``DOP853`` so that tolerances mean the same thing in both.
+Events (models with N_EV > 0 only; the code is compiled out otherwise, so DOP853 is unchanged
+for every other model): after each accepted step the event functions are evaluated; a sign
+change in an event's declared direction is bracketed in (t_old, t] and its time found on the
+dense output (Illinois false position with bisection fallback, to ~1e-14 relative in t). The
+earliest event of the step wins: outputs before it are written, the state is left at the event
+time (on the side of the sign change the event reached) and ``dop853_advance`` returns EVENT.
+The step's dense output stays valid for (t_old, t_event], so outputs before the event that a
+later call asks for still come from it after the caller has restarted at the event.
 Composition: a symmetric composition of velocity Verlet (kick-drift-kick) with given weights.
 """
 
@@ -20,6 +28,7 @@ from numba import njit
 
 from mechsim.integrators.contract import (
     N_C,
+    N_EV,
     N_FRAMES,
     N_INV,
     N_OBS,
@@ -27,6 +36,7 @@ from mechsim.integrators.contract import (
     N_Y,
     accel_q,
     energy,
+    event,
     frames,
     invariants,
     observables,
@@ -42,6 +52,7 @@ OK = 0
 MAX_STEPS = 1
 STEP_UNDERFLOW = 2
 NOT_FINITE = 3
+EVENT = 4
 
 _DOP_A = np.ascontiguousarray(_dop.A)
 _DOP_B = np.ascontiguousarray(_dop.B)
@@ -89,7 +100,8 @@ def _solve(A, b):
 
 @njit(cache=True)
 def _project_onto(G, r, x):
-    """x -= Gᵀ (G Gᵀ)⁻¹ r: the least-norm correction that removes the residual r."""
+    """x -= Gᵀ (G Gᵀ)⁻¹ r: the least-norm correction that removes the residual r.
+    A zero row of G (a released constraint, with r = 0 there) is skipped."""
     nc = r.size
     GG = np.empty((nc, nc))
     for i in range(nc):
@@ -98,6 +110,8 @@ def _project_onto(G, r, x):
             for k in range(x.size):
                 s += G[i, k] * G[j, k]
             GG[i, j] = s
+        if GG[i, i] == 0.0:
+            GG[i, i] = 1.0
     mu = _solve(GG, r)
     for k in range(x.size):
         s = 0.0
@@ -128,7 +142,7 @@ def dop853_initial_step(t, y, p, f0, rtol, atol):
     else:
         h0 = 0.01 * d0 / d1
     y1 = y + h0 * f0
-    f1 = np.empty(n)
+    f1 = np.zeros(n)
     rhs(t + h0, y1, p, f1)
     d2 = _rms_norm(f1 - f0, scale) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
@@ -180,11 +194,73 @@ def _dense_prepare(st, y, y_old, K, F, p):
 
 
 @njit(cache=True)
-def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps):
+def _crossed(g0, g1, direction):
+    """A sign change from g0 to g1 in ``direction`` (+1 rising, -1 falling, 0 either)."""
+    if direction >= 0 and g0 < 0.0 <= g1:
+        return True
+    return direction <= 0 and g0 > 0.0 >= g1
+
+
+@njit(cache=True)
+def _event_at(t, F, y_old, t_old, h, p, ytmp, g, i):
+    """Event function ``i`` on the dense output of the last step at time t (projected)."""
+    _dense_eval(F, y_old, (t - t_old) / h, ytmp)
+    if N_C > 0:
+        project(t, ytmp, p)
+    event(t, ytmp, p, g)
+    return g[i]
+
+
+@njit(cache=True)
+def _locate_event(F, y_old, t_old, h, p, i, a, fa, b, fb):
+    """Root of event ``i`` bracketed by (a, fa) and (b, fb), fb on the far side of the sign
+    change or zero: Illinois false position, bisecting when the bracket shrinks slowly.
+    Returns the bracket end on the far side (so the event has happened there)."""
+    ytmp = np.empty(y_old.size)
+    g = np.empty(N_EV)
+    side = 0
+    slow = 0
+    for _ in range(200):
+        width = b - a
+        tol = max(1e-14 * max(abs(a), abs(b)), 4.0 * (np.nextafter(b, np.inf) - b))
+        if width <= tol or fb == 0.0:
+            break
+        if slow >= 2:
+            c = 0.5 * (a + b)
+            slow = 0
+        else:
+            c = b - fb * (b - a) / (fb - fa)
+            if not (a < c < b):
+                c = 0.5 * (a + b)
+        fc = _event_at(c, F, y_old, t_old, h, p, ytmp, g, i)
+        if (fc > 0.0) == (fb > 0.0) or fc == 0.0:
+            b = c
+            fb = fc
+            if side == 1:
+                fa *= 0.5
+            side = 1
+        else:
+            a = c
+            fa = fc
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        if b - a > 0.5 * width:
+            slow += 1
+        else:
+            slow = 0
+    return b
+
+
+@njit(cache=True)
+def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
+                   g_old, ev_dir):
     """Advance until every time in ``t_out`` (increasing, >= st[0] of the last step start) is
     written to ``Y_out``. State ``st`` = [t, h_next, t_old, h_old, dense_ready, n_steps,
-    n_rejected, n_rhs]; ``y`` current state, ``y_old``/``K``/``F`` the last step's data, with
-    K[12] = f(t, y) on entry. Returns (status, number of outputs written)."""
+    n_rejected, n_rhs, last_event, n_events]; ``y`` current state, ``y_old``/``K``/``F`` the
+    last step's data, with K[12] = f(t, y) on entry; ``g_old`` the event functions at (t, y),
+    ``ev_dir`` their directions. Returns (status, number of outputs written); on EVENT the
+    state is at the event time st[0] (outputs before it written) and st[8] is its index."""
     n = y.size
     y_new = np.empty(n)
     ytmp = np.empty(n)
@@ -280,6 +356,34 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
             st[1] = h * factor
             steps += 1
             st[5] += 1.0
+            if N_EV > 0:
+                g_new = np.empty(N_EV)
+                event(t_new, y, p, g_new)
+                first = -1
+                t_ev = t_new
+                for i in range(N_EV):
+                    if _crossed(g_old[i], g_new[i], ev_dir[i]):
+                        if st[4] == 0.0:
+                            _dense_prepare(st, y, y_old, K, F, p)
+                        ti = _locate_event(F, y_old, t, h, p, i, t, g_old[i], t_new, g_new[i])
+                        if first < 0 or ti < t_ev:
+                            first = i
+                            t_ev = ti
+                if first >= 0:
+                    while k < n_out and t_out[k] < t_ev:
+                        _dense_eval(F, y_old, (t_out[k] - t) / h, Y_out[k])
+                        if N_C > 0:
+                            project(t_out[k], Y_out[k], p)
+                        k += 1
+                    if t_ev < t_new:
+                        _dense_eval(F, y_old, (t_ev - t) / h, y)
+                        if N_C > 0:
+                            project(t_ev, y, p)
+                    st[0] = t_ev
+                    st[8] = first
+                    st[9] += 1.0
+                    return EVENT, k
+                g_old[:] = g_new
             while k < n_out and t_out[k] <= t_new:
                 if t_out[k] == t_new:
                     Y_out[k, :] = y

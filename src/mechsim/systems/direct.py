@@ -8,6 +8,9 @@ generated kernel module and compiled by numba, so they may use only ``math``, ``
 other, the size constants (N_Q, ...) and one constant per numeric parameter giving its index
 in ``p``: ``P_<NAME>`` (upper case, dots as underscores; e.g. ``p[P_MASS]``,
 ``p[P_INITIAL_ANGLE]``). Missing contract functions default to doing nothing.
+Events: declare ``events`` (``Event(name, direction)``) and ``modes`` (discrete state entries,
+read in kernels as ``y[2 * N_Q + 2 + i]``), give an ``event(t, y, p, out)`` kernel function and
+handle each event in a method ``on_<event name>(t, y) -> y`` (see ``mechsim.integrators``).
 """
 
 from __future__ import annotations
@@ -22,10 +25,12 @@ from typing import ClassVar
 from mechsim import codegen
 from mechsim.systems.base import Model
 
-_CONTRACT = ("rhs", "project", "accel_q", "energy", "invariants", "observables", "frames")
+_CONTRACT = ("rhs", "project", "accel_q", "energy", "invariants", "observables", "frames",
+             "event")
 _SIGNATURES = {"rhs": "t, y, p, dy", "project": "t, y, p", "accel_q": "t, q, p, a",
                "energy": "t, y, p, out", "invariants": "t, y, p, out",
-               "observables": "t, y, p, out", "frames": "t, y, p, out"}
+               "observables": "t, y, p, out", "frames": "t, y, p, out",
+               "event": "t, y, p, out"}
 
 
 def parameter_constant(name: str) -> str:
@@ -51,9 +56,9 @@ class DirectModel(Model):
         numeric = [p.name for p in self.parameter_spec() if p.is_numeric]
         n = len(self.coordinates)
         constants: dict[str, int | float] = {
-            "N_Q": n, "N_Y": 2 * n + 2, "N_C": self.structure.n_constraints,
+            "N_Q": n, "N_Y": 2 * n + 2 + len(self.modes), "N_C": self.structure.n_constraints,
             "N_INV": len(self.invariants), "N_OBS": len(self.observables),
-            "N_FRAMES": len(self.frames)}
+            "N_FRAMES": len(self.frames), "N_EV": len(self.events), "N_MODE": len(self.modes)}
         constants.update({parameter_constant(name): i for i, name in enumerate(numeric)})
         tag = self.formulation if len(self.formulations) > 1 else "direct"
         return codegen.KernelSource(name=f"{self.id}_{tag}", constants=constants,

@@ -10,7 +10,11 @@ that declaration sympy derives, once per declaration (the generated module is ca
 - the power balance: dissipated power P_d = Σ q̇ ∂D/∂q̇, and the external power
   P_ext = dE/dt + P_d with dE/dt from the chain rule on E = T + V, so the integrated work terms
   close total − total₀ = W_ext − W_d by construction of the equations, not of the outputs;
-- constraint projection, invariants, observables (which may use the multipliers λ) and frames.
+- constraint projection, invariants, observables (which may use the multipliers λ) and frames;
+- state events (``b.event``: a sign change of an expression, which may use λ) with discrete
+  modes (``b.mode``: extra state entries an expression may switch on, e.g. a constraint that is
+  active only in contact, ``b.constraint(name, g, active=...)``); the model handles each event
+  in a method ``on_<event name>(t, y) -> y`` (see ``mechsim.integrators``).
 
 No equation of motion is typed by hand, so no typo of the source documents can reach the code.
 """
@@ -27,7 +31,7 @@ import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
-from mechsim.systems.base import FrameSpec, Model, Quantity, Structure
+from mechsim.systems.base import Event, FrameSpec, Model, Quantity, Structure
 
 Expr = sp.Expr
 
@@ -57,6 +61,10 @@ class LagrangianBuilder:
     observables: list[tuple[Quantity, Expr]] = field(default_factory=list)
     frames: list[_Frame] = field(default_factory=list)
     params: dict[str, sp.Symbol] = field(default_factory=dict)
+    active: dict[int, Expr] = field(default_factory=dict)  # constraint index -> activity 0/1
+    events: list[tuple[Event, Expr]] = field(default_factory=list)
+    modes: list[Quantity] = field(default_factory=list)
+    mode_symbols: list[sp.Symbol] = field(default_factory=list)
 
     def coordinate(self, name: str, unit: str) -> tuple[sp.Symbol, sp.Symbol]:
         """Declare a generalized coordinate; returns (q, q̇) symbols."""
@@ -83,9 +91,30 @@ class LagrangianBuilder:
         """λ of constraint ``index``: M q̈ = f + Gᵀλ, so λ·∂g/∂q is the constraint force."""
         return sp.Symbol(f"lam_{index}", real=True)
 
-    def constraint(self, name: str, g: Expr) -> None:
-        """Holonomic constraint g(q, t) = 0; its residual is published as constraint_<name>."""
+    def constraint(self, name: str, g: Expr, active: Expr | None = None) -> None:
+        """Holonomic constraint g(q, t) = 0; its residual is published as constraint_<name>.
+
+        ``active``: an expression of the modes that is 1 where the constraint holds and 0 where
+        it is released (then its λ is 0 and its published residual is 0); None: always."""
+        if active is not None:
+            self.active[len(self.constraints)] = sp.sympify(active)
         self.constraints.append((name, g))
+
+    def mode(self, name: str) -> sp.Symbol:
+        """Declare a discrete mode entry of the state (constant between events, set by the
+        model's event handlers; initial value from ``initial_modes``); returns its symbol."""
+        sym = sp.Symbol(f"mode_{name}", real=True)
+        self.modes.append(Quantity(name))
+        self.mode_symbols.append(sym)
+        return sym
+
+    def event(self, name: str, expr: Expr, direction: int = 0, description: str = "") -> None:
+        """A state event where ``expr`` (of t, q, q̇, modes, λ) changes sign in ``direction``
+        (+1 rising, −1 falling, 0 either); the model's method ``on_<name>(t, y) -> y`` is
+        called there."""
+        if direction not in (-1, 0, 1):
+            raise ValueError(f"event {name}: direction must be -1, 0 or +1")
+        self.events.append((Event(name, direction, description), sp.sympify(expr)))
 
     def invariant(self, name: str, unit: str, expr: Expr) -> None:
         self.invariants.append((Quantity(name, unit), expr))
@@ -136,6 +165,14 @@ class LagrangianModel(Model):
     def frames(self) -> tuple[FrameSpec, ...]:
         return tuple(f.spec for f in self.declaration.frames)
 
+    @property
+    def events(self) -> tuple[Event, ...]:
+        return tuple(e for e, _ in self.declaration.events)
+
+    @property
+    def modes(self) -> tuple[Quantity, ...]:
+        return tuple(self.declaration.modes)
+
     @cached_property
     def structure(self) -> Structure:
         d = self.declaration
@@ -170,7 +207,10 @@ class LagrangianModel(Model):
                                    [(q.name, sp.srepr(e)) for q, e in d.invariants],
                                    [(q.name, sp.srepr(e)) for q, e in d.observables],
                                    [(f.spec, [sp.srepr(e) for e in f.translation + f.rotation])
-                                    for f in d.frames])).encode()).hexdigest()[:12]
+                                    for f in d.frames], "events",
+                                   [(e, sp.srepr(x)) for e, x in d.events],
+                                   [(k, sp.srepr(a)) for k, a in sorted(d.active.items())],
+                                   [q.name for q in d.modes])).encode()).hexdigest()[:12]
         name = f"{self.id}_{self.formulation}_{key}"
         cached = codegen.cache_dir() / "derived" / f"{name}.py"
         if cached.exists():
@@ -183,9 +223,10 @@ class LagrangianModel(Model):
             tmp.replace(cached)
         n = len(d.q)
         return codegen.KernelSource(name=name, constants={
-            "N_Q": n, "N_Y": 2 * n + 2, "N_C": len(d.constraints),
+            "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
             "N_INV": len(self.invariants), "N_OBS": len(self.observables),
-            "N_FRAMES": len(d.frames)}, body=body)
+            "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes)},
+            body=body)
 
     def energy_function_conserved(self) -> bool:
         d = self.declaration
@@ -233,6 +274,8 @@ def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
     if with_v:
         for i, vs in enumerate(d.v):
             lines.append(f"    {vs.name} = y[{n + i}]")
+        for i, ms in enumerate(d.mode_symbols):
+            lines.append(f"    {ms.name} = y[{2 * n + 2 + i}]")
     for name, sym in d.params.items():
         lines.append(f"    {sym.name} = p[{pindex[name]}]")
     return lines
@@ -265,6 +308,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * a_syms[i]
                              for i in range(n))
     lam = [d.multiplier(k) for k in range(nc)]
+    active = d.active
+    act = [active.get(k, sp.Integer(1)) for k in range(nc)]
 
     out: list[str] = []
     pre = _prelude(d, pindex)
@@ -286,9 +331,11 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         for k in range(nc):
             for j in range(n):
                 if G[k, j] != 0:
-                    assign.append((f"A[{n + k}, {j}]", G[k, j]))
-                    assign.append((f"A[{j}, {n + k}]", -G[k, j]))
-            assign.append((f"b[{n + k}]", -gamma[k]))
+                    assign.append((f"A[{n + k}, {j}]", act[k] * G[k, j]))
+                    assign.append((f"A[{j}, {n + k}]", -act[k] * G[k, j]))
+            if k in active:  # released: the row reads λ_k = 0
+                assign.append((f"A[{n + k}, {n + k}]", 1 - act[k]))
+            assign.append((f"b[{n + k}]", -act[k] * gamma[k]))
         body += _emit(assign)
         body.append("    x = _solve(A, b)")
         body += [f"    a[{i}] = x[{i}]" for i in range(n)]
@@ -313,16 +360,18 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         body += [f"    G = np.empty(({nc}, {n}))", f"    r = np.empty({nc})",
                  f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
         inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
-        inner += _emit([(f"r[{k}]", g[k]) for k in range(nc)]
-                       + [(f"G[{k}, {j}]", G[k, j]) for k in range(nc) for j in range(n)],
+        inner += _emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
+                       + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                          for j in range(n)],
                        indent="        ")
         inner += ["        _project_onto(G, r, qq)",
                   "        if np.max(np.abs(r)) < 1e-15:", "            break"]
         body += inner
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
-        body += _emit([(f"r[{k}]", gdot[k]) for k in range(nc)]
-                      + [(f"G[{k}, {j}]", G[k, j]) for k in range(nc) for j in range(n)])
+        body += _emit([(f"r[{k}]", act[k] * gdot[k]) for k in range(nc)]
+                      + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                         for j in range(n)])
         body += ["    _project_onto(G, r, vv)"]
     else:
         body = ["    pass"]
@@ -344,7 +393,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     out.append(_func("energy", "t, y, p, out", body))
 
     # invariants (declared ones, then constraint residuals)
-    inv = [e for _, e in d.invariants] + [c for _, c in d.constraints]
+    inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(act, d.constraints,
+                                                                      strict=True)]
     body = list(pre) + (_emit([(f"out[{i}]", e) for i, e in enumerate(inv)]) or ["    pass"])
     out.append(_func("invariants", "t, y, p, out", body))
 
@@ -359,6 +409,17 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         body += [f"    a_{i} = acc[{i}]" for i in range(n)]
     body += _emit([(f"out[{i}]", e) for i, e in enumerate(obs)]) or ["    pass"]
     out.append(_func("observables", "t, y, p, out", body))
+
+    # events (may use the multipliers, like observables)
+    evx = [e for _, e in d.events]
+    body = list(pre)
+    if any((set(lam) | set(a_syms)) & e.free_symbols for e in evx):
+        body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+                 "    accel(t, y, p, acc, lam)"]
+        body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
+        body += [f"    a_{i} = acc[{i}]" for i in range(n)]
+    body += _emit([(f"out[{i}]", e) for i, e in enumerate(evx)]) or ["    pass"]
+    out.append(_func("event", "t, y, p, out", body))
 
     # frames
     assign = []
