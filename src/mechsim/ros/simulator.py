@@ -75,7 +75,7 @@ class SimulatorNode(Node):
                  publish_rate: float = 100.0, real_time_factor: float = 1.0,
                  publish_clock: bool = False, sinks: list[Sink] | None = None,
                  time_offset: float = messages.DEFAULT_TIME_OFFSET) -> None:
-        super().__init__(instance.system, namespace=instance.name, context=context)
+        super().__init__("simulator", namespace=instance.name, context=context)
         self.instance = instance
         self.cls: type[Model] = system_class(instance.system)
         self.spec = {p.name: p for p in self.cls.parameter_spec()}
@@ -99,7 +99,7 @@ class SimulatorNode(Node):
             description=f"integrator ({', '.join(METHODS)})"))
         self.declare_parameter("tolerance", float(self.tolerance), ParameterDescriptor(
             description="integrator tolerance (relative and absolute)",
-            floating_point_range=[FloatingPointRange(from_value=1e-15, to_value=0.1)]))
+            floating_point_range=[FloatingPointRange(from_value=1e-15, to_value=0.99)]))
         self.declare_parameter("publish_rate", float(publish_rate), ParameterDescriptor(
             description="samples per second of simulation time [Hz]",
             floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10000.0)]))
