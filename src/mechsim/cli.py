@@ -51,7 +51,7 @@ def print_summary(run: Any) -> None:
     from mechsim.ros.diagnostics import LEVEL_NAMES
 
     print(f"\nConservation results ({run.scene.name}: {run.sim_time:g} s simulated in "
-          f"{run.wall_time:.2f} s wall):")
+          f"{run.wall_time:.2f} s wall after {run.startup_time:.2f} s start-up):")
     rows = sorted(run.summary)
     w1 = max([len("system")] + [len(r[0]) for r in rows])
     w2 = max([len("law")] + [len(r[1]) for r in rows])
@@ -92,7 +92,11 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.rate is not None:
         from mechsim.scene import _number
         scene.publish_rate = _number("--rate", a.rate)
+    bag = a.bag or scene.bag
     if a.processes:
+        if a.bag:
+            from mechsim.errors import ParameterError
+            raise ParameterError("--bag", "not available with --processes (record in-process)")
         from mechsim.ros.launch import run_processes
         return run_processes(Path(a.target), scene, a.set, a.duration or scene.duration)
     from mechsim.ros.launch import run_scene
@@ -103,8 +107,16 @@ def cmd_run(a: argparse.Namespace) -> int:
     print(f"mechsim: running scene {scene.name!r} ({len(scene.systems)} systems, "
           f"{'as fast as possible' if (fast or scene.pacing == 'fast') else 'real time'}"
           f"{f', {duration:g} s' if duration else ', until Ctrl-C'})", file=sys.stderr)
-    run = run_scene(scene, fast=fast, duration=duration, progress=show)
+    lines: list[str] = []
+    if bag is not None:
+        from mechsim.ros.record import run_with_outputs
+        run, lines = run_with_outputs(scene, fast=fast, duration=duration, bag=bag,
+                                      progress=show)
+    else:
+        run = run_scene(scene, fast=fast, duration=duration, progress=show)
     print_summary(run)
+    for line in lines:
+        print(f"  outputs: {line}")
     return 1 if run.failures else 0
 
 
@@ -123,7 +135,14 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--fast", action="store_true", help="as fast as possible")
     r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
     r.add_argument("--processes", action="store_true", help="one process per node")
+    r.add_argument("--bag", metavar="DIR", help="also record every message to a new rosbag2 "
+                   "bag (strftime fields expanded)")
     r.set_defaults(func=cmd_run)
+    from mechsim.ros import record, replay, topic_tools  # parsers only; ROS imported lazily
+    record.add_parser(sub)
+    record.add_bag_parser(sub)
+    replay.add_parser(sub)
+    topic_tools.add_parser(sub)
     return ap
 
 

@@ -1,0 +1,160 @@
+"""``mechsim replay DIR``: republish a recorded bag into the live ROS graph.
+
+Messages go out in recording order with their original relative timing (``--rate`` scales it;
+``--rate 0`` = as fast as possible), each on its topic with its recorded type and the QoS of the
+bag metadata (reliability, durability: /tf_static and system_info stay transient local). The
+player publishes ``/clock`` (best effort, depth 1) itself from the messages' log times, which
+are the stamps the simulator wrote, so nodes with ``use_sim_time`` follow the recording; a
+``/clock`` stored in the bag is not republished (as ``ros2 bag play --clock``). With ``--loop``
+the bag starts over and the clock jumps back to its start, as with ``ros2 bag play --loop``.
+``--delay`` (default 0.5 s) leaves time for discovery before the first message, so subscribers
+that were already running get the first messages too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from mechsim.errors import MechsimError, ParameterError
+
+
+@dataclass
+class ReplayStats:
+    messages: int = 0
+    clock: int = 0
+    loops: int = 0
+    per_topic: dict[str, int] = field(default_factory=dict)
+    sim_span: float = 0.0
+    wall: float = 0.0
+
+
+def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
+           topics: list[str] | None = None, delay: float = 0.5,
+           context: Any = None) -> ReplayStats:
+    from mechsim.ros.environment import import_rclpy
+
+    rclpy = import_rclpy()
+    from rclpy.node import Node
+    from rclpy.serialization import deserialize_message
+    from rclpy.signals import SignalHandlerOptions
+    from rosgraph_msgs.msg import Clock
+
+    from mechsim.ros import messages
+    from mechsim.ros.bag import message_class, qos_profile, read_messages, read_metadata, topic_qos
+    from mechsim.ros.outlet import CLOCK_QOS
+
+    d = Path(path)
+    meta = read_metadata(d)
+    known = topic_qos(meta)
+    if topics:
+        missing = [t for t in topics if t not in known]
+        if missing:
+            raise ParameterError("--topics", f"{', '.join(missing)} not in bag {d} (it has: "
+                                 f"{', '.join(sorted(known))})")
+    selected = [t for t in (topics or list(known)) if t != "/clock"]
+    classes = {t: message_class(known[t][0]) for t in selected}
+
+    own_context = context is None
+    if own_context:
+        context = rclpy.context.Context()
+        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    node = Node("mechsim_replay", namespace="mechsim", context=context)
+    stats = ReplayStats()
+    try:
+        pubs = {t: node.create_publisher(classes[t], t, qos_profile(known[t][1]))
+                for t in selected}
+        clock_pub = node.create_publisher(Clock, "/clock", CLOCK_QOS)
+        time.sleep(max(delay, 0.0))
+        start = time.monotonic()
+        while True:
+            t0: int | None = None
+            last_clock = -1
+            wall0 = time.monotonic()
+            for m in read_messages(d, selected or ["/clock"]):
+                if m.topic not in pubs:
+                    continue
+                if t0 is None:
+                    t0 = m.log_time
+                if rate > 0:
+                    wait = wall0 + (m.log_time - t0) / 1e9 / rate - time.monotonic()
+                    if wait > 0:
+                        time.sleep(wait)
+                if m.log_time > last_clock:
+                    clock_pub.publish(messages.clock(m.log_time))
+                    last_clock = m.log_time
+                    stats.clock += 1
+                try:
+                    msg = deserialize_message(m.data, classes[m.topic])
+                except Exception:  # noqa: BLE001 - rclpy raises plain exceptions on bad CDR
+                    raise MechsimError(f"bag {d}: a {known[m.topic][0]} message on {m.topic} "
+                                       "does not deserialize (corrupt bag)") from None
+                pubs[m.topic].publish(msg)
+                stats.messages += 1
+                stats.per_topic[m.topic] = stats.per_topic.get(m.topic, 0) + 1
+                if t0 is not None:
+                    stats.sim_span = max(stats.sim_span, (m.log_time - t0) / 1e9)
+            stats.loops += 1
+            if not loop or stats.messages == 0:
+                break
+        stats.wall = time.monotonic() - start
+        _wait_acked(list(pubs.values()))
+    except KeyboardInterrupt:
+        _wait_acked(list(pubs.values()) if "pubs" in locals() else [])
+    finally:
+        node.destroy_node()
+        if own_context:
+            context.try_shutdown()
+    return stats
+
+
+def _wait_acked(pubs: list[Any], timeout: float = 2.0) -> None:
+    """Let reliable subscribers receive the tail of the replay before the publishers go."""
+    from rclpy.duration import Duration
+    from rclpy.qos import ReliabilityPolicy
+
+    end = time.monotonic() + timeout
+    for p in pubs:
+        if p.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
+            left = end - time.monotonic()
+            if left <= 0:
+                break
+            try:
+                p.wait_for_all_acked(Duration(seconds=left))
+            except Exception:  # noqa: BLE001 - best effort at shutdown
+                pass
+
+
+def cmd_replay(a: argparse.Namespace) -> int:
+    if not (a.rate >= 0 and a.rate < float("inf")):
+        raise ParameterError("--rate", f"must be >= 0 (0: as fast as possible; got {a.rate!r})")
+    if not (a.delay >= 0 and a.delay < 3600):
+        raise ParameterError("--delay", f"must be between 0 and 3600 s (got {a.delay!r})")
+    from mechsim.ros.bag import read_metadata
+
+    meta = read_metadata(Path(a.bag))  # a bad bag fails here, before ROS starts
+    pace = "as fast as possible" if a.rate == 0 else f"at {a.rate:g}x"
+    print(f"mechsim: replaying {a.bag} ({meta['message_count']} messages, "
+          f"{meta['duration']['nanoseconds'] / 1e9:g} s) {pace}"
+          f"{', looping' if a.loop else ''}", file=sys.stderr)
+    s = replay(a.bag, rate=a.rate, loop=a.loop, topics=a.topics or None, delay=a.delay)
+    print(f"mechsim: replayed {s.messages} messages on {len(s.per_topic)} topics "
+          f"({s.loops} pass{'es' if s.loops != 1 else ''}, {s.clock} /clock ticks) "
+          f"in {s.wall:.2f} s", file=sys.stderr)
+    return 0
+
+
+def add_parser(sub: Any) -> None:
+    r = sub.add_parser("replay", help="republish a recorded bag (with /clock)")
+    r.add_argument("bag", metavar="DIR")
+    r.add_argument("--rate", type=float, default=1.0,
+                   help="speed factor (default 1; 0 = as fast as possible)")
+    r.add_argument("--loop", action="store_true", help="start over at the end, until Ctrl-C")
+    r.add_argument("--topics", nargs="+", metavar="TOPIC", help="only these topics")
+    r.add_argument("--delay", type=float, default=0.5,
+                   help="wall seconds to wait for discovery before the first message")
+    r.set_defaults(func=cmd_replay)
