@@ -24,7 +24,8 @@ class SceneRun:
 
     scene: Scene
     sim_time: float
-    wall_time: float
+    wall_time: float  # stepping and publishing, after start-up
+    startup_time: float  # building the nodes (kernel loading or compilation)
     samples: dict[str, int]
     messages: dict[str, int]
     summary: list[tuple[str, str, float, int]] = field(default_factory=list)
@@ -120,6 +121,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
 
     interrupted = False
     start = time.monotonic()
+    startup = 0.0
     t = 0.0
     try:
         signal.signal(signal.SIGTERM, on_term)
@@ -130,6 +132,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         executor.add_node(diag)
         for n in nodes:
             executor.add_node(n)
+        startup = time.monotonic() - start
+        start = time.monotonic()
         dt = 1.0 / scene.publish_rate
         next_diag = diagnostics_period
         wall0 = time.monotonic()
@@ -160,6 +164,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         except Exception:  # noqa: BLE001 - shutting down: the run's data matters more
             pass
         run = SceneRun(scene=scene, sim_time=t, wall_time=time.monotonic() - start,
+                       startup_time=startup,
                        samples={n.instance.name: n.samples_published for n in nodes},
                        messages={}, summary=diag.summary(),
                        failures={n.instance.name: n.failed for n in nodes if n.failed},
