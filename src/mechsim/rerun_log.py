@@ -1,0 +1,583 @@
+"""Rerun recordings of a run: the same ROS messages a run publishes (or a bag holds), drawn.
+
+``RerunSink(path)`` is an Outlet sink (``write(topic, type_name, msg, qos, ns)``, see
+``mechsim.ros.outlet``); ``convert_bag(bag, path)`` feeds a rosbag2 MCAP bag through the same
+sink, so a recording made live and one converted from the run's bag hold the same entities.
+
+Layout of the recording (Rerun 0.41, one timeline ``sim_time``: duration = stamp − time_offset):
+
+  world                                  ViewCoordinates RIGHT_HAND_Z_UP (REP-103), static
+  world/<ns>/<frame>[/<frame>...]        Transform3D of each /tf, /tf_static frame relative to its
+                                         parent entity (quaternions xyzw, as in ROS)
+  <frame entity>/sphere|box|arrow|polyline_<k>   the model's ``Visual`` shapes, static, in the frame
+  <frame entity>                         TransformAxes3D for "axes" visuals
+  world/<ns>/visuals/link_<a>_<b>        segment between two frame origins, in world coordinates
+  world/<ns>/visuals/trail_<frame>       one segment per sample (previous → current origin); the
+                                         blueprint shows it over all past time, i.e. a growing path
+  plots/<ns>/energy/<term>               kinetic, potential, total, energy_function,
+                                         work_external, work_dissipated [J]
+  plots/<ns>/balance_residual            (total − total₀) − (W_ext − W_diss) [J]
+  plots/<ns>/drift/<invariant>           I − I₀ (a constraint residual as it is: it should be 0)
+  plots/<ns>/invariants/<name>, plots/<ns>/observables/<name>, plots/<ns>/state/<coordinate>
+  plots/<ns>/diagnostics/<law>           level 0 OK, 1 WARN, 2 ERROR, 3 STALE from /diagnostics
+                                         statuses named ``mechsim/<ns>/<law>``
+
+A system is learned from its ``<ns>/system_info`` message: system id and parameters give the model
+(``mechsim.load_system``), hence its frames and visuals. Its time offset is that message's stamp,
+which is always simulation time 0 (``DEFAULT_TIME_OFFSET`` until one arrives). Time series and
+moving transforms are buffered and sent as columns (``send_columns``), a few thousand rows at a
+time: no per-message logging cost and no ``log_time`` timeline.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import subprocess
+import sys
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mechsim.errors import MechsimError
+
+TIMELINE = "sim_time"
+ENERGY_TERMS = ("kinetic", "potential", "total", "energy_function", "work_external",
+                "work_dissipated")
+#: Topics (by last path element / absolute name) and types the sink draws; the rest is ignored.
+HANDLED_TYPES = {
+    "mechsim_msgs/msg/SystemInfo", "mechsim_msgs/msg/Energy", "mechsim_msgs/msg/NamedScalars",
+    "sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage",
+    "diagnostic_msgs/msg/DiagnosticArray",
+}
+_FLUSH_ROWS = 4096
+
+
+def _ns(stamp: Any) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _part(name: str) -> str:
+    import rerun as rr
+
+    return str(rr.escape_entity_path_part(name))
+
+
+@functools.lru_cache(maxsize=65536)
+def _path(*names: str) -> str:
+    """An entity path from plain names, each '/'-separated name split into parts."""
+    return "/".join(_part(p) for n in names for p in n.split("/") if p)
+
+
+def _qmul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz)
+
+
+def _qrot(q: tuple[float, ...], v: tuple[float, ...]) -> tuple[float, float, float]:
+    """Rotate v by the unit quaternion q (xyzw)."""
+    x, y, z, w = q
+    vx, vy, vz = v
+    # t = 2 q_vec × v; v' = v + w t + q_vec × t
+    tx, ty, tz = 2 * (y * vz - z * vy), 2 * (z * vx - x * vz), 2 * (x * vy - y * vx)
+    return (vx + w * tx + y * tz - z * ty, vy + w * ty + z * tx - x * tz,
+            vz + w * tz + x * ty - y * tx)
+
+
+@dataclass
+class _Series:
+    """Buffered rows of one entity: times [ns of sim time] and one value per row."""
+
+    kind: str  # "scalar" | "transform" | "strip"
+    times: list[int] = field(default_factory=list)
+    values: list[Any] = field(default_factory=list)
+    rows: int = 0
+
+
+@dataclass
+class _Frame:
+    parent: str
+    entity: str
+    translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+    known: bool = False  # a transform has been received
+
+
+@dataclass
+class _System:
+    ns: str
+    instance: str
+    offset_ns: int
+    system: str = ""
+    key: tuple[str, ...] = ()
+    links: list[tuple[str, str, str]] = field(default_factory=list)  # entity, frame a, frame b
+    trails: list[tuple[str, str]] = field(default_factory=list)  # entity, frame
+    last_trail: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    energy0: float | None = None
+    invariants0: dict[str, float] = field(default_factory=dict)
+    last_t: int = 0
+
+
+class RerunSink:
+    """Outlet sink writing a Rerun ``.rrd`` recording; call :meth:`close` to finish the file."""
+
+    def __init__(self, path: str | Path, *, application_id: str = "mechsim",
+                 recording_id: str | None = None) -> None:
+        import rerun as rr
+
+        self.path = Path(path)
+        if self.path.parent and not self.path.parent.exists():
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.rec = rr.RecordingStream(application_id,
+                                      recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
+        self.rec.save(str(self.path), default_blueprint=self._blueprint())
+        self.rec.set_log_time_enabled(False)
+        self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        from mechsim.ros.messages import DEFAULT_TIME_OFFSET
+
+        self.default_offset_ns = int(round(DEFAULT_TIME_OFFSET * 1e9))
+        self.systems: dict[str, _System] = {}
+        self.frames: dict[str, _Frame] = {"world": _Frame("", "world", known=True)}
+        self.series: dict[str, _Series] = {}
+        self.bbox: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+        self.messages = 0
+        self.closed = False
+
+    # --- sink protocol ------------------------------------------------------------------------
+    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        if type_name not in HANDLED_TYPES:
+            return
+        self.messages += 1
+        base, _, leaf = topic.rpartition("/")
+        sys_ns = base.strip("/")
+        if type_name == "tf2_msgs/msg/TFMessage":
+            self._on_tf(msg)
+        elif type_name == "diagnostic_msgs/msg/DiagnosticArray":
+            self._on_diagnostics(msg)
+        elif type_name == "mechsim_msgs/msg/SystemInfo":
+            self._on_info(sys_ns, msg)
+        elif type_name == "mechsim_msgs/msg/Energy":
+            self._on_energy(self._system(sys_ns), msg)
+        elif type_name == "mechsim_msgs/msg/NamedScalars":
+            st = self._system(sys_ns)
+            t = self._t(st, msg.header.stamp)
+            if leaf == "invariants":
+                self._on_invariants(st, t, msg)
+            else:
+                for name, value in zip(msg.names, msg.values, strict=False):
+                    self._scalar(_path("plots", st.ns, leaf, name), t, value)
+        elif type_name == "sensor_msgs/msg/JointState" and leaf == "state":
+            st = self._system(sys_ns)
+            t = self._t(st, msg.header.stamp)
+            for name, value in zip(msg.name, msg.position, strict=False):
+                self._scalar(_path("plots", st.ns, "state", name), t, value)
+
+    def close(self) -> None:
+        """Send the buffered columns and the final blueprint; finish the file. Idempotent."""
+        if self.closed:
+            return
+        self.closed = True
+        for entity in list(self.series):
+            self._flush(entity)
+        self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+        self.rec.flush()
+        self.rec.disconnect()
+
+    def __enter__(self) -> RerunSink:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- systems ------------------------------------------------------------------------------
+    def _system(self, ns: str) -> _System:
+        st = self.systems.get(ns)
+        if st is None:
+            st = self.systems[ns] = _System(ns, ns.rpartition("/")[2], self.default_offset_ns)
+        return st
+
+    def _t(self, st: _System, stamp: Any) -> int:
+        t = _ns(stamp) - st.offset_ns
+        if t > st.last_t:
+            st.last_t = t
+        elif t < st.last_t - 1:  # time went back: the system was reset
+            self._rebaseline(st)
+            st.last_t = t
+        return t
+
+    def _rebaseline(self, st: _System) -> None:
+        st.energy0 = None
+        st.invariants0.clear()
+        st.last_trail.clear()
+
+    def _on_info(self, ns: str, info: Any) -> None:
+        import yaml
+
+        st = self._system(ns)
+        st.instance = info.instance or st.instance
+        st.offset_ns = _ns(info.header.stamp)  # system_info is stamped at simulation time 0
+        key = (info.system, info.parameters_yaml, *info.laws)
+        if key == st.key:
+            return
+        first = not st.key
+        st.key, st.system = key, info.system
+        self._rebaseline(st)
+        if first:
+            self._label_plots(st, info)
+        try:
+            from mechsim import load_system
+
+            params = yaml.safe_load(info.parameters_yaml) or {}
+            model = load_system(info.system, **params)
+        except (MechsimError, yaml.YAMLError, TypeError):
+            return  # not a system this mechsim knows: transforms and plots only
+        self._log_visuals(st, model)
+
+    def _label_plots(self, st: _System, info: Any) -> None:
+        import rerun as rr
+
+        for term in ENERGY_TERMS:
+            self.rec.log(_path("plots", st.ns, "energy", term),
+                         rr.SeriesLines(names=f"{term} [J]"), static=True)
+        self.rec.log(_path("plots", st.ns, "balance_residual"),
+                     rr.SeriesLines(names="(E − E₀) − (W_ext − W_diss) [J]"), static=True)
+        for name, unit in zip(info.coordinates, info.coordinate_units, strict=False):
+            self.rec.log(_path("plots", st.ns, "state", name),
+                         rr.SeriesLines(names=f"{name} [{unit}]" if unit else name), static=True)
+
+    def _frame_entity(self, st: _System, frame: str) -> str:
+        """Entity of a model frame (name without namespace), known from model.frames."""
+        fid = "world" if frame == "world" else f"{st.instance}/{frame}"
+        fr = self.frames.get(fid)
+        return fr.entity if fr is not None else _path("world", fid)
+
+    def _log_visuals(self, st: _System, model: Any) -> None:
+        import rerun as rr
+
+        # Entities of the model's frames (parents declared before children).
+        for spec in model.frames:
+            child = f"{st.instance}/{spec.child}"
+            parent = "world" if spec.parent == "world" else f"{st.instance}/{spec.parent}"
+            self._declare_frame(child, parent)
+        st.links.clear()
+        st.trails.clear()
+        solid = rr.components.FillMode.Solid
+        counts: dict[tuple[str, str], int] = {}
+        for vis in model.visuals():
+            n = counts[(vis.frame, vis.kind)] = counts.get((vis.frame, vis.kind), 0) + 1
+            suffix = "" if n == 1 else f"_{n}"
+            base = self._frame_entity(st, vis.frame)
+            if vis.frame == "world":
+                base = _path("world", st.ns)
+            color = list(vis.color)
+            if vis.kind == "sphere":
+                self.rec.log(f"{base}/sphere{suffix}", rr.Points3D(
+                    [[0.0, 0.0, 0.0]], radii=vis.radius, colors=[color]), static=True)
+            elif vis.kind == "box":
+                self.rec.log(f"{base}/box{suffix}", rr.Boxes3D(
+                    half_sizes=[list(vis.size)], colors=[color], fill_mode=solid), static=True)
+            elif vis.kind == "polyline":
+                if vis.frame == "world" and vis.points:
+                    self._extend(tuple(np.min(vis.points, axis=0)))
+                    self._extend(tuple(np.max(vis.points, axis=0)))
+                self.rec.log(f"{base}/polyline{suffix}", rr.LineStrips3D(
+                    [list(vis.points)], radii=vis.radius, colors=[color]), static=True)
+            elif vis.kind == "arrow" and vis.points:
+                self.rec.log(f"{base}/arrow{suffix}", rr.Arrows3D(
+                    vectors=[list(vis.points[0])], origins=[[0.0, 0.0, 0.0]],
+                    radii=vis.radius * 0.2, colors=[color]), static=True)
+            elif vis.kind == "axes":
+                self.rec.log(base, rr.TransformAxes3D(vis.radius), static=True)
+            elif vis.kind == "link" and vis.to_frame:
+                entity = _path("world", st.ns, "visuals", f"link_{vis.frame}_{vis.to_frame}")
+                st.links.append((entity, self._fid(st, vis.frame), self._fid(st, vis.to_frame)))
+                self.rec.log(entity, rr.LineStrips3D.from_fields(
+                    radii=vis.radius, colors=[color]), static=True)
+            elif vis.kind == "trail":
+                entity = _path("world", st.ns, "visuals", f"trail_{vis.frame}")
+                st.trails.append((entity, self._fid(st, vis.frame)))
+                self.rec.log(entity, rr.LineStrips3D.from_fields(
+                    radii=min(vis.radius, 0.01), colors=[color]), static=True)
+
+    @staticmethod
+    def _fid(st: _System, frame: str) -> str:
+        return "world" if frame == "world" else f"{st.instance}/{frame}"
+
+    def _declare_frame(self, child: str, parent: str) -> _Frame:
+        fr = self.frames.get(child)
+        if fr is not None and fr.parent == parent:
+            return fr
+        if parent not in self.frames:
+            self.frames[parent] = _Frame("world", _path("world", parent))
+        parent_entity = self.frames[parent].entity
+        local = child.rpartition("/")[2] if parent != "world" else child
+        fr = _Frame(parent, f"{parent_entity}/{_path(local)}")
+        self.frames[child] = fr
+        return fr
+
+    # --- transforms and shapes in world -------------------------------------------------------
+    def _world_position(self, fid: str) -> tuple[float, float, float] | None:
+        """Origin of frame ``fid`` in world; None until its whole chain has been posed."""
+        chain = []
+        while fid != "world":
+            fr = self.frames.get(fid)
+            if fr is None or not fr.known:
+                return None
+            chain.append(fr)
+            fid = fr.parent
+        p: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        q: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+        for fr in reversed(chain):
+            d = _qrot(q, fr.translation)
+            p = (p[0] + d[0], p[1] + d[1], p[2] + d[2])
+            q = _qmul(q, fr.rotation)
+        return p
+
+    def _on_tf(self, msg: Any) -> None:
+        touched: dict[str, int] = {}
+        for tr in msg.transforms:
+            child = tr.child_frame_id.lstrip("/")
+            parent = tr.header.frame_id.lstrip("/") or "world"
+            fr = self._declare_frame(child, parent)
+            a, r = tr.transform.translation, tr.transform.rotation
+            fr.translation = (float(a.x), float(a.y), float(a.z))
+            fr.rotation = (float(r.x), float(r.y), float(r.z), float(r.w))
+            fr.known = True
+            ns = child.partition("/")[0]
+            st = self._system(ns)
+            t = self._t(st, tr.header.stamp)
+            touched[ns] = t
+            self._append(fr.entity, "transform", t, (fr.translation, fr.rotation))
+            if parent == "world":
+                self._extend(fr.translation)
+        for ns, t in touched.items():
+            st = self.systems[ns]
+            for entity, a, b in st.links:
+                pa, pb = self._world_position(a), self._world_position(b)
+                if pa is None or pb is None:
+                    continue
+                self._extend(pa)
+                self._extend(pb)
+                self._append(entity, "strip", t, (pa, pb))
+            for entity, fid in st.trails:
+                p = self._world_position(fid)
+                if p is None:
+                    continue
+                self._extend(p)
+                prev = st.last_trail.get(entity, p)
+                st.last_trail[entity] = p
+                self._append(entity, "strip", t, (prev, p))
+
+    def _extend(self, p: tuple[float, float, float]) -> None:
+        """Grow the bounding box of drawn points (it places the default 3D camera)."""
+        lo, hi = self.bbox
+        if lo is None or hi is None:
+            self.bbox = (np.array(p), np.array(p))
+        elif not (lo[0] <= p[0] <= hi[0] and lo[1] <= p[1] <= hi[1] and lo[2] <= p[2] <= hi[2]):
+            self.bbox = (np.minimum(lo, p), np.maximum(hi, p))
+
+    # --- scalars ------------------------------------------------------------------------------
+    def _on_energy(self, st: _System, m: Any) -> None:
+        t = self._t(st, m.header.stamp)
+        values = (m.kinetic, m.potential, m.total, m.energy_function, m.work_external,
+                  m.work_dissipated)
+        for term, value in zip(ENERGY_TERMS, values, strict=True):
+            self._scalar(_path("plots", st.ns, "energy", term), t, value)
+        if st.energy0 is None:
+            st.energy0 = float(m.total)
+        residual = (m.total - st.energy0) - (m.work_external - m.work_dissipated)
+        self._scalar(_path("plots", st.ns, "balance_residual"), t, residual)
+
+    def _on_invariants(self, st: _System, t: int, m: Any) -> None:
+        for name, value in zip(m.names, m.values, strict=False):
+            self._scalar(_path("plots", st.ns, "invariants", name), t, value)
+            if name.startswith("constraint_"):
+                drift = float(value)
+            else:
+                v0 = st.invariants0.setdefault(name, float(value))
+                drift = float(value) - v0
+            self._scalar(_path("plots", st.ns, "drift", name), t, drift)
+
+    def _on_diagnostics(self, msg: Any) -> None:
+        import rerun as rr
+
+        for s in msg.status:
+            prefix, _, rest = s.name.partition("/")
+            if prefix != "mechsim" or "/" not in rest:
+                continue
+            ns, _, law = rest.partition("/")
+            st = self._system(ns)
+            stamp = _ns(msg.header.stamp)
+            t = stamp - st.offset_ns if stamp else st.last_t
+            level = s.level[0] if isinstance(s.level, bytes | bytearray) else int(s.level)
+            entity = _path("plots", ns, "diagnostics", law)
+            if entity not in self.series:
+                self.rec.log(entity, rr.SeriesLines(
+                    names=law, interpolation_mode=rr.components.InterpolationMode.StepAfter),
+                    static=True)
+            self._scalar(entity, t, level)
+
+    # --- buffering ----------------------------------------------------------------------------
+    def _scalar(self, entity: str, t: int, value: float) -> None:
+        self._append(entity, "scalar", t, float(value) if math.isfinite(value) else math.nan)
+
+    def _append(self, entity: str, kind: str, t: int, value: Any) -> None:
+        s = self.series.get(entity)
+        if s is None:
+            s = self.series[entity] = _Series(kind)
+        s.times.append(t)
+        s.values.append(value)
+        if len(s.times) >= _FLUSH_ROWS:
+            self._flush(entity)
+
+    def _flush(self, entity: str) -> None:
+        import rerun as rr
+
+        s = self.series[entity]
+        if not s.times:
+            return
+        index = [rr.TimeColumn(TIMELINE, duration=np.asarray(s.times, dtype="timedelta64[ns]"))]
+        if s.kind == "scalar":
+            columns: Any = rr.Scalars.columns(scalars=np.asarray(s.values, dtype=np.float64))
+        elif s.kind == "transform":
+            columns = rr.Transform3D.columns(
+                translation=np.asarray([v[0] for v in s.values], dtype=np.float32),
+                quaternion=np.asarray([v[1] for v in s.values], dtype=np.float32))
+        else:
+            columns = rr.LineStrips3D.columns(strips=np.asarray(s.values, dtype=np.float32))
+        self.rec.send_columns(entity, indexes=index, columns=columns)
+        s.rows += len(s.times)
+        s.times, s.values = [], []
+
+    # --- blueprint ----------------------------------------------------------------------------
+    def _blueprint(self) -> Any:
+        import rerun.blueprint as rrb
+
+        systems = [st for st in getattr(self, "systems", {}).values() if st.key]
+        trails = [e for st in systems for e, _ in st.trails]
+        growing = rrb.VisibleTimeRanges([rrb.VisibleTimeRange(
+            TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
+            end=rrb.TimeRangeBoundary.cursor_relative())])
+        eye = None
+        lo, hi = getattr(self, "bbox", (None, None))
+        if lo is not None and hi is not None:
+            center = (lo + hi) / 2
+            size = max(float(np.max(hi - lo)), 1.0)
+            direction = np.array([1.0, 0.35, 0.45]) / np.linalg.norm([1.0, 0.35, 0.45])
+            eye = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital,
+                                    position=(center + 1.5 * size * direction).tolist(),
+                                    look_target=center.tolist(), eye_up=[0.0, 0.0, 1.0])
+        view3d = rrb.Spatial3DView(name="world", origin="/world", eye_controls=eye,
+                                   overrides={f"/{e}": growing for e in trails})
+        if not systems:
+            plots: Any = rrb.TimeSeriesView(name="plots", origin="/plots")
+        else:
+            tabs = []
+            for st in systems:
+                root = f"/{_path('plots', st.ns)}"
+                tabs.append(rrb.Vertical(
+                    rrb.TimeSeriesView(name=f"{st.ns}: energy [J]", origin=f"{root}/energy"),
+                    rrb.TimeSeriesView(name=f"{st.ns}: balance residual, invariant drifts",
+                                       origin=root, contents=["$origin/balance_residual",
+                                                              "$origin/drift/**"]),
+                    rrb.TimeSeriesView(name=f"{st.ns}: coordinates, observables",
+                                       origin=root, contents=["$origin/state/**",
+                                                              "$origin/observables/**"]),
+                    rrb.TimeSeriesView(name=f"{st.ns}: diagnostics (0 OK … 3 STALE)",
+                                       origin=f"{root}/diagnostics",
+                                       axis_y=rrb.ScalarAxis(range=(-0.2, 3.2))),
+                    name=st.ns))
+            plots = tabs[0] if len(tabs) == 1 else rrb.Tabs(*tabs)
+        return rrb.Blueprint(rrb.Horizontal(view3d, plots, column_shares=[3, 2]),
+                             rrb.BlueprintPanel(state="collapsed"),
+                             rrb.SelectionPanel(state="collapsed"),
+                             rrb.TimePanel(state="collapsed", timeline=TIMELINE,
+                                           play_state="following"))
+
+    def rows(self, entity: str) -> int:
+        """Rows sent or buffered so far for ``entity`` (a path without leading '/')."""
+        s = self.series.get(entity)
+        return 0 if s is None else s.rows + len(s.times)
+
+
+# --- bags ---------------------------------------------------------------------------------------
+def convert_bag(bag: str | Path, rrd: str | Path) -> dict[str, int]:
+    """Feed every drawable message of a rosbag2 MCAP bag (``mechsim.ros.bag.read_messages``,
+    recording order) through a RerunSink writing ``rrd``: the same recording as a live run.
+    Returns the number of messages per topic that were drawn."""
+    from mechsim.ros.environment import import_rclpy
+
+    import_rclpy()
+    from rclpy.serialization import deserialize_message
+
+    from mechsim.ros.bag import message_class, read_messages, read_metadata
+
+    read_metadata(bag)  # a clear error before the .rrd is created
+    counts: dict[str, int] = {}
+    classes: dict[str, Any] = {}
+    with RerunSink(rrd) as sink:
+        for m in read_messages(bag):
+            if m.type_name not in HANDLED_TYPES:
+                continue
+            cls = classes.get(m.type_name)
+            if cls is None:
+                cls = classes[m.type_name] = message_class(m.type_name)
+            sink.write(m.topic, m.type_name, deserialize_message(m.data, cls), None, m.log_time)
+            counts[m.topic] = counts.get(m.topic, 0) + 1
+    return counts
+
+
+# --- command line -------------------------------------------------------------------------------
+def viewer_command() -> list[str]:
+    """The Rerun viewer of this environment (``rerun`` next to the interpreter)."""
+    exe = Path(sys.executable).parent / "rerun"
+    return [str(exe) if exe.exists() else "rerun"]
+
+
+def cmd_view(a: Any) -> int:
+    path = Path(a.file)
+    if path.is_dir():  # a bag: Rerun reads MCAP with ROS 2 messages directly
+        files = [str(p) for p in sorted(path.glob("*.mcap"))]
+        if not files:
+            raise MechsimError(f"{path}: no .mcap files in this directory")
+    elif path.is_file():
+        files = [str(path)]
+    else:
+        raise MechsimError(f"{path}: no such file (an .rrd recording, an .mcap file or a bag)")
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        shown = " ".join(files)
+        print(f"mechsim: no display here; open it where there is one with `rerun {shown}`, "
+              f"or in a browser with `rerun --web-viewer {shown}`")
+        return 0
+    # The viewer's own gRPC server listens on loopback only.
+    return subprocess.call([*viewer_command(), "--bind", "127.0.0.1", *files])
+
+
+def cmd_convert(a: Any) -> int:
+    bag = Path(a.bag)
+    rrd = Path(a.rrd) if a.rrd else bag.with_name(bag.name.rstrip("/") + ".rrd")
+    counts = convert_bag(bag, rrd)
+    print(f"mechsim: wrote {rrd} ({sum(counts.values())} messages on {len(counts)} topics)",
+          file=sys.stderr)
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    """``mechsim view`` and ``mechsim convert`` (Rerun imported only when they run)."""
+    v = sub.add_parser("view", help="open a Rerun recording (.rrd), an .mcap file or a bag "
+                       "in the Rerun viewer")
+    v.add_argument("file", help=".rrd file, .mcap file or bag directory")
+    v.set_defaults(func=cmd_view)
+    c = sub.add_parser("convert", help="convert a rosbag2 MCAP bag to a Rerun recording "
+                       "(the same entities as `run --rrd`)")
+    c.add_argument("bag", help="bag directory (metadata.yaml + .mcap)")
+    c.add_argument("--rrd", metavar="FILE", help="output .rrd (default: <bag>.rrd)")
+    c.set_defaults(func=cmd_convert)
