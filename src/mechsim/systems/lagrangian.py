@@ -317,7 +317,11 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     body = list(pre)
     diagonal = nc == 0 and M.is_diagonal()
     if diagonal:
-        body += _emit([(f"a[{i}]", sp.simplify(f[i] / M[i, i])) for i in range(n)])
+        # simplify only small quotients: on large ones (rational functions of square roots)
+        # its cancel() step can take hours; cse in _emit still shares the work.
+        body += _emit([(f"a[{i}]", sp.simplify(f[i] / M[i, i])
+                        if sp.count_ops(f[i] / M[i, i]) <= 40 else f[i] / M[i, i])
+                       for i in range(n)])
     else:
         m = n + nc
         body.append(f"    A = np.zeros(({m}, {m}))")
