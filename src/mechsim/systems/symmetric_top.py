@@ -1,0 +1,378 @@
+"""Symmetric top: torque-free (gravity 0) and heavy (Lagrange's top), with one point fixed.
+
+Sources: seed 003 §7.6 (Euler angles), §7.8 (torque-free symmetric top), §7.8.1–7.8.2 (heavy
+symmetric top, steady precession, nutation); seed 002 §7 (Lecture 10, eqs. 10.37–10.46:
+Lagrange's top, Ω± from I₁cosθ Ω² − I₃ω₃Ω + MgR = 0, reality condition, slow/fast limits,
+the suspended top as a conical compound pendulum).
+
+Conventions:
+- The support point is the world origin; the centre of mass sits at distance R
+  (``cm_distance``) along the body symmetry axis x₃. θ is the angle of x₃ from the **upward**
+  vertical (V = MgR cos θ, as both documents have it): θ < π/2 is a top standing on its tip,
+  θ > π/2 a top suspended from it (conical pendulum). Gravity 0 gives the torque-free top of
+  §7.8 (about the fixed point, which the free top's formulas treat alike).
+- I₁ = I₂ (``transverse_inertia``) is about a perpendicular axis through the support point,
+  I₃ (``axial_inertia``) about the symmetry axis.
+- Euler angles z-x-z as in seed 003 §7.6: the passive λ = λ_ψ λ_θ λ_φ maps world to body
+  components, so the published body frame is world_R_body = λᵀ = R_z(φ) R_x(θ) R_z(ψ)
+  (quaternion q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ)); body ω₁ = φ̇ sinθ sinψ + θ̇ cosψ,
+  ω₂ = φ̇ sinθ cosψ − θ̇ sinψ, ω₃ = φ̇ cosθ + ψ̇; symmetry axis in space
+  (sinθ sinφ, −sinθ cosφ, cosθ). ``nodes`` is the line-of-nodes frame R_z(φ) R_x(θ).
+
+Formulations:
+- ``quaternion`` (default): Euler's equations about the support point with the attitude as a
+  unit quaternion (``_rigid.QuaternionRigidBody``); gravity acts as the torque R x̂₃ × (−Mg ẑ).
+  Nothing is singular at θ = 0 (sleeping top). Euler angles and their rates are observables;
+  exactly at θ = 0 only φ + ψ is defined: φ̇ = 0 and ψ̇ = ω₃ are published there.
+- ``euler_angles``: the Lagrangian L = ½I₁(θ̇² + φ̇² sin²θ) + ½I₃(ψ̇ + φ̇ cosθ)² − MgR cosθ
+  (seed 003 line 1874, seed 002 eq. 10.38) given to the engine; singular at sin θ = 0, so it
+  refuses initial θ within 0.01 rad of 0 or π. Both publish the same invariants p_φ, p_ψ and
+  observables, for comparison.
+
+Document typos corrected (catalog 003 §7.8, 002 §7): Ω ≡ ω₃(I₃ − I₁)/I₁ includes ω₃ (003 line
+1805); L has φ̇² sin²θ + θ̇² (003 lines 1870, 1874); I₃ (not I₂) in ψ̇ = (p_ψ − I₃φ̇ cosθ)/I₃
+(1886), I₃ω₃² = p_ψ²/I₃ (1908), the reality condition ω₃ ≥ (2/I₃)√(MghI₁cosθ₀) (1954) and the
+slow precession Mgh/(I₃ω₃) (1964); φ̇₀ (not ψ̇₀) = β/(I₁ sin²θ₀) from (7.5) (1960); θ₁, θ₂ are
+the roots of E′ = V(θ), not asymptotes of V (§7.8.2).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from mechsim.errors import ParameterError
+from mechsim.params import Parameter, nonnegative, number, positive
+from mechsim.systems._rigid import (
+    RIGID_KERNELS,
+    QuaternionRigidBody,
+    RigidData,
+    rb_momentum,
+    rb_omega,
+    rb_unit,
+)
+from mechsim.systems._rotation import euler_zxz_from_quat, quat_from_euler_zxz, quat_rotate
+from mechsim.systems.base import FrameSpec, Model, Quantity, Visual
+from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+# --- quaternion-formulation kernels -----------------------------------------------------------
+P_CM_DISTANCE = 2  # index of cm_distance in p; the kernel module defines the real constant
+
+
+def invariants(t, y, p, out):
+    body = np.empty(3)
+    world = np.empty(3)
+    rb_momentum(y, p, body, world)
+    out[0] = world[2]
+    out[1] = body[2]
+    out[2] = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]) - 1.0
+
+
+def top_euler(y, ang, rates, w):
+    """Euler angles (φ, θ, ψ), their rates and body ω from the state."""
+    q = np.empty(4)
+    rb_unit(y, q)
+    rb_omega(y, w)
+    euler_zxz_from_quat(q, ang)
+    s, c = math.sin(ang[1]), math.cos(ang[1])
+    sp_, cp = math.sin(ang[2]), math.cos(ang[2])
+    rates[1] = w[0] * cp - w[1] * sp_
+    if abs(s) > 1e-12:
+        rates[0] = (w[0] * sp_ + w[1] * cp) / s
+    else:
+        rates[0] = 0.0
+    rates[2] = w[2] - rates[0] * c
+
+
+def observables(t, y, p, out):
+    ang = np.empty(3)
+    rates = np.empty(3)
+    w = np.empty(3)
+    top_euler(y, ang, rates, w)
+    for i in range(3):
+        out[i] = ang[i]
+        out[3 + i] = rates[i]
+        out[6 + i] = w[i]
+    q = np.empty(4)
+    rb_unit(y, q)
+    z = np.zeros(3)
+    z[2] = 1.0
+    a = np.empty(3)
+    quat_rotate(q, z, a)
+    out[9] = a[0]
+    out[10] = a[1]
+    out[11] = a[2]
+
+
+def frames(t, y, p, out):
+    q = np.empty(4)
+    rb_unit(y, q)
+    ang = np.empty(3)
+    euler_zxz_from_quat(q, ang)
+    nodes = np.empty(4)
+    quat_from_euler_zxz(ang[0], ang[1], 0.0, nodes)
+    for k in range(3):
+        out[0, k] = 0.0
+        out[1, k] = 0.0
+        out[2, k] = 0.0
+    out[2, 2] = p[P_CM_DISTANCE]
+    for k in range(4):
+        out[0, 3 + k] = q[k]
+        out[1, 3 + k] = nodes[k]
+        out[2, 3 + k] = 0.0
+    out[2, 6] = 1.0
+
+
+# --- the system -------------------------------------------------------------------------------
+
+INVARIANTS = (Quantity("p_phi", "kg m^2/s", "p_φ: vertical component of L about the support"),
+              Quantity("p_psi", "kg m^2/s", "p_ψ = I₃ω₃: L along the symmetry axis"))
+OBSERVABLES = (
+    Quantity("phi", "rad", "precession angle φ"), Quantity("theta", "rad", "nutation angle θ"),
+    Quantity("psi", "rad", "spin angle ψ"),
+    Quantity("precession_rate", "rad/s", "φ̇"), Quantity("nutation_rate", "rad/s", "θ̇"),
+    Quantity("spin_rate", "rad/s", "ψ̇"),
+    *(Quantity(f"omega_{i}", "rad/s", f"body angular velocity ω_{i}") for i in (1, 2, 3)),
+    *(Quantity(f"axis_{a}", "", f"symmetry axis x₃, world {a}") for a in "xyz"),
+)
+FRAMES = (FrameSpec("body", "world"), FrameSpec("nodes", "world"),
+          FrameSpec("center_of_mass", "body", static=True))
+
+
+class SymmetricTop(Model):
+    """The registered class: picks the formulation's implementation when instantiated."""
+
+    id = "symmetric_top"
+    title = "Symmetric top: torque-free and heavy (Lagrange's top), Euler angles z-x-z"
+    source = ("seed 003 §7.6, §7.8–7.8.2 (symmetric top, heavy top); seed 002 §7 "
+              "(Lagrange's top, eqs. 10.37–10.46)")
+    formulations = ("quaternion", "euler_angles")
+    oracles = ("steady precession Ω± (θ constant), reality condition, sleeping-top threshold, "
+               "nutation bounds, conical pendulum Ω² = MgR/(I₁|cosθ|), torque-free body and "
+               "space precession; p_φ, p_ψ, E; quaternion and Euler-angle forms agree")
+    parameters = (
+        positive("mass", 1.0, "kg", "mass M"),
+        nonnegative("gravity", 9.81, "m/s^2", "g (0: torque-free top)"),
+        positive("cm_distance", 0.1, "m", "R: support point to centre of mass, along x₃"),
+        positive("transverse_inertia", 0.02, "kg m^2",
+                 "I₁ = I₂ about a perpendicular axis through the support point"),
+        positive("axial_inertia", 0.01, "kg m^2", "I₃ about the symmetry axis"),
+        number("initial.phi", 0.0, "rad", "initial precession angle φ"),
+        Parameter("initial.theta", 0.6, "rad", "initial angle θ of the symmetry axis from the "
+                  "upward vertical", minimum=0.0, maximum=math.pi),
+        number("initial.psi", 0.0, "rad", "initial spin angle ψ"),
+        number("initial_rate.phi", 0.0, "rad/s", "initial φ̇"),
+        number("initial_rate.theta", 0.0, "rad/s", "initial θ̇"),
+        number("initial_rate.psi", 40.0, "rad/s", "initial ψ̇ (the default top, released "
+               "with φ̇ = θ̇ = 0, nutates in cusps)"),
+    )
+
+    def __new__(cls, **values: Any) -> SymmetricTop:
+        chosen = values.get("formulation", cls.formulations[0])
+        target = _EulerAngleTop if chosen == "euler_angles" else _QuaternionTop
+        return super().__new__(target)  # type: ignore[arg-type]
+
+    def with_values(self, **changes: Any) -> Model:
+        merged = dict(self.values)
+        merged.update(changes)
+        return SymmetricTop(**merged)
+
+    def check(self) -> None:
+        if self.formulation == "euler_angles" and math.sin(self.value("initial.theta")) < 0.01:
+            raise ParameterError("initial.theta", "the euler_angles formulation is singular at "
+                                 "θ = 0 and π: use formulation quaternion")
+        I1, I3 = self.value("transverse_inertia"), self.value("axial_inertia")
+        if I3 > 2 * I1 + 1e-12 * I1:
+            # about the support: I₁ ≥ I₁,cm ≥ I₃/2 for any real body of revolution
+            raise ParameterError("axial_inertia", f"must be ≤ 2 × transverse_inertia "
+                                 f"({2 * I1:g}) for a real body")
+
+    def visuals(self) -> tuple[Visual, ...]:
+        r = math.sqrt(2 * self.value("axial_inertia") / self.value("mass"))
+        rim = tuple((r * math.cos(a), r * math.sin(a), 0.0)
+                    for a in np.linspace(0, 2 * math.pi, 41))
+        return (Visual("link", "body", to_frame="center_of_mass", radius=0.01),
+                Visual("polyline", "center_of_mass", points=rim, radius=0.008,
+                       color=(220, 170, 80)),
+                Visual("sphere", "center_of_mass", radius=0.02, color=(220, 170, 80)),
+                Visual("trail", "center_of_mass", color=(120, 170, 255)),
+                Visual("axes", "nodes", radius=0.1))
+
+    def time_scale(self) -> float:
+        w = max(abs(self.omega3()), abs(self.value("initial_rate.phi")),
+                abs(self.value("initial_rate.theta")), 1e-9)
+        g = self.value("gravity")
+        if g > 0:
+            w = max(w, math.sqrt(self.value("mass") * g * self.value("cm_distance")
+                                 / self.value("transverse_inertia")))
+        return 2 * math.pi / w
+
+    # --- initial data and analytic oracles -----------------------------------------------
+    def _init(self) -> tuple[float, ...]:
+        return tuple(self.value(n) for n in ("initial.phi", "initial.theta", "initial.psi",
+                                             "initial_rate.phi", "initial_rate.theta",
+                                             "initial_rate.psi"))
+
+    def _consts(self) -> tuple[float, float, float]:
+        """(I₁, I₃, MgR)."""
+        return (self.value("transverse_inertia"), self.value("axial_inertia"),
+                self.value("mass") * self.value("gravity") * self.value("cm_distance"))
+
+    def omega3(self) -> float:
+        """ω₃ = φ̇ cosθ + ψ̇ (constant: p_ψ = I₃ω₃)."""
+        _, th, _, dphi, _, dpsi = self._init()
+        return dphi * math.cos(th) + dpsi
+
+    def momenta(self) -> tuple[float, float]:
+        """(p_φ, p_ψ) = ((I₁sin²θ + I₃cos²θ)φ̇ + I₃ψ̇cosθ, I₃ω₃) (seed 003 eqs. 7.3, 7.4)."""
+        I1, I3, _ = self._consts()
+        _, th, _, dphi, _, dpsi = self._init()
+        s, c = math.sin(th), math.cos(th)
+        return (I1 * s * s + I3 * c * c) * dphi + I3 * dpsi * c, I3 * self.omega3()
+
+    def steady_precession_rates(self, theta: float | None = None,
+                                omega3: float | None = None) -> tuple[float, ...]:
+        """Real roots Ω of I₁cosθ Ω² − I₃ω₃Ω + MgR = 0 (seed 002 eq. 10.41), ascending.
+
+        Empty when the reality condition I₃²ω₃² ≥ 4I₁MgR cosθ (10.42) fails.
+        """
+        I1, I3, mgr = self._consts()
+        th = self.value("initial.theta") if theta is None else theta
+        w3 = self.omega3() if omega3 is None else omega3
+        a, b, c = I1 * math.cos(th), -I3 * w3, mgr
+        if abs(a) < 1e-15 * max(abs(b), 1.0):
+            return (-c / b,) if b != 0 else ()
+        disc = b * b - 4 * a * c
+        if disc < 0:
+            return ()
+        sq = math.sqrt(disc)
+        # numerically stable pair of roots
+        qq = -0.5 * (b + math.copysign(sq, b)) if b != 0 else -0.5 * sq
+        roots = (qq / a, c / qq) if qq != 0 else (math.sqrt(-c / a), -math.sqrt(-c / a))
+        return tuple(sorted(roots))
+
+    def sleeping_threshold(self) -> float:
+        """ω₃ above which the upright (θ = 0) top is stable: I₃²ω₃² > 4I₁MgR."""
+        I1, I3, mgr = self._consts()
+        return 2 * math.sqrt(I1 * mgr) / I3
+
+    def conical_pendulum_rate(self, theta: float | None = None) -> float:
+        """Suspended top without spin (ω₃ = 0, θ > π/2): Ω² = MgR/(I₁|cosθ|) (10.46)."""
+        I1, _, mgr = self._consts()
+        th = self.value("initial.theta") if theta is None else theta
+        return math.sqrt(mgr / (I1 * abs(math.cos(th))))
+
+    def effective_potential(self, theta: np.ndarray) -> np.ndarray:
+        """V(θ) = (p_φ − p_ψcosθ)²/(2I₁sin²θ) + MgR cosθ (seed 003 eq. 7.8)."""
+        I1, _, mgr = self._consts()
+        pphi, ppsi = self.momenta()
+        th = np.asarray(theta, dtype=float)
+        return (pphi - ppsi * np.cos(th)) ** 2 / (2 * I1 * np.sin(th) ** 2) + mgr * np.cos(th)
+
+    def nutation_bounds(self) -> tuple[float, float]:
+        """Turning points θ₁ ≤ θ ≤ θ₂: roots u = cosθ in [−1, 1] of
+        f(u) = (1 − u²)(α − β′u) − (b − au)², α = 2E′/I₁, β′ = 2MgR/I₁, a = p_ψ/I₁,
+        b = p_φ/I₁ (catalog 003 §7.8.1 [SUPPLEMENT]; E′ = ½I₁θ̇² + V(θ), eq. 7.7)."""
+        I1, _, mgr = self._consts()
+        _, th, _, _, dth, _ = self._init()
+        pphi, ppsi = self.momenta()
+        e_prime = 0.5 * I1 * dth**2 + float(self.effective_potential(np.array(th)))
+        al, be, a, b = 2 * e_prime / I1, 2 * mgr / I1, ppsi / I1, pphi / I1
+        coeffs = [be, -(al + a * a), 2 * a * b - be, al - b * b]
+        roots = np.roots(coeffs if be != 0 else coeffs[1:])
+        u0 = math.cos(th)
+        real = sorted(min(max(float(r.real), -1.0), 1.0) for r in roots
+                      if abs(r.imag) < 1e-7 and -1 - 1e-9 <= r.real <= 1 + 1e-9)
+
+        def f(u: float) -> float:
+            return (1 - u * u) * (al - be * u) - (b - a * u) ** 2
+
+        for lo, hi in zip(real, real[1:], strict=False):
+            if lo - 1e-9 <= u0 <= hi + 1e-9 and f(0.5 * (lo + hi)) > 0:
+                return math.acos(hi), math.acos(lo)
+        return th, th  # steady precession: a double root at cos θ₀
+
+    def free_precession_rates(self) -> tuple[float, float]:
+        """Torque-free top: (Ω_body, Ω_space). ω precesses about x₃ in the body at
+        Ω = ω₃(I₃ − I₁)/I₁ (seed 003 §7.8, line 1805 with ω₃ restored); x₃ and ω precess
+        about the fixed L in space at |L|/I₁ (catalog 003 §7.8 [SUPPLEMENT])."""
+        I1, I3, _ = self._consts()
+        _, th, psi, dphi, dth, _ = self._init()
+        w3 = self.omega3()
+        w1 = dphi * math.sin(th) * math.sin(psi) + dth * math.cos(psi)
+        w2 = dphi * math.sin(th) * math.cos(psi) - dth * math.sin(psi)
+        L = math.sqrt((I1 * w1) ** 2 + (I1 * w2) ** 2 + (I3 * w3) ** 2)
+        return w3 * (I3 - I1) / I1, L / I1
+
+
+class _QuaternionTop(SymmetricTop, QuaternionRigidBody):
+    kernel_functions = (*RIGID_KERNELS, euler_zxz_from_quat, quat_from_euler_zxz, invariants,
+                        top_euler, observables, frames)
+
+    def rigid_data(self) -> RigidData:
+        I1, I3, _ = self._consts()
+        return RigidData(moments=(I1, I1, I3), center_of_mass=(0.0, 0.0,
+                                                               self.value("cm_distance")),
+                         weight=self.value("mass") * self.value("gravity"))
+
+    def initial_attitude(self) -> tuple[np.ndarray, np.ndarray]:
+        phi, th, psi, dphi, dth, dpsi = self._init()
+        q = np.empty(4)
+        quat_from_euler_zxz(phi, th, psi, q)
+        w = np.array([dphi * math.sin(th) * math.sin(psi) + dth * math.cos(psi),
+                      dphi * math.sin(th) * math.cos(psi) - dth * math.sin(psi),
+                      dphi * math.cos(th) + dpsi])
+        return q, w
+
+    @property
+    def invariants(self) -> tuple[Quantity, ...]:
+        return INVARIANTS + super().invariants
+
+    @property
+    def observables(self) -> tuple[Quantity, ...]:
+        return OBSERVABLES
+
+    @property
+    def frames(self) -> tuple[FrameSpec, ...]:
+        return FRAMES
+
+
+class _EulerAngleTop(SymmetricTop, LagrangianModel):
+    def declare(self, b: LagrangianBuilder) -> None:
+        phi, dphi = b.coordinate("phi", "rad")
+        th, dth = b.coordinate("theta", "rad")
+        psi, dpsi = b.coordinate("psi", "rad")
+        M, g, R = b.param("mass"), b.param("gravity"), b.param("cm_distance")
+        I1, I3 = b.param("transverse_inertia"), b.param("axial_inertia")
+        w1 = dphi * sp.sin(th) * sp.sin(psi) + dth * sp.cos(psi)
+        w2 = dphi * sp.sin(th) * sp.cos(psi) - dth * sp.sin(psi)
+        w3 = dphi * sp.cos(th) + dpsi
+        b.kinetic = I1 * (dth**2 + dphi**2 * sp.sin(th) ** 2) / 2 + I3 * w3**2 / 2
+        b.potential = M * g * R * sp.cos(th)
+        b.invariant("p_phi", "kg m^2/s", sp.diff(b.kinetic, dphi))
+        b.invariant("p_psi", "kg m^2/s", sp.diff(b.kinetic, dpsi))
+        values = {"phi": phi, "theta": th, "psi": psi, "precession_rate": dphi,
+                  "nutation_rate": dth, "spin_rate": dpsi, "omega_1": w1, "omega_2": w2,
+                  "omega_3": w3, "axis_x": sp.sin(th) * sp.sin(phi),
+                  "axis_y": -sp.sin(th) * sp.cos(phi), "axis_z": sp.cos(th)}
+        for q in OBSERVABLES:
+            b.observable(q.name, q.unit, values[q.name])
+        # q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ)
+        s2, c2 = sp.sin(th / 2), sp.cos(th / 2)
+        body = (s2 * sp.cos((phi - psi) / 2), s2 * sp.sin((phi - psi) / 2),
+                c2 * sp.sin((phi + psi) / 2), c2 * sp.cos((phi + psi) / 2))
+        nodes = (s2 * sp.cos(phi / 2), s2 * sp.sin(phi / 2), c2 * sp.sin(phi / 2),
+                 c2 * sp.cos(phi / 2))
+        b.frame("body", "world", (0, 0, 0), body)
+        b.frame("nodes", "world", (0, 0, 0), nodes)
+        b.frame("center_of_mass", "body", (0, 0, R))
+
+    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        phi, th, psi, dphi, dth, dpsi = self._init()
+        return np.array([phi, th, psi]), np.array([dphi, dth, dpsi])
+
+
+MODEL = SymmetricTop
