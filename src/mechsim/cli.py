@@ -93,10 +93,14 @@ def cmd_run(a: argparse.Namespace) -> int:
         from mechsim.scene import _number
         scene.publish_rate = _number("--rate", a.rate)
     bag = a.bag or scene.bag
+    rrd = a.rrd or scene.rrd
     if a.processes:
         if a.bag:
             from mechsim.errors import ParameterError
             raise ParameterError("--bag", "not available with --processes (record in-process)")
+        if a.rrd:
+            from mechsim.errors import ParameterError
+            raise ParameterError("--rrd", "not available with --processes (record in-process)")
         from mechsim.ros.launch import run_processes
         return run_processes(Path(a.target), scene, a.set, a.duration or scene.duration)
     from mechsim.ros.launch import run_scene
@@ -108,9 +112,9 @@ def cmd_run(a: argparse.Namespace) -> int:
           f"{'as fast as possible' if (fast or scene.pacing == 'fast') else 'real time'}"
           f"{f', {duration:g} s' if duration else ', until Ctrl-C'})", file=sys.stderr)
     lines: list[str] = []
-    if bag is not None:
+    if bag is not None or rrd is not None:
         from mechsim.ros.record import run_with_outputs
-        run, lines = run_with_outputs(scene, fast=fast, duration=duration, bag=bag,
+        run, lines = run_with_outputs(scene, fast=fast, duration=duration, bag=bag, rrd=rrd,
                                       progress=show)
     else:
         run = run_scene(scene, fast=fast, duration=duration, progress=show)
@@ -137,12 +141,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--processes", action="store_true", help="one process per node")
     r.add_argument("--bag", metavar="DIR", help="also record every message to a new rosbag2 "
                    "bag (strftime fields expanded)")
+    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd)")
     r.set_defaults(func=cmd_run)
     from mechsim.ros import record, replay, topic_tools  # parsers only; ROS imported lazily
     record.add_parser(sub)
     record.add_bag_parser(sub)
     replay.add_parser(sub)
     topic_tools.add_parser(sub)
+    from mechsim import rerun_log  # parsers only; Rerun imported lazily
+    rerun_log.add_parsers(sub)
     return ap
 
 
