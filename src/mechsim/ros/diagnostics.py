@@ -59,7 +59,8 @@ def relative_drift(law: LawState, value: float, is_constraint: bool = False) -> 
 class DiagnosticsNode(Node):
     def __init__(self, *, context: Context | None = None, warn_drift: float = 1e-6,
                  error_drift: float = 1e-3, period: float = 1.0, stale_timeout: float = 5.0,
-                 sinks: list[Sink] | None = None) -> None:
+                 sinks: list[Sink] | None = None, discover: bool = True) -> None:
+        """``discover=False``: follow only systems fed to it in-process (scene runner)."""
         super().__init__("diagnostics", namespace="mechsim", context=context)
         rng = [FloatingPointRange(from_value=0.0, to_value=1.0)]
         self.declare_parameter("warn_drift", float(warn_drift), ParameterDescriptor(
@@ -80,8 +81,9 @@ class DiagnosticsNode(Node):
         self.outlet = Outlet(self, sinks)
         self.t_diag = self.outlet.channel("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS)
         self.published = 0
-        self._discover()
-        self.create_timer(0.5, self._discover)
+        if discover:
+            self._discover()
+            self.create_timer(0.5, self._discover)
         self.create_timer(period, self.publish_now)
 
     def _check_thresholds(self, params: list) -> SetParametersResult:

@@ -112,7 +112,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     nodes: list[Any] = []
     executor = SingleThreadedExecutor(context=context)
     diag = DiagnosticsNode(context=context, warn_drift=scene.warn_drift,
-                           error_drift=scene.error_drift, period=3600.0, sinks=sinks)
+                           error_drift=scene.error_drift, period=3600.0, sinks=sinks,
+                           discover=False)
     diag_sinks = [*sinks, DiagnosticsFeed(diag)]
     previous_term = signal.getsignal(signal.SIGTERM)
 
