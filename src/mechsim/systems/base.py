@@ -200,9 +200,19 @@ class Model(ABC):
     def kernels(self) -> ModuleType:
         """The compiled kernel module (built on first use, cached on disk)."""
 
-    @abstractmethod
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """Generalized coordinates and rates at t = 0."""
+        """Generalized coordinates and rates at t = 0. Default: ``initial.<coordinate>`` and
+        ``initial_rate.<coordinate>`` (0 where there is no rate parameter). Override when the
+        initial state comes from other parameters (orbital elements, another formulation)."""
+        names = [c.name for c in self.coordinates]
+        missing = [n for n in names if f"initial.{n}" not in self.values]
+        if missing:
+            raise NotImplementedError(f"{type(self).__name__}: no initial.{missing[0]} "
+                                      "parameter; override initial_state()")
+        q = [self.value(f"initial.{n}") for n in names]
+        v = [self.value(f"initial_rate.{n}") if f"initial_rate.{n}" in self.values else 0.0
+             for n in names]
+        return np.array(q, dtype=np.float64), np.array(v, dtype=np.float64)
 
     def laws(self) -> tuple[Law, ...]:
         s = self.structure
