@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mechsim.systems._rotation import quat_mul, quat_rotate, quat_rotate_inverse
-from mechsim.systems.base import FrameSpec, Quantity, Structure
+from mechsim.systems.base import Quantity, Structure
 from mechsim.systems.direct import DirectModel
 
 # --- inertia ----------------------------------------------------------------------------------
@@ -281,7 +281,3 @@ class QuaternionRigidBody(DirectModel):
         qd = np.empty(4)
         quat_mul(q, wq, qd)
         return np.asarray(q, dtype=float), 0.5 * qd
-
-    @property
-    def body_frame(self) -> FrameSpec:
-        return FrameSpec("body", "world")
