@@ -55,6 +55,9 @@ class LagrangianBuilder:
     kinetic: Expr = sp.Integer(0)
     potential: Expr = sp.Integer(0)
     rayleigh: Expr = sp.Integer(0)
+    # Terms of L linear in q̇, Σ aᵢ(q, t) q̇ᵢ, that belong to neither T nor V (magnetic q q̇·A):
+    # they enter L (and so the equations and h) but not E = T + V; static ones do no work.
+    linear: Expr = sp.Integer(0)
     forces: list[Expr] = field(default_factory=list)
     constraints: list[tuple[str, Expr]] = field(default_factory=list)
     invariants: list[tuple[Quantity, Expr]] = field(default_factory=list)
@@ -179,11 +182,13 @@ class LagrangianModel(Model):
         qs, vs, t = set(d.q), set(d.v), d.t
         M = sp.hessian(d.kinetic, d.v)
         constant_mass = not (M.free_symbols & (qs | vs | {t}))
-        time_dep = t in (d.kinetic.free_symbols | d.potential.free_symbols) or any(
+        time_dep = t in (d.kinetic.free_symbols | d.potential.free_symbols
+                         | sp.sympify(d.linear).free_symbols) or any(
             t in g.free_symbols for _, g in d.constraints)
         dissipative = d.rayleigh != 0
         driven = any(f != 0 for f in d.forces)
         separable = (constant_mass and not d.constraints and not dissipative and not driven
+                     and d.linear == 0
                      and not time_dep and not (d.potential.free_symbols & vs)
                      and not (d.kinetic.free_symbols & qs)
                      and (len(d.q) <= 4 or M.is_diagonal()))
@@ -210,7 +215,9 @@ class LagrangianModel(Model):
                                     for f in d.frames], "events",
                                    [(e, sp.srepr(x)) for e, x in d.events],
                                    [(k, sp.srepr(a)) for k, a in sorted(d.active.items())],
-                                   [q.name for q in d.modes])).encode()).hexdigest()[:12]
+                                   [q.name for q in d.modes])
+                                  + ((sp.srepr(d.linear),) if d.linear != 0 else ())
+                                  ).encode()).hexdigest()[:12]
         name = f"{self.id}_{self.formulation}_{key}"
         cached = codegen.cache_dir() / "derived" / f"{name}.py"
         if cached.exists():
@@ -230,7 +237,7 @@ class LagrangianModel(Model):
 
     def energy_function_conserved(self) -> bool:
         d = self.declaration
-        L = d.kinetic - d.potential
+        L = d.kinetic - d.potential + d.linear
         return (d.t not in L.free_symbols and d.rayleigh == 0
                 and not any(f != 0 for f in d.forces)
                 and not any(d.t in g.free_symbols for _, g in d.constraints))
@@ -289,7 +296,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     n, nc = len(d.q), len(d.constraints)
     t, q, v = d.t, sp.Matrix(d.q), sp.Matrix(d.v)
     T, V, D = d.kinetic, d.potential, d.rayleigh
-    L = T - V
+    L = T - V + d.linear
     dL_dv = sp.Matrix([sp.diff(L, vi) for vi in d.v])
     M = sp.hessian(T, d.v)
     forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
