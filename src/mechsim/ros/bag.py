@@ -240,8 +240,10 @@ def qos_dict(qos: Any) -> dict[str, Any]:
     }
 
 
-def qos_profile(entries: list[dict[str, Any]]) -> Any:
-    """The rclpy QoSProfile to republish with, from a topic's ``offered_qos_profiles``."""
+def qos_profile(entries: list[dict[str, Any]], latched_messages: int = 1) -> Any:
+    """The rclpy QoSProfile to republish with, from a topic's ``offered_qos_profiles``.
+    A transient-local topic keeps up to ``latched_messages`` (at most 100) for late joiners:
+    in the recording several publishers (one per system on /tf_static) each kept theirs."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     e = entries[0] if entries else {}
@@ -251,6 +253,8 @@ def qos_profile(entries: list[dict[str, Any]]) -> Any:
                    else ReliabilityPolicy.RELIABLE)
     depth = int(e.get("depth") or 0) or (1 if durability == DurabilityPolicy.TRANSIENT_LOCAL
                                          else 10)
+    if durability == DurabilityPolicy.TRANSIENT_LOCAL:
+        depth = max(depth, min(int(latched_messages), 100))
     return QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=reliability,
                       durability=durability)
 
@@ -545,15 +549,15 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     return dict(meta)
 
 
-def topic_qos(meta: dict[str, Any]) -> dict[str, tuple[str, list[dict[str, Any]]]]:
-    """topic -> (type, offered_qos_profiles entries) from bag metadata."""
+def topic_qos(meta: dict[str, Any]) -> dict[str, tuple[str, list[dict[str, Any]], int]]:
+    """topic -> (type, offered_qos_profiles entries, message count) from bag metadata."""
     out = {}
     for t in meta["topics_with_message_count"]:
         tm = t["topic_metadata"]
         q = tm.get("offered_qos_profiles") or []
         if isinstance(q, str):
             q = yaml.safe_load(q) or []
-        out[tm["name"]] = (tm["type"], list(q))
+        out[tm["name"]] = (tm["type"], list(q), int(t.get("message_count", 0)))
     return out
 
 

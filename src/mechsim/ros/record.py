@@ -126,13 +126,13 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
     from mechsim.ros.launch import run_scene
 
     out = open_outputs(scene, bag, rrd)
-    where = out.bag.path if out.bag is not None else rrd
+    where = f"bag {out.bag.path}" if out.bag is not None else f"rrd {rrd}"
     try:
         run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks, progress=progress)
         lines = out.close()
     except OSError as e:
         out.abort()
-        raise MechsimError(f"bag {where}: write failed ({e.strerror or e}); partial bag "
+        raise MechsimError(f"{where}: write failed ({e.strerror or e}); partial output "
                            "removed") from None
     except MechsimError:
         out.abort()
@@ -204,7 +204,12 @@ def add_bag_parser(sub: Any) -> None:
 def cmd_bag_info(a: argparse.Namespace) -> int:
     from mechsim.ros.bag import describe, read_metadata
 
-    print(describe(read_metadata(Path(a.bag))))
+    text = describe(read_metadata(Path(a.bag)))
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:  # `mechsim bag info DIR | head`
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 

@@ -2,7 +2,9 @@
 
 Messages go out in recording order with their original relative timing (``--rate`` scales it;
 ``--rate 0`` = as fast as possible), each on its topic with its recorded type and the QoS of the
-bag metadata (reliability, durability: /tf_static and system_info stay transient local). The
+bag metadata (reliability, durability: /tf_static and system_info stay transient local, keeping
+as many messages as the bag has on the topic, at most 100, so a late joiner gets the static
+frames of every system as it would from the recorded publishers). The
 player publishes ``/clock`` (best effort, depth 1) itself from the messages' log times, which
 are the stamps the simulator wrote, so nodes with ``use_sim_time`` follow the recording; a
 ``/clock`` stored in the bag is not republished (as ``ros2 bag play --clock``). With ``--loop``
@@ -49,13 +51,8 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
     from mechsim.ros.outlet import CLOCK_QOS
 
     d = Path(path)
-    meta = read_metadata(d)
-    known = topic_qos(meta)
-    if topics:
-        missing = [t for t in topics if t not in known]
-        if missing:
-            raise ParameterError("--topics", f"{', '.join(missing)} not in bag {d} (it has: "
-                                 f"{', '.join(sorted(known))})")
+    known = topic_qos(read_metadata(d))
+    check_topics(d, known, topics)
     selected = [t for t in (topics or list(known)) if t != "/clock"]
     classes = {t: message_class(known[t][0]) for t in selected}
 
@@ -65,8 +62,9 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = Node("mechsim_replay", namespace="mechsim", context=context)
     stats = ReplayStats()
+    start = 0.0
     try:
-        pubs = {t: node.create_publisher(classes[t], t, qos_profile(known[t][1]))
+        pubs = {t: node.create_publisher(classes[t], t, qos_profile(known[t][1], known[t][2]))
                 for t in selected}
         clock_pub = node.create_publisher(Clock, "/clock", CLOCK_QOS)
         time.sleep(max(delay, 0.0))
@@ -101,15 +99,22 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
             stats.loops += 1
             if not loop or stats.messages == 0:
                 break
-        stats.wall = time.monotonic() - start
         _wait_acked(list(pubs.values()))
     except KeyboardInterrupt:
-        _wait_acked(list(pubs.values()) if "pubs" in locals() else [])
+        pass
     finally:
+        stats.wall = time.monotonic() - start if start else 0.0
         node.destroy_node()
         if own_context:
             context.try_shutdown()
     return stats
+
+
+def check_topics(path: Path, known: dict[str, Any], topics: list[str] | None) -> None:
+    missing = [t for t in topics or [] if t not in known]
+    if missing:
+        raise ParameterError("--topics", f"{', '.join(missing)} not in bag {path} (it has: "
+                             f"{', '.join(sorted(known))})")
 
 
 def _wait_acked(pubs: list[Any], timeout: float = 2.0) -> None:
@@ -134,9 +139,10 @@ def cmd_replay(a: argparse.Namespace) -> int:
         raise ParameterError("--rate", f"must be >= 0 (0: as fast as possible; got {a.rate!r})")
     if not (a.delay >= 0 and a.delay < 3600):
         raise ParameterError("--delay", f"must be between 0 and 3600 s (got {a.delay!r})")
-    from mechsim.ros.bag import read_metadata
+    from mechsim.ros.bag import read_metadata, topic_qos
 
     meta = read_metadata(Path(a.bag))  # a bad bag fails here, before ROS starts
+    check_topics(Path(a.bag), topic_qos(meta), a.topics)
     pace = "as fast as possible" if a.rate == 0 else f"at {a.rate:g}x"
     print(f"mechsim: replaying {a.bag} ({meta['message_count']} messages, "
           f"{meta['duration']['nanoseconds'] / 1e9:g} s) {pace}"
