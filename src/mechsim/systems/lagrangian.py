@@ -224,10 +224,7 @@ class LagrangianModel(Model):
             body = cached.read_text()
         else:
             body = _derive(d, self._param_index(), self.structure)
-            cached.parent.mkdir(parents=True, exist_ok=True)
-            tmp = cached.with_suffix(".tmp")
-            tmp.write_text(body)
-            tmp.replace(cached)
+            codegen.write_atomic(cached, body)
         n = len(d.q)
         return codegen.KernelSource(name=name, constants={
             "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
