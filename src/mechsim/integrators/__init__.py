@@ -12,6 +12,11 @@ Methods:
 - ``auto``: ``yoshida8`` for separable models, else ``dop853`` (always ``dop853`` for models
   with events).
 
+Stiffness (``dop853``): Hairer's stiffness test runs inside the loop (see ``kernels.py``); when
+it fires the stepper raises ``StiffnessError`` (an IntegrationError naming the system, with
+what to change) instead of crawling on with stability-limited steps. Read-only otherwise:
+non-stiff runs are bit for bit unchanged.
+
 Events (``dop853`` only). A model may declare state events (``Model.events``, each an
 ``Event(name, direction)``), computed by the kernel function ``event(t, y, p, out)``, and
 discrete modes (``Model.modes``), extra state entries after the work terms that stay constant
@@ -39,8 +44,9 @@ from mechsim.errors import IntegrationError, ParameterError
 from mechsim.systems.base import Model
 
 STATUS = {0: "ok", 1: "too many steps", 2: "step size underflow", 3: "non-finite state",
-          4: "event"}
+          4: "event", 5: "stiff"}
 EVENT = 4
+STIFF = 5
 
 # Yoshida (1990), symmetric compositions of a 2nd-order symmetric method; each tuple lists
 # w_m ... w_1 and the central weight is 1 - 2 Σ w_i.
@@ -60,6 +66,11 @@ COMPOSITIONS: dict[str, tuple[np.ndarray, int]] = {
     "yoshida8": (_symmetric(_YOSHIDA8), 8),
 }
 METHODS = ("auto", "dop853", *COMPOSITIONS)
+
+
+class StiffnessError(IntegrationError):
+    """DOP853's stiffness test fired (status STIFF): the state is kept at the last accepted
+    step, whose outputs were all written."""
 
 
 def choose_method(model: Model, method: str) -> str:
@@ -135,7 +146,8 @@ class DOP853(Stepper):
         counts = self.st[5:8] if hasattr(self, "st") else (0.0, 0.0, 2.0)
         n_events = self.st[9] if hasattr(self, "st") else 0.0
         last = self.st[2:5].copy() if keep_dense else (t, 0.0, 0.0)
-        self.st = np.array([t, h0, *last, *counts, -1.0, n_events])
+        # Last three: stiffness test counters (positive, negative in a row) and last h|λ|.
+        self.st = np.array([t, h0, *last, *counts, -1.0, n_events, 0.0, 0.0, 0.0])
         if self.model.events:
             k.event(t, self.y, self.p, self.g_old)
 
@@ -161,6 +173,14 @@ class DOP853(Stepper):
             if status != EVENT:
                 break
             self._handle_event(int(self.st[8]))
+        if status == STIFF:
+            raise StiffnessError(
+                f"{self.model.id}: dop853 stopped at t = {self.st[0]:.6g}: the problem is "
+                f"stiff (h·|λ| ≈ {self.st[12]:.3g} > 6.1 on 15 tests: the step is limited by "
+                f"stability, not accuracy; {int(self.st[5])} steps so far); the system's time "
+                "scales are far apart (huge spring constant or damping?): soften those "
+                "parameters, use a looser tolerance or a lower publish rate, or integrate it "
+                "with a stiff (implicit) method such as scipy's Radau or BDF")
         if status != 0:
             raise IntegrationError(f"{self.model.id}: dop853 stopped at t = {self.st[0]:.6g}: "
                                    f"{STATUS[status]}", ) from None

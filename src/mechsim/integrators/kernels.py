@@ -16,6 +16,11 @@ earliest event of the step wins: outputs before it are written, the state is lef
 time (on the side of the sign change the event reached) and ``dop853_advance`` returns EVENT.
 The step's dense output stays valid for (t_old, t_event], so outputs before the event that a
 later call asks for still come from it after the caller has restarted at the event.
+Stiffness (Hairer's test from dop853.f, read-only, so non-stiff runs are bit for bit as
+before): every 1000th accepted step, and every step while a test is positive, h·‖f(y_new) −
+f(stage 12)‖ / ‖y_new − stage 12‖ (both at t + h) estimates h|λ|; above 6.1 (the edge of the
+stability region) the step is limited by stability, not accuracy. 15 positive tests before 6
+negative ones in a row: the loop stops after the accepted step with status STIFF.
 Composition: a symmetric composition of velocity Verlet (kick-drift-kick) with given weights.
 """
 
@@ -53,6 +58,7 @@ MAX_STEPS = 1
 STEP_UNDERFLOW = 2
 NOT_FINITE = 3
 EVENT = 4
+STIFF = 5
 
 _DOP_A = np.ascontiguousarray(_dop.A)
 _DOP_B = np.ascontiguousarray(_dop.B)
@@ -257,10 +263,12 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
                    g_old, ev_dir):
     """Advance until every time in ``t_out`` (increasing, >= st[0] of the last step start) is
     written to ``Y_out``. State ``st`` = [t, h_next, t_old, h_old, dense_ready, n_steps,
-    n_rejected, n_rhs, last_event, n_events]; ``y`` current state, ``y_old``/``K``/``F`` the
-    last step's data, with K[12] = f(t, y) on entry; ``g_old`` the event functions at (t, y),
-    ``ev_dir`` their directions. Returns (status, number of outputs written); on EVENT the
-    state is at the event time st[0] (outputs before it written) and st[8] is its index."""
+    n_rejected, n_rhs, last_event, n_events, stiff_positive, stiff_negative, h_lambda];
+    ``y`` current state, ``y_old``/``K``/``F`` the last step's data, with K[12] = f(t, y) on
+    entry; ``g_old`` the event functions at (t, y), ``ev_dir`` their directions. Returns
+    (status, number of outputs written); on EVENT the state is at the event time st[0]
+    (outputs before it written) and st[8] is its index; on STIFF the state is at the end of
+    the last accepted step (outputs up to it written)."""
     n = y.size
     y_new = np.empty(n)
     ytmp = np.empty(n)
@@ -332,6 +340,24 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
         if not math.isfinite(err):
             err = 1e10
         if err < 1.0:
+            stiff = False
+            if st[5] % 1000.0 == 0.0 or st[10] > 0.0:
+                # Stage 12 (ytmp, K[11]) and y_new (K[12]) are both at t + h.
+                stnum = 0.0
+                stden = 0.0
+                for i in range(n):
+                    stnum += (K[12, i] - K[11, i]) ** 2
+                    stden += (y_new[i] - ytmp[i]) ** 2
+                if stden > 0.0:
+                    st[12] = h * math.sqrt(stnum / stden)
+                    if st[12] > 6.1:
+                        st[11] = 0.0
+                        st[10] += 1.0
+                        stiff = st[10] >= 15.0
+                    else:
+                        st[11] += 1.0
+                        if st[11] >= 6.0:
+                            st[10] = 0.0
             if err == 0.0:
                 factor = 10.0
             else:
@@ -394,6 +420,8 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
                     if N_C > 0:
                         project(t_out[k], Y_out[k], p)
                 k += 1
+            if stiff:
+                return STIFF, k
         else:
             st[1] = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
             st[6] += 1.0

@@ -10,7 +10,10 @@ Topics (stamped with simulation time + ``time_offset``, so /clock never starts a
   /clock            rosgraph_msgs/Clock      only when this node owns the clock
   /diagnostics      diagnostic_msgs/DiagnosticArray  only if integration fails
 Parameters: every model parameter (same names as scenes and --set), plus method, tolerance,
-publish_rate, real_time_factor (0: stepped by the caller, as fast as possible).
+publish_rate, real_time_factor (0: stepped by the caller, as fast as possible), and
+constraint_limit (hard limit on enforced constraint residuals, relative to max(1, max|q|)).
+Guards: a non-finite state, a failed step or an enforced constraint residual past the hard
+limit stops this system only (``_fail``): last good state kept, ERROR on /diagnostics.
 Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
 Energy, invariants, observables and frames are computed only while something consumes them.
 """
@@ -56,7 +59,10 @@ from mechsim.systems.base import Model
 from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
 from tf2_msgs.msg import TFMessage
 
-_NODE_PARAMS = ("method", "tolerance", "publish_rate", "real_time_factor")
+_NODE_PARAMS = ("method", "tolerance", "publish_rate", "real_time_factor", "constraint_limit")
+# Projection keeps enforced constraint residuals at round-off, diagnostics says ERROR at
+# 1e-3: a residual of 1 % of the configuration's size means the state is garbage.
+CONSTRAINT_LIMIT = 1e-2
 
 
 def _descriptor(p: Parameter) -> ParameterDescriptor:
@@ -74,7 +80,8 @@ class SimulatorNode(Node):
     def __init__(self, instance: Instance, *, context: Context | None = None,
                  publish_rate: float = 100.0, real_time_factor: float = 1.0,
                  publish_clock: bool = False, sinks: list[Sink] | None = None,
-                 time_offset: float = messages.DEFAULT_TIME_OFFSET) -> None:
+                 time_offset: float = messages.DEFAULT_TIME_OFFSET,
+                 constraint_limit: float = CONSTRAINT_LIMIT) -> None:
         super().__init__("simulator", namespace=instance.name, context=context)
         self.instance = instance
         self.cls: type[Model] = system_class(instance.system)
@@ -86,6 +93,7 @@ class SimulatorNode(Node):
         self.real_time_factor = real_time_factor
         self.publish_clock = publish_clock
         self.time_offset = time_offset
+        self.constraint_limit = float(constraint_limit)
         self.failed: str | None = None
         self.paused = False
         self.samples_published = 0
@@ -109,6 +117,10 @@ class SimulatorNode(Node):
         self.declare_parameter("time_offset", float(time_offset), ParameterDescriptor(
             description="stamp of simulation time 0 [s] (ROS time 0 means uninitialised)",
             read_only=True))
+        self.declare_parameter("constraint_limit", self.constraint_limit, ParameterDescriptor(
+            description="hard limit on an enforced constraint residual, relative to "
+            "max(1, max|q|); past it the system stops",
+            floating_point_range=[FloatingPointRange(from_value=1e-12, to_value=1e6)]))
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -141,6 +153,10 @@ class SimulatorNode(Node):
         self.factory = MessageFactory(self.model, self.instance.name, self.instance.origin,
                                       self.time_offset)
         self.p = self.model.parameter_vector()
+        # Residuals the stepper enforces (projection): the hard-limit guard watches them.
+        self._constraints = [i for i, q in enumerate(self.model.invariants)
+                             if q.name.startswith("constraint_")] \
+            if self.model.structure.n_constraints > 0 else []
         self.t = 0.0
         self.failed = None
         n_y = self.stepper.y.size
@@ -211,9 +227,28 @@ class SimulatorNode(Node):
             if not np.all(np.isfinite(Y[i])):
                 self._fail(f"non-finite state at t = {times[i]:.6g}")
                 return i
+            if self._constraints:
+                violation = self._constraint_violation(float(times[i]), Y[i])
+                if violation:
+                    self._fail(violation)
+                    return i
             self._publish_sample(float(times[i]), Y[i])
             self.t = float(times[i])
         return n
+
+    def _constraint_violation(self, t: float, y: np.ndarray) -> str | None:
+        """Why ``y`` is off its constraint manifold past the hard limit, or None."""
+        inv = np.zeros(len(self.model.invariants))
+        self.model.kernels.invariants(t, y, self.p, inv)
+        n = len(self.model.coordinates)
+        limit = self.constraint_limit * max(1.0, float(np.max(np.abs(y[:n]))))
+        for i in self._constraints:
+            r = float(inv[i])
+            if not (math.isfinite(r) and abs(r) <= limit):
+                name = self.model.invariants[i].name
+                return (f"constraint residual {name} = {r:.3g} past the hard limit {limit:.3g} "
+                        f"at t = {t:.6g} (projection cannot restore the constraint)")
+        return None
 
     def _fail(self, reason: str) -> None:
         """Stop this system cleanly: last good state kept, ERROR on /diagnostics, one log line."""
@@ -270,7 +305,7 @@ class SimulatorNode(Node):
                     candidate[name] = self.spec[name].validate(value)
                 elif name == "method" and value not in METHODS:
                     raise ParameterError(name, f"must be one of {', '.join(METHODS)}")
-                elif name in ("tolerance", "publish_rate") and not (
+                elif name in ("tolerance", "publish_rate", "constraint_limit") and not (
                         isinstance(value, float) and math.isfinite(value) and value > 0):
                     raise ParameterError(name, "must be a finite positive number")
             except ParameterError as e:
@@ -302,6 +337,8 @@ class SimulatorNode(Node):
             elif prm.name == "tolerance":
                 self.tolerance = prm.value
                 new_stepper = True
+            elif prm.name == "constraint_limit":
+                self.constraint_limit = prm.value
             elif prm.name == "publish_rate":
                 self.publish_rate = prm.value
                 if self.real_time_factor > 0:
