@@ -305,6 +305,7 @@ def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
     assert {t["topic_metadata"]["name"]: t["message_count"]
             for t in meta["topics_with_message_count"]} == dict(counts)
     assert meta["custom_data"]["mechsim.scene"] == "pendulum"  # from the MCAP's first record
+    assert meta["custom_data"]["mechsim.pendulum.system"] == "pendulum"  # from system_info
     stamps = [ts for t, _, ts, _ in _rosbags_messages(bag) if t == "/pendulum/state"]
     assert stamps == [1_000_000_000 + 10_000_000 * k for k in range(len(stamps))]
     again = _cli("bag", "repair", str(bag), env=ros_env)  # idempotent on a complete bag
@@ -388,6 +389,10 @@ def test_bad_bags_are_one_line_errors(tmp_path: Path, capsys: Any) -> None:
         "version": 9, "storage_identifier": "mcap", "relative_file_paths": ["corrupt_0.mcap"],
         "topics_with_message_count": [], "duration": {"nanoseconds": 0},
         "starting_time": {"nanoseconds_since_epoch": 0}, "message_count": 0}}))
+    junk = tmp_path / "junk"
+    junk.mkdir()
+    junk_bytes = os.urandom(5000)
+    (junk / "junk_0.mcap").write_bytes(junk_bytes)
     notyaml = tmp_path / "notyaml"
     notyaml.mkdir()
     (notyaml / "metadata.yaml").write_text("{{{")
@@ -396,6 +401,8 @@ def test_bad_bags_are_one_line_errors(tmp_path: Path, capsys: Any) -> None:
              ["replay", str(tmp_path / "missing")],
              ["replay", str(notyaml)],
              ["bag", "repair", str(tmp_path / "missing")],
+             ["replay", str(corrupt), "--delay", "0"],
+             ["bag", "repair", str(junk)],
              ["replay", str(REPO / "bags" / "reference"), "--rate", "-1"],
              ["replay", str(REPO / "bags" / "reference"), "--topics", "/nope"],
              ["record", "pendulum", "--duration", "-1", "--bag", str(tmp_path / "neg")]]
@@ -405,6 +412,7 @@ def test_bad_bags_are_one_line_errors(tmp_path: Path, capsys: Any) -> None:
         assert rc == 2 and err.count("\n") == 1 and err.startswith("mechsim: error: "), (argv,
                                                                                           err)
     assert not (tmp_path / "neg").exists()
+    assert (junk / "junk_0.mcap").read_bytes() == junk_bytes  # not "repaired" into nothing
     from mechsim.errors import MechsimError
     from mechsim.ros.bag import read_messages
 

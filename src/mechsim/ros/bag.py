@@ -368,6 +368,18 @@ def prepare_bag_dir(path: str | Path) -> Path:
     return d
 
 
+SYSTEM_INFO = "mechsim_msgs/msg/SystemInfo"
+
+
+def system_info_custom(info: Any) -> dict[str, str]:
+    """``custom_data`` entries describing one system instance, from its SystemInfo message."""
+    p = f"mechsim.{info.instance}."
+    return {p + "system": info.system, p + "formulation": info.formulation,
+            p + "parameters": info.parameters_yaml, p + "integrator": info.integrator,
+            p + "tolerance": repr(info.tolerance), p + "laws": ",".join(info.laws),
+            p + "version": info.mechsim_version}
+
+
 # --- writer -----------------------------------------------------------------------------------
 _STOP = object()
 
@@ -409,20 +421,13 @@ class BagWriter:
         if topic not in self._types:
             self._types[topic] = type_name
             self._queue.put(("channel", topic, type_name, qos_dict(qos)))
-        if type_name == "mechsim_msgs/msg/SystemInfo":
-            self._describe(msg)
+        if type_name == SYSTEM_INFO:
+            for key, value in system_info_custom(msg).items():
+                self._queue.put(("custom", key, value))
         self._queue.put((topic, ns, cdr_bytes(msg)))
 
     def set_custom(self, key: str, value: Any) -> None:
         self._queue.put(("custom", key, str(value)))
-
-    def _describe(self, info: Any) -> None:
-        p = f"mechsim.{info.instance}."
-        for key, value in (("system", info.system), ("formulation", info.formulation),
-                           ("parameters", info.parameters_yaml),
-                           ("integrator", info.integrator), ("tolerance", repr(info.tolerance)),
-                           ("laws", ",".join(info.laws)), ("version", info.mechsim_version)):
-            self._queue.put(("custom", p + key, str(value)))
 
     def close(self) -> BagStats:
         """Finish the file and write metadata.yaml (waits for the writer thread)."""
@@ -468,6 +473,9 @@ class BagWriter:
         self._file.flush()
         schemas: dict[str, int] = {}
         channels: dict[str, int] = {}
+        # mcap's Writer closes a chunk only when it is full; its (private, name-mangled)
+        # __finalize_chunk closes it now. Without it (another mcap version) chunks still close
+        # at CHUNK_SIZE, only the "lose at most ~1 s on a hard kill" bound is gone.
         finalize = getattr(w, "_Writer__finalize_chunk", None)
         last_flush_ns: int | None = None
         last_flush_wall = time.monotonic()
@@ -561,6 +569,29 @@ def topic_qos(meta: dict[str, Any]) -> dict[str, tuple[str, list[dict[str, Any]]
     return out
 
 
+def _corrupt(d: Path, f: Path, e: Exception) -> MechsimError:
+    detail = str(e).splitlines()[0] if str(e) else ""
+    return MechsimError(f"bag {d}: {f.name} is corrupt or truncated ({type(e).__name__}"
+                        f"{': ' + detail if detail else ''}); try `mechsim bag repair {d}`")
+
+
+def check_bag(path: str | Path) -> dict[str, Any]:
+    """Metadata of a bag whose storage files open with a summary (MechsimError otherwise)."""
+    from mcap.reader import make_reader
+
+    d = Path(path)
+    meta = read_metadata(d)
+    for rel in meta["relative_file_paths"]:
+        f = d / Path(rel).name
+        try:
+            with open(f, "rb") as stream:
+                if make_reader(stream).get_summary() is None:
+                    raise ValueError("no summary section")
+        except Exception as e:  # noqa: BLE001 - whatever the parser throws, the file is bad
+            raise _corrupt(d, f, e) from None
+    return meta
+
+
 def read_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:
     """Messages of a bag in file (= recording) order; MechsimError on a corrupt file."""
     from mcap.exceptions import McapError
@@ -578,10 +609,8 @@ def read_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
                         topics=list(wanted) if wanted else None, log_time_order=False):
                     yield BagMessage(channel.topic, schema.name if schema else "",
                                      message.log_time, message.data)
-        except (McapError, OSError, ValueError, EOFError, AssertionError) as e:
-            raise MechsimError(f"bag {d}: {f.name} is corrupt or truncated "
-                               f"({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})"
-                               f"; try `mechsim bag repair {d}`") from None
+        except (McapError, OSError, ValueError, EOFError, AssertionError, KeyError) as e:
+            raise _corrupt(d, f, e) from None
 
 
 # --- repair -----------------------------------------------------------------------------------
@@ -605,6 +634,9 @@ def _scan(f: Path) -> tuple[list[Any], dict[str, str], bool, str]:
     complete = False
     library = ""
     with open(f, "rb") as stream:
+        if stream.read(8) != b"\x89MCAP0\r\n":
+            raise ValueError("no MCAP magic")
+        stream.seek(0)
         reader = StreamReader(stream, validate_crcs=True)
         try:
             for rec in reader.records:
@@ -619,6 +651,15 @@ def _scan(f: Path) -> tuple[list[Any], dict[str, str], bool, str]:
         except (McapError, OSError, ValueError, EOFError, AssertionError, KeyError):
             pass
     return records, rosbag2, complete, library
+
+
+def _system_info_from(data: bytes) -> dict[str, str]:
+    try:
+        from rclpy.serialization import deserialize_message
+
+        return system_info_custom(deserialize_message(data, message_class(SYSTEM_INFO)))
+    except Exception:  # noqa: BLE001 - no rclpy or a bad message: the description is optional
+        return {}
 
 
 def repair_bag(path: str | Path) -> RepairResult:
@@ -675,6 +716,9 @@ def repair_bag(path: str | Path) -> RepairResult:
                     stats.topics.setdefault(rec.topic, TopicInfo(
                         rec.topic, s.name, list(q or []), rec.metadata.get("topic_type_hash", "")))
                 elif isinstance(rec, Message) and rec.channel_id in chan_map:
+                    topic = chan_topic[rec.channel_id]
+                    if stats.topics[topic].type == SYSTEM_INFO:
+                        stats.custom_data.update(_system_info_from(rec.data))
                     w.add_message(chan_map[rec.channel_id], log_time=rec.log_time,
                                   data=rec.data, publish_time=rec.publish_time,
                                   sequence=rec.sequence)

@@ -215,7 +215,12 @@ def cmd_bag_info(a: argparse.Namespace) -> int:
 
 def cmd_bag_repair(a: argparse.Namespace) -> int:
     from mechsim.ros.bag import repair_bag
+    from mechsim.ros.environment import import_rclpy
 
+    try:
+        import_rclpy()  # to read SystemInfo messages back into custom_data; optional
+    except RuntimeError:
+        pass
     r = repair_bag(Path(a.bag))
     state = "was complete" if r.complete else "was truncated; readable chunks kept"
     print(f"bag {r.path}: {r.messages} messages on {r.topics} topics ({state}); "

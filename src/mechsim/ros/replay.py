@@ -139,9 +139,9 @@ def cmd_replay(a: argparse.Namespace) -> int:
         raise ParameterError("--rate", f"must be >= 0 (0: as fast as possible; got {a.rate!r})")
     if not (a.delay >= 0 and a.delay < 3600):
         raise ParameterError("--delay", f"must be between 0 and 3600 s (got {a.delay!r})")
-    from mechsim.ros.bag import read_metadata, topic_qos
+    from mechsim.ros.bag import check_bag, topic_qos
 
-    meta = read_metadata(Path(a.bag))  # a bad bag fails here, before ROS starts
+    meta = check_bag(Path(a.bag))  # a bad bag fails here, before ROS starts
     check_topics(Path(a.bag), topic_qos(meta), a.topics)
     pace = "as fast as possible" if a.rate == 0 else f"at {a.rate:g}x"
     print(f"mechsim: replaying {a.bag} ({meta['message_count']} messages, "
