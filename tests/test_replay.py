@@ -128,4 +128,4 @@ def test_replay_paces_at_the_requested_rate(ros_context: Any) -> None:
     stats = replay(REFERENCE, rate=4.0, delay=0.0, topics=["/clock", "/kepler/state"],
                    context=ros_context)
     assert stats.per_topic == {"/kepler/state": 201}
-    assert stats.wall == pytest.approx(2.0 / 4.0, abs=0.15)
+    assert stats.wall == pytest.approx(2.0 / 4.0, abs=0.3)  # 2 s of bag at 4x
