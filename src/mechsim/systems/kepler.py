@@ -19,6 +19,7 @@ import numpy as np
 import sympy as sp
 
 from mechsim.params import Parameter, positive
+from mechsim.systems._central import declare_orbit_quantities, eccentric_anomaly
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 
@@ -43,13 +44,8 @@ class Kepler(LagrangianModel):
         k = mu * GM
         b.kinetic = mu * (dx**2 + dy**2) / 2
         b.potential = -k / r
-        Lz = mu * (x * dy - y * dx)
-        b.invariant("angular_momentum", "kg m^2/s", Lz)
-        b.invariant("runge_lenz_x", "kg^2 m^3/s^2", mu * Lz * dy - mu * k * x / r)
-        b.invariant("runge_lenz_y", "kg^2 m^3/s^2", -mu * Lz * dx - mu * k * y / r)
-        b.observable("radius", "m", r)
+        declare_orbit_quantities(b, mu, x, y, dx, dy, k=k, radius=r)
         b.observable("true_anomaly", "rad", sp.atan2(y, x))
-        b.observable("areal_velocity", "m^2/s", Lz / (2 * mu))
         b.frame("perifocal", "world", (0, 0, 0))
         b.frame("body", "perifocal", (x, y, 0))
 
@@ -79,13 +75,7 @@ class Kepler(LagrangianModel):
     def position_at(self, t: np.ndarray) -> np.ndarray:
         """Exact (x, y) at times t from Kepler's equation M = E − e sin E (Newton iteration)."""
         a, e = self.value("semi_major_axis"), self.value("eccentricity")
-        M = 2 * math.pi * np.asarray(t, dtype=float) / self.period()
-        E = M + e * np.sin(M) if e < 0.8 else np.full_like(M, math.pi) + 0 * M
-        for _ in range(50):
-            dE = (E - e * np.sin(E) - M) / (1 - e * np.cos(E))
-            E = E - dE
-            if np.max(np.abs(dE)) < 1e-15:
-                break
+        E = eccentric_anomaly(2 * math.pi * np.asarray(t, dtype=float) / self.period(), e)
         return np.stack([a * (np.cos(E) - e), a * math.sqrt(1 - e * e) * np.sin(E)], axis=-1)
 
 MODEL = Kepler

@@ -1,0 +1,98 @@
+"""Shared physics of central-force motion (seed 003 ch. 4, seed 001 §2.16–2.20): the relative
+orbit's first integrals as sympy expressions, and the analytic oracles (effective potential,
+turning points, Kepler elements, conic classes, Kepler's equation). Used by ``kepler`` and
+``central_force``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import sympy as sp
+from scipy.optimize import brentq
+
+from mechsim.systems.lagrangian import LagrangianBuilder
+
+Expr = sp.Expr
+
+
+def declare_orbit_quantities(b: LagrangianBuilder, mu: Expr, x: Expr, y: Expr, dx: Expr,
+                             dy: Expr, k: Expr | None = None, conserved: bool = True,
+                             radius: Expr | None = None, angular_momentum: Expr | None = None
+                             ) -> tuple[Expr, Expr]:
+    """Declare l = μ(x ẏ − y ẋ) (an invariant if ``conserved``, else an observable), for
+    U = −k/r also the Laplace–Runge–Lenz vector A = μ v × L − μ k r̂ (invariant), and the
+    observables radius r and areal velocity dA/dt = l / (2μ). Returns (r, l)."""
+    r = radius if radius is not None else sp.sqrt(x**2 + y**2)
+    Lz = angular_momentum if angular_momentum is not None else mu * (x * dy - y * dx)
+    (b.invariant if conserved else b.observable)("angular_momentum", "kg m^2/s", Lz)
+    if k is not None:
+        b.invariant("runge_lenz_x", "kg^2 m^3/s^2", mu * Lz * dy - mu * k * x / r)
+        b.invariant("runge_lenz_y", "kg^2 m^3/s^2", -mu * Lz * dx - mu * k * y / r)
+    b.observable("radius", "m", r)
+    b.observable("areal_velocity", "m^2/s", Lz / (2 * mu))
+    return r, Lz
+
+
+# --- oracles ------------------------------------------------------------------------------------
+def effective_potential(U: Callable[[float], float], mu: float, l: float
+                        ) -> Callable[[float], float]:
+    """V_eff(r) = U(r) + l² / (2 μ r²) (seed 003 line 960, seed 001 §2.18)."""
+    return lambda r: U(r) + l * l / (2 * mu * r * r)
+
+
+def turning_points(U: Callable[[float], float], mu: float, E: float, l: float,
+                   r_min: float = 1e-6, r_max: float = 1e6, samples: int = 20000
+                   ) -> list[float]:
+    """All radii in [r_min, r_max] where E = V_eff(r) (seed 003 line 913), by sign changes on
+    a logarithmic grid refined with brentq."""
+    V = effective_potential(U, mu, l)
+    grid = np.geomspace(r_min, r_max, samples)
+    g = np.array([E - V(r) for r in grid])
+    roots = []
+    for i in range(samples - 1):
+        if g[i] == 0.0:
+            roots.append(float(grid[i]))
+        elif g[i] * g[i + 1] < 0:
+            roots.append(brentq(lambda r: E - V(r), grid[i], grid[i + 1], xtol=1e-300,
+                                rtol=1e-15))
+    return roots
+
+
+def conic_class(eccentricity: float, tol: float = 1e-9) -> str:
+    """Seed 003 conic table (line 996): circle, ellipse, parabola or hyperbola."""
+    if eccentricity < tol:
+        return "circle"
+    if abs(eccentricity - 1.0) < tol:
+        return "parabola"
+    return "ellipse" if eccentricity < 1.0 else "hyperbola"
+
+
+def kepler_elements(mu: float, k: float, E: float, l: float) -> dict[str, float]:
+    """Orbit of U = −k/r from E and l (seed 003 lines 984–1042, ε typo fixed):
+    α = l²/(μk), ε = √(1 + 2El²/(μk²)), r_min = α/(1 + ε), r_max = α/(1 − ε) (∞ unless bound),
+    a = k/(2|E|), τ = 2π √(μ a³ / k) (bound orbits), V_min = −μk²/(2l²)."""
+    alpha = l * l / (mu * k)
+    eps = math.sqrt(max(0.0, 1.0 + 2.0 * E * l * l / (mu * k * k)))
+    out = {"semi_latus_rectum": alpha, "eccentricity": eps, "r_min": alpha / (1 + eps),
+           "r_max": alpha / (1 - eps) if eps < 1 else math.inf,
+           "effective_minimum": -mu * k * k / (2 * l * l)}
+    if E < 0:
+        a = k / (2 * abs(E))
+        out.update(semi_major_axis=a, semi_minor_axis=l / math.sqrt(2 * mu * abs(E)),
+                   period=2 * math.pi * math.sqrt(mu * a**3 / k))
+    return out
+
+
+def eccentric_anomaly(M: np.ndarray, e: float) -> np.ndarray:
+    """Solve Kepler's equation M = E − e sin E (Newton iteration)."""
+    M = np.asarray(M, dtype=float)
+    E = M + e * np.sin(M) if e < 0.8 else np.full_like(M, math.pi) + 0 * M
+    for _ in range(50):
+        dE = (E - e * np.sin(E) - M) / (1 - e * np.cos(E))
+        E = E - dE
+        if np.max(np.abs(dE)) < 1e-15:
+            break
+    return E
