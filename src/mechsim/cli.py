@@ -148,6 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_bag_parser(sub)
     replay.add_parser(sub)
     topic_tools.add_parser(sub)
+    from mechsim.bench import add_parser as add_bench_parser  # registers only; lazy imports
+    add_bench_parser(sub)
     from mechsim import rerun_log  # parsers only; Rerun imported lazily
     rerun_log.add_parsers(sub)
     return ap

@@ -1,0 +1,198 @@
+"""Where mechsim's integration time goes: per-call cost of a model's generated kernels against
+hand-written numba equivalents, and the share of a run spent outside the compiled loop.
+
+``python -m mechsim.bench.kernel_profile [SYSTEM ...] [--out FILE.md]`` (kepler, pendulum).
+
+Measured, per system:
+- ns per call of the model's ``rhs`` and ``accel_q`` (called N times from a compiled loop,
+  so no Python dispatch), and of a hand-written kernel with the same physics;
+- the cost of the two heap allocations the generated ``rhs`` makes (``np.empty`` for the
+  multipliers and accelerations), and of ``x ** (3/2)`` against ``x * sqrt(x)``;
+- for one benchmark run per method: total wall time, calls × ns/call of the force kernel,
+  and the rest (step logic, dense output, Python set-up in ``make_stepper``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=False)
+def _loop4(f, t, y, p, out, n):  # type: ignore[no-untyped-def]
+    s = 0.0
+    for _ in range(n):
+        y[0] += 1e-12  # defeat hoisting
+        f(t, y, p, out)
+        s += out[out.size - 1] if out.size > 0 else 0.0
+    return s
+
+
+@njit(cache=False)
+def _kepler_rhs(t, y, p, dy):  # type: ignore[no-untyped-def]
+    x = y[0]
+    z = y[1]
+    r2 = x * x + z * z
+    c = p[0] / (r2 * math.sqrt(r2))
+    dy[0] = y[2]
+    dy[1] = y[3]
+    dy[2] = -c * x
+    dy[3] = -c * z
+    dy[4] = 0.0
+    dy[5] = 0.0
+
+
+@njit(cache=False)
+def _kepler_accel(t, q, p, a):  # type: ignore[no-untyped-def]
+    x = q[0]
+    z = q[1]
+    r2 = x * x + z * z
+    c = p[0] / (r2 * math.sqrt(r2))
+    a[0] = -c * x
+    a[1] = -c * z
+
+
+@njit(cache=False)
+def _pendulum_rhs(t, y, p, dy):  # type: ignore[no-untyped-def]
+    dy[0] = y[1]
+    dy[1] = -(p[2] / p[1]) * math.sin(y[0])
+    dy[2] = 0.0
+    dy[3] = 0.0
+
+
+@njit(cache=False)
+def _pendulum_accel(t, q, p, a):  # type: ignore[no-untyped-def]
+    a[0] = -(p[2] / p[1]) * math.sin(q[0])
+
+
+@njit(cache=False)
+def _alloc2(t, y, p, out):  # type: ignore[no-untyped-def]
+    lam = np.empty(1)
+    acc = np.empty(2)
+    acc[0] = y[0]
+    lam[0] = y[1]
+    out[0] = acc[0] + lam[0]
+
+
+@njit(cache=False)
+def _pow15(t, y, p, out):  # type: ignore[no-untyped-def]
+    r2 = y[0] * y[0] + y[1] * y[1]
+    out[0] = p[0] / r2 ** (3 / 2)
+
+
+@njit(cache=False)
+def _sqrt15(t, y, p, out):  # type: ignore[no-untyped-def]
+    r2 = y[0] * y[0] + y[1] * y[1]
+    out[0] = p[0] / (r2 * math.sqrt(r2))
+
+
+@njit(cache=False)
+def _noop(t, y, p, out):  # type: ignore[no-untyped-def]
+    out[0] = y[0]
+
+
+HAND = {"kepler": (_kepler_rhs, _kepler_accel), "pendulum": (_pendulum_rhs, _pendulum_accel)}
+
+
+def ns_per_call(f: Any, y: np.ndarray, p: np.ndarray, out: np.ndarray, n: int = 200_000,
+                repeats: int = 7) -> float:
+    _loop4(f, 0.0, y.copy(), p, out, 10)  # compile
+    ts = []
+    for _ in range(repeats):
+        yy = y.copy()
+        t0 = time.perf_counter()
+        _loop4(f, 0.0, yy, p, out, n)
+        ts.append(time.perf_counter() - t0)
+    return statistics.median(ts) / n * 1e9
+
+
+def profile_system(system: str) -> dict[str, Any]:
+    from mechsim.bench.problems import problem
+    from mechsim.integrators import make_stepper
+    from mechsim.systems import load_system
+
+    pb = problem(system)
+    model = load_system(system, **pb.params)
+    k = model.kernels
+    y = model.initial_y()
+    p = model.parameter_vector()
+    nq = len(model.coordinates)
+    dy = np.zeros(y.size)
+    a = np.zeros(nq)
+    hand_rhs, hand_acc = HAND[system]
+    r: dict[str, Any] = {"system": system, "ns": {
+        "model rhs": ns_per_call(k.rhs, y, p, dy),
+        "hand rhs": ns_per_call(hand_rhs, y, p, dy),
+        "model accel_q": ns_per_call(k.accel_q, y[:nq].copy(), p, a),
+        "hand accel_q": ns_per_call(hand_acc, y[:nq].copy(), p, a),
+        "2 × np.empty (as in generated rhs)": ns_per_call(_alloc2, y, p, dy),
+        "x ** (3/2)": ns_per_call(_pow15, y, p, dy),
+        "x * sqrt(x)": ns_per_call(_sqrt15, y, p, dy),
+        "empty call (loop overhead)": ns_per_call(_noop, y, p, dy)}}
+    runs = []
+    t = pb.times()
+    for method, tol in (("dop853", 1e-10), ("yoshida8", 1e-10), ("yoshida6", 1e-10)):
+        make_stepper(model, method, tol).advance(t)  # warm
+        walls, setups = [], []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            st = make_stepper(model, method, tol)
+            t1 = time.perf_counter()
+            st.advance(t)
+            walls.append(time.perf_counter() - t0)
+            setups.append(t1 - t0)
+        wall = statistics.median(walls)
+        calls = int(st.st[7]) if method == "dop853" else int(st.st[2])  # type: ignore[attr-defined]
+        per = r["ns"]["model rhs" if method == "dop853" else "model accel_q"]
+        hand = r["ns"]["hand rhs" if method == "dop853" else "hand accel_q"]
+        runs.append({"method": method, "tolerance": tol, "wall_ms": wall * 1e3,
+                     "make_stepper_ms": statistics.median(setups) * 1e3,
+                     "steps": st.n_steps, "force_calls": calls,
+                     "in_force_kernel_ms": calls * per * 1e-6,
+                     "with_hand_kernel_ms": calls * hand * 1e-6,
+                     "rest_ms": wall * 1e3 - calls * per * 1e-6})
+    r["runs"] = runs
+    return r
+
+
+def markdown(results: list[dict[str, Any]]) -> str:
+    out = ["# Where mechsim's time goes", "",
+           "ns per call from a compiled loop (median of 7 × 200k calls), and the split of one "
+           "benchmark run (median of 5). All numbers measured in the run that wrote this file.",
+           ""]
+    for r in results:
+        out += [f"## {r['system']}", "", "| kernel | ns/call |", "|---|---|"]
+        out += [f"| {k} | {v:.1f} |" for k, v in r["ns"].items()]
+        out += ["", "| method | tol | wall [ms] | make_stepper [ms] | steps | force calls | "
+                "in force kernel [ms] | same calls, hand kernel [ms] | rest [ms] |",
+                "|---|---|---|---|---|---|---|---|---|"]
+        out += [f"| {x['method']} | {x['tolerance']:g} | {x['wall_ms']:.2f} | "
+                f"{x['make_stepper_ms']:.3f} | {x['steps']} | {x['force_calls']} | "
+                f"{x['in_force_kernel_ms']:.2f} | {x['with_hand_kernel_ms']:.2f} | "
+                f"{x['rest_ms']:.2f} |" for x in r["runs"]]
+        out.append("")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m mechsim.bench.kernel_profile")
+    ap.add_argument("systems", nargs="*", default=["kepler", "pendulum"])
+    ap.add_argument("--out")
+    a = ap.parse_args(argv)
+    text = markdown([profile_system(s) for s in a.systems])
+    if a.out:
+        Path(a.out).write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,153 @@
+"""Markdown tables, the summary and the work-precision plots of a benchmark result."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def _e(x: float | None) -> str:
+    return "—" if x is None else f"{x:.1e}"
+
+
+def _ms(x: float | None) -> str:
+    if x is None:
+        return "—"
+    return f"{x * 1e3:.3g}" if x < 1 else f"{x * 1e3:,.0f}"
+
+
+def summary_rows(res: dict[str, Any]) -> list[list[str]]:
+    rows = []
+    for sid, s in res["systems"].items():
+        for lv, m in s["matched"].items():
+            ms, pe, sc = m["mechsim"], m["peer"], m["scipy"]
+            if not (ms or pe):
+                continue
+
+            def who(x: dict[str, Any] | None) -> str:
+                if not x:
+                    return "not reached"
+                return f"{x['contestant']} {'≤' if x['bound'] else ''}{_ms(x['time_s'])} ms"
+            rows.append([sid, lv, who(ms), who(pe),
+                         "—" if m["speedup_vs_peer"] is None else f"{m['speedup_vs_peer']:.2f}×",
+                         who(sc) if sc and pe and sc["contestant"] != pe["contestant"] else
+                         ("(same)" if sc else "not reached"),
+                         "—" if m["speedup_vs_scipy"] is None
+                         else f"{m['speedup_vs_scipy']:.1f}×"])
+    return rows
+
+
+SUMMARY_HEAD = ["system", "end error", "mechsim best", "best peer", "peer/mechsim",
+                "best scipy", "scipy/mechsim"]
+
+
+def _table(head: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def summary_text(res: dict[str, Any]) -> str:
+    rows = summary_rows(res)
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h)
+              for i, h in enumerate(SUMMARY_HEAD)]
+    out = ["", "Speed at matched end-point error (time to reach it; ratios > 1: mechsim faster)"]
+    out.append("  ".join(h.ljust(w) for h, w in zip(SUMMARY_HEAD, widths, strict=True)))
+    out += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    if res.get("targets"):
+        out.append("\nTargets:")
+        for t in res["targets"]:
+            mark = {True: "PASS", False: "MISS", None: "n/a "}[t["passed"]]
+            out.append(f"  {mark} {t['system']}: {t['target']} — {t['detail']}")
+    if res["peers"]["missing"]:
+        out.append("Peers missing (see above): " + ", ".join(res["peers"]["missing"]))
+    return "\n".join(out)
+
+
+def markdown(res: dict[str, Any]) -> str:
+    h = res["host"]
+    st = res["settings"]
+    out = ["# mechsim work-precision benchmark", "",
+           f"Run {res['created']}{' (--quick)' if res['quick'] else ''} on {h['cpu']} "
+           f"({h['cores']} cores), Python {h['python']}, numpy {h['numpy']}, scipy "
+           f"{h['scipy']}, numba {h['numba']}; env {h['env'] or '{}'}; load average "
+           f"{h['loadavg_start'][0]:.1f} at start, {h.get('loadavg_end', ['?'])[0]} at end "
+           "(1 min; the machine is shared, so times are noisy). Peers found: "
+           + (", ".join(f"{k} {v}" for k, v in res["peers"]["found"].items()) or "none")
+           + ". " + "".join(f"Missing: {k} ({v}). " for k, v in res["peers"]["missing"].items())
+           + f"Time: median of {st['repeats']} runs (up to 21 for runs under 0.1 s) after a "
+           "warm-up run (a run over "
+           f"{st['budget_s']:g} s is timed once and ends its sweep). Errors: ‖[q, v] − ref‖ / "
+           "max‖ref‖ at the last sample (end) and over all samples (max); invariant: max "
+           "relative drift of the conserved quantity. All numbers are from this run.", "",
+           "## Summary: time to reach an end-point error", "",
+           _table(SUMMARY_HEAD, summary_rows(res)), "",
+           "`≤`: the contestant's loosest run was already more accurate than the level (its time "
+           "is an upper bound). Times are interpolated log-log on each contestant's Pareto front.",
+           ""]
+    if res.get("targets"):
+        out += ["## Targets", ""]
+        out += [f"- **{ {True: 'PASS', False: 'MISS', None: 'n/a'}[t['passed']] }** "
+                f"{t['system']}: {t['target']} — {t['detail']}" for t in res["targets"]]
+        out.append("")
+    for sid, s in res["systems"].items():
+        pb = s["problem"]
+        c = s["compile"]
+        cold = c["cold_s"]
+        out += [f"## {sid}", "", f"{pb['description']}; {pb['n_samples']} samples; reference: "
+                f"{pb['reference']}; conserved: {pb['conserved'] or 'none'}.", "",
+                f"Model build in the benchmark process: {c['load_s']:.2f} s; first call "
+                "per contestant (kernel load or JIT, imports; not in the sweep): "
+                + ", ".join(f"{k} {v:.3f} s" for k, v in c["first_call_s"].items())
+                + (". Cold (empty kernel cache, new process, imports included): "
+                   + ", ".join(f"{k} {v:.1f} s" for k, v in cold.items()) if cold else "")
+                + ".", "", f"![work-precision]({sid}.png)", ""]
+        head = ["contestant", "knob", "setting", "time [ms]", "warm-up [ms]", "end error",
+                "max error", "invariant", "steps", "f evals", "status"]
+        rows = []
+        for r in s["runs"]:
+            rows.append([r["contestant"] + (f" ({r['method']})" if r.get("method") and
+                                            r["contestant"].endswith("auto") else ""),
+                         r["knob"], f"{r['setting']:g}", _ms(r["time_s"]), _ms(r["warmup_s"]),
+                         _e(r["end_error"]), _e(r["max_error"]), _e(r["invariant_error"]),
+                         "—" if r["n_steps"] is None else str(r["n_steps"]),
+                         "—" if r["n_rhs"] is None else str(r["n_rhs"]),
+                         r["status"] if r["repeats"] != 1 else "ok (timed once)"])
+        out += [_table(head, rows), ""]
+    return "\n".join(out)
+
+
+def plot(res: dict[str, Any], sid: str, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = res["systems"][sid]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), dpi=80)
+    names = list(dict.fromkeys(r["contestant"] for r in s["runs"]))
+    for ax, key, label in ((axes[0], "end_error", "end-point state error"),
+                           (axes[1], "invariant_error", "max relative invariant drift")):
+        drawn = False
+        for name in names:
+            pts = [(r[key], r["time_s"]) for r in s["runs"] if r["contestant"] == name
+                   and r["status"] == "ok" and r[key] is not None and r[key] > 0]
+            if not pts:
+                continue
+            pts.sort()
+            ms = name.startswith("mechsim")
+            ax.loglog([p[0] for p in pts], [p[1] * 1e3 for p in pts], "-o" if ms else "--.",
+                      lw=2 if ms else 1, ms=4, label=name)
+            drawn = True
+        ax.set_xlabel(label)
+        ax.set_ylabel("wall time [ms]")
+        ax.grid(True, which="major", alpha=0.3)
+        ax.invert_xaxis()
+        if not drawn:
+            ax.text(0.5, 0.5, "no conserved quantity", ha="center", transform=ax.transAxes)
+    axes[0].set_title(f"{sid}: work-precision", fontsize=10)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="center right", fontsize=7)
+    fig.tight_layout(rect=(0, 0, 0.8, 1))
+    fig.savefig(path)
+    plt.close(fig)
