@@ -150,6 +150,8 @@ def build_parser() -> argparse.ArgumentParser:
     topic_tools.add_parser(sub)
     from mechsim.bench import add_parser as add_bench_parser  # registers only; lazy imports
     add_bench_parser(sub)
+    from mechsim.stress import add_parser as add_stress_parser  # registers only; lazy
+    add_stress_parser(sub)
     from mechsim import rerun_log  # parsers only; Rerun imported lazily
     rerun_log.add_parsers(sub)
     return ap

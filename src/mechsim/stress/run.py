@@ -1,0 +1,216 @@
+"""Run the stress catalogue and write the report: ``stress.json``, ``stress.md`` and PNG plots
+(drift against time for the long horizons, separations for chaos, sweep errors, action
+variations)."""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+from mechsim.errors import MechsimError, UnknownSystemError
+
+
+def _log(text: str) -> None:
+    print(f"mechsim stress: {text}", file=sys.stderr, flush=True)
+
+
+def run_stress(systems: list[str] | None, *, quick: bool, out: str | Path,
+               cases: list[str] | None = None) -> dict[str, Any]:
+    from mechsim.stress.cases import Result, plan
+    from mechsim.systems import system_ids
+
+    known = system_ids()
+    for s in systems or []:
+        if s not in known:
+            raise UnknownSystemError(s, known)
+    out_dir = Path(out)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / ".write_test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise MechsimError(f"--out {out_dir}: cannot write ({e.strerror or e})") from None
+    todo = plan(systems, quick, cases)
+    results: list[Result] = []
+    start = time.perf_counter()
+    for i, (case, system) in enumerate(todo, 1):
+        t0 = time.perf_counter()
+        try:
+            from mechsim.stress.cases import CASES
+            got = CASES[case].run(system, quick)
+        except Exception as e:  # noqa: BLE001 - a crash is a failed case, reported with its cause
+            tb = traceback.format_exception_only(type(e), e)[-1].strip()
+            got = [Result(case, system, "?", False, f"crashed: {tb}", "no crash")]
+        for r in got:
+            r.wall = r.wall or (time.perf_counter() - t0)
+            results.append(r)
+            _log(f"[{i}/{len(todo)}] {case} {system} ({r.variant}): "
+                 f"{'PASS' if r.passed else 'FAIL'} — {r.outcome}")
+    report = build_report(results, quick=quick, wall=time.perf_counter() - start)
+    write_report(report, results, out_dir)
+    s = report["summary"]
+    _log(f"{s['passed']}/{s['results']} passed ({s['failed']} failed) in "
+         f"{report['wall_s']:.1f} s; report in {out_dir}")
+    return report
+
+
+def build_report(results: list[Any], *, quick: bool, wall: float) -> dict[str, Any]:
+    long = [r for r in results if r.case == "long_horizon" and "steps" in r.metrics]
+    steps = sum(int(r.metrics.get("steps", 0)) for r in results)
+    worst = sorted(((r.metrics["worst_drift"], r.system, r.metrics.get("worst_law", ""))
+                    for r in long if isinstance(r.metrics.get("worst_drift"), float)),
+                   reverse=True)
+    summary = {
+        "results": len(results), "passed": sum(r.passed for r in results),
+        "failed": sum(not r.passed for r in results),
+        "cases": sorted({r.case for r in results}),
+        "systems": sorted({r.system for r in results}),
+        "steps_total": steps,
+        "long_horizon_min_steps": min((int(r.metrics["steps"]) for r in long), default=0),
+        "long_horizon_max_steps": max((int(r.metrics["steps"]) for r in long), default=0),
+        "worst_long_horizon_drifts": [{"system": s, "law": k, "drift": d}
+                                      for d, s, k in worst[:5]],
+    }
+    return {"quick": quick, "wall_s": wall, "python": platform.python_version(),
+            "machine": platform.machine(), "summary": summary,
+            "results": [r.as_dict() for r in results]}
+
+
+def write_report(report: dict[str, Any], results: list[Any], out: Path) -> None:
+    (out / "stress.json").write_text(json.dumps(report, indent=1, ensure_ascii=False,
+                                                allow_nan=False, default=str) + "\n")
+    figures = plot(results, out)
+    (out / "stress.md").write_text(markdown(report, figures))
+
+
+def _fmt(x: Any) -> str:
+    if isinstance(x, float):
+        return "∞" if math.isinf(x) else f"{x:.3g}"
+    return str(x)
+
+
+def markdown(report: dict[str, Any], figures: list[str]) -> str:
+    s = report["summary"]
+    lines = [f"# mechsim stress report{' (quick)' if report['quick'] else ''}", "",
+             f"{s['passed']} of {s['results']} results pass ({s['failed']} fail); "
+             f"{len(s['cases'])} cases on {len(s['systems'])} systems; "
+             f"{s['steps_total']:,} integration steps; {report['wall_s']:.0f} s wall "
+             f"(Python {report['python']}, {report['machine']}).", ""]
+    if s["worst_long_horizon_drifts"]:
+        lines += ["Worst long-horizon drifts (relative, as the diagnostics node measures):", ""]
+        lines += [f"- {w['system']} {w['law']}: {w['drift']:.3g}"
+                  for w in s["worst_long_horizon_drifts"]]
+        lines.append("")
+    by_case: dict[str, list[dict[str, Any]]] = {}
+    for r in report["results"]:
+        by_case.setdefault(r["case"], []).append(r)
+    for case, rs in by_case.items():
+        lines += [f"## {case}", "", f"Criterion: {rs[0]['criterion']}", "",
+                  "| system | variant | result | outcome |", "|---|---|---|---|"]
+        for r in rs:
+            outcome = r["outcome"].replace("|", "\\|").replace("\n", " ")
+            lines.append(f"| {r['system']} | {r['variant']} | "
+                         f"{'pass' if r['passed'] else '**FAIL**'} | {outcome} |")
+        lines.append("")
+    if figures:
+        lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
+    return "\n".join(lines)
+
+
+def plot(results: list[Any], out: Path) -> list[str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    long = [r for r in results if r.case == "long_horizon" and r.series]
+    if long:
+        n = len(long)
+        cols = min(4, n)
+        rows = math.ceil(n / cols)
+        fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.8 * rows), squeeze=False)
+        for ax, r in zip(axes.flat, long, strict=False):
+            t = [x for x in r.series["t"]]
+            d = [max(x, 1e-17) for x in r.series["drift"]]
+            ax.loglog(t[1:], d[1:], lw=1)
+            ax.set_title(f"{r.system} ({r.metrics.get('method')}, "
+                         f"{r.metrics.get('steps', 0):.2g} steps)", fontsize=8)
+            ax.set_xlabel("t [s]", fontsize=7)
+            ax.set_ylabel(f"max drift {r.series['law']}", fontsize=7)
+            ax.tick_params(labelsize=6)
+            ax.grid(True, which="both", alpha=0.3)
+        for ax in list(axes.flat)[n:]:
+            ax.axis("off")
+        fig.tight_layout()
+        fig.savefig(out / "long_horizon_drift.png", dpi=90)
+        plt.close(fig)
+        written.append("long_horizon_drift.png")
+    chaos = [r for r in results if r.case == "chaos" and r.series]
+    if chaos:
+        fig, axes = plt.subplots(1, len(chaos), figsize=(6 * len(chaos), 3.5), squeeze=False)
+        for ax, r in zip(axes.flat, chaos, strict=False):
+            ax.plot(r.series["t"], r.series["log_sep_ic"], label="ICs 1e-9 apart")
+            ax.plot(r.series["t"], r.series["log_sep_tol"], label="tolerance 1e-10 vs 1e-13")
+            ax.plot(r.series["t"], r.series["log_drift"], label=f"{r.metrics['law']} drift")
+            ax.set_title(f"{r.system}: λ ≈ {r.metrics['lyapunov_exponent']:.3f}/s", fontsize=9)
+            ax.set_xlabel("t [s]")
+            ax.set_ylabel("log10")
+            ax.legend(fontsize=7)
+            ax.grid(True, alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(out / "chaos.png", dpi=90)
+        plt.close(fig)
+        written.append("chaos.png")
+    sw = [r for r in results if r.case == "sweeps" and r.series]
+    if sw:
+        fig, axes = plt.subplots(1, len(sw), figsize=(5 * len(sw), 3.5), squeeze=False)
+        colors = {"OK": "tab:green", "WARN": "tab:orange", "ERROR": "tab:red"}
+        for ax, r in zip(axes.flat, sw, strict=False):
+            for meth, marker in (("dop853", "o"), ("verlet", "s"), ("yoshida8", "^")):
+                pts = [p for p in r.series["points"] if p["method"] == meth
+                       and "state_error" in p]
+                if not pts:
+                    continue
+                x = list(range(len(pts)))
+                y = [max(p["state_error"], 1e-17) if math.isfinite(p["state_error"]) else 1e3
+                     for p in pts]
+                ax.semilogy(x, y, "-", color="gray", lw=0.5)
+                for xi, yi, p in zip(x, y, pts, strict=True):
+                    ax.semilogy(xi, yi, marker, color=colors.get(p["level"], "k"))
+                ax.plot([], [], marker, color="k", label=meth)
+            ax.axhline(1e-2, color="k", ls=":", lw=0.8)
+            ax.set_title(f"{r.system}: state error vs setting (colour = level)", fontsize=8)
+            ax.set_xlabel("setting index (looser → tighter)")
+            ax.legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(out / "sweeps.png", dpi=90)
+        plt.close(fig)
+        written.append("sweeps.png")
+    ham = [r for r in results if r.case == "hamilton" and r.series]
+    if ham:
+        fig, axes = plt.subplots(1, 2, figsize=(10, 3.5))
+        for r in ham:
+            axes[0].loglog(r.series["eps"], [max(x, 1e-300) for x in r.series["dS"]], "-o",
+                           ms=3, label=r.system)
+            axes[1].loglog(r.series["eps"],
+                           [max(x, 1e-300) for x in r.series["dS_control"]], "-o", ms=3)
+        axes[0].set_title("trajectory: |ΔS| ∝ ε²", fontsize=9)
+        axes[1].set_title("bent path (control): |ΔS| ∝ ε", fontsize=9)
+        for ax in axes:
+            ax.set_xlabel("ε")
+            ax.set_ylabel("|ΔS| [J s]")
+            ax.grid(True, which="both", alpha=0.3)
+        axes[0].legend(fontsize=6, ncol=2)
+        fig.tight_layout()
+        fig.savefig(out / "hamilton.png", dpi=90)
+        plt.close(fig)
+        written.append("hamilton.png")
+    return written
