@@ -3,8 +3,18 @@
 from __future__ import annotations
 
 
+def one_line(text: str) -> str:
+    """``text`` with control characters (newlines from hostile input, ...) escaped."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class MechsimError(Exception):
     """Base of every error mechsim reports to a user as one line (never a traceback)."""
+
+    def __str__(self) -> str:
+        return one_line(super().__str__())
 
 
 class ParameterError(MechsimError, ValueError):
@@ -25,7 +35,7 @@ class UnknownSystemError(MechsimError, KeyError):
         self._msg = f"unknown system '{system_id}' (known: {', '.join(sorted(known))})"
 
     def __str__(self) -> str:
-        return self._msg
+        return one_line(self._msg)
 
 
 class IntegrationError(MechsimError, RuntimeError):

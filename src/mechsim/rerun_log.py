@@ -523,15 +523,22 @@ def convert_bag(bag: str | Path, rrd: str | Path) -> dict[str, int]:
     read_metadata(bag)  # a clear error before the .rrd is created
     counts: dict[str, int] = {}
     classes: dict[str, Any] = {}
-    with RerunSink(rrd) as sink:
-        for m in read_messages(bag):
-            if m.type_name not in HANDLED_TYPES:
-                continue
-            cls = classes.get(m.type_name)
-            if cls is None:
-                cls = classes[m.type_name] = message_class(m.type_name)
-            sink.write(m.topic, m.type_name, deserialize_message(m.data, cls), None, m.log_time)
-            counts[m.topic] = counts.get(m.topic, 0) + 1
+    existed = Path(rrd).exists()
+    try:
+        with RerunSink(rrd) as sink:
+            for m in read_messages(bag):
+                if m.type_name not in HANDLED_TYPES:
+                    continue
+                cls = classes.get(m.type_name)
+                if cls is None:
+                    cls = classes[m.type_name] = message_class(m.type_name)
+                sink.write(m.topic, m.type_name, deserialize_message(m.data, cls), None,
+                           m.log_time)
+                counts[m.topic] = counts.get(m.topic, 0) + 1
+    except BaseException:
+        if not existed:  # a corrupt bag or Ctrl-C: no partial recording left behind
+            Path(rrd).unlink(missing_ok=True)
+        raise
     return counts
 
 

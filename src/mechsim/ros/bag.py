@@ -37,6 +37,7 @@ import os
 import queue
 import re
 import shutil
+import struct
 import sys
 import threading
 import time
@@ -609,7 +610,8 @@ def read_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
                         topics=list(wanted) if wanted else None, log_time_order=False):
                     yield BagMessage(channel.topic, schema.name if schema else "",
                                      message.log_time, message.data)
-        except (McapError, OSError, ValueError, EOFError, AssertionError, KeyError) as e:
+        except (McapError, OSError, ValueError, EOFError, AssertionError, KeyError,
+                struct.error) as e:  # struct.error: a record cut short
             raise _corrupt(d, f, e) from None
 
 
