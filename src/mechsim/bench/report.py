@@ -131,7 +131,7 @@ def plot(res: dict[str, Any], sid: str, path: Path) -> None:
         drawn = False
         for name in names:
             pts = [(r[key], r["time_s"]) for r in s["runs"] if r["contestant"] == name
-                   and r["status"] == "ok" and r[key] is not None and r[key] > 0]
+                   and r["status"] == "ok" and r[key] is not None and 0 < r[key] <= 10]
             if not pts:
                 continue
             pts.sort()
