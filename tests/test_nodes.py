@@ -225,3 +225,31 @@ def test_failure_stops_system_with_error_status(ros_context: Any) -> None:
     ex.shutdown()
     probe.destroy_node()
     node.destroy_node()
+
+
+def test_scene_runner_computes_only_what_is_consumed(ros_context: Any) -> None:
+    """In a scene, the diagnostics feed consumes energy and invariants only: observables and
+    frames of a system nobody watches are never computed (a counter, not a timer)."""
+    import mechsim.ros.simulator as simulator
+    from mechsim.ros import launch
+    from mechsim.scene import parse_scene
+
+    seen: list[Any] = []
+
+    original = simulator.SimulatorNode
+
+    class Spy(original):  # type: ignore[misc, valid-type]
+        def __init__(self, *a: Any, **k: Any) -> None:
+            super().__init__(*a, **k)
+            seen.append(self)
+
+    simulator.SimulatorNode = Spy  # type: ignore[misc]
+    try:
+        scene = parse_scene({"name": "lazy", "pacing": "fast", "duration": 1.0,
+                             "systems": [{"system": "kepler", "name": "quiet"}]})
+        launch.run_scene(scene, context=ros_context)
+    finally:
+        simulator.SimulatorNode = original  # type: ignore[misc]
+    (node,) = seen
+    assert node.computed["energy"] == 101 and node.computed["invariants"] == 101
+    assert node.computed["observables"] == 0 and node.computed["frames"] == 0

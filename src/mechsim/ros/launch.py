@@ -77,6 +77,9 @@ class DiagnosticsFeed:
     def __init__(self, diag: Any) -> None:
         self.diag = diag
 
+    def wants(self, topic: str) -> bool:
+        return topic.rpartition("/")[2] in ("system_info", "energy", "invariants")
+
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
         base, _, leaf = topic.rpartition("/")
         if leaf == "system_info":

@@ -27,7 +27,10 @@ DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 
 
 class Sink(Protocol):
-    """Receives every message an outlet sends: ``write(topic, type_name, msg, qos, ns)``."""
+    """Receives every message an outlet sends: ``write(topic, type_name, msg, qos, ns)``.
+
+    A sink may also define ``wants(topic) -> bool``; without it, it wants every topic (a
+    recorder). Outputs nobody wants are not computed."""
 
     def write(self, topic: str, type_name: str, msg: Any, qos: QoSProfile, ns: int) -> None: ...
 
@@ -64,7 +67,11 @@ class Outlet:
 
     def wanted(self, topic: str) -> bool:
         """Does anything consume ``topic`` (a subscriber anywhere, or a sink)? Cheap (~µs)."""
-        return bool(self.sinks) or self.channels[topic].publisher.get_subscription_count() > 0
+        for sink in self.sinks:
+            wants = getattr(sink, "wants", None)
+            if wants is None or wants(topic):
+                return True
+        return self.channels[topic].publisher.get_subscription_count() > 0
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
         ch = self.channels[topic]
