@@ -35,6 +35,9 @@ from mechsim.systems.base import Event, FrameSpec, Model, Quantity, Structure
 
 Expr = sp.Expr
 
+#: Bumped whenever the generated code changes, so cached derivations are not reused.
+GENERATOR_VERSION = 2
+
 
 @dataclass
 class _Frame:
@@ -205,7 +208,8 @@ class LagrangianModel(Model):
 
     def kernel_source(self) -> codegen.KernelSource:
         d = self.declaration
-        key = hashlib.sha256(repr((type(self).__qualname__, self.declaration_version,
+        key = hashlib.sha256(repr((GENERATOR_VERSION, type(self).__qualname__,
+                                   self.declaration_version,
                                    self.formulation, sp.srepr(d.kinetic), sp.srepr(d.potential),
                                    sp.srepr(d.rayleigh), [sp.srepr(f) for f in d.forces],
                                    [(n, sp.srepr(g)) for n, g in d.constraints],
@@ -252,8 +256,24 @@ class LagrangianModel(Model):
 # Derivation and code printing
 
 
+class _KernelPrinter(PythonCodePrinter):
+    """Python printer for numba kernels: half-integer powers as square roots (x**1.5 is a
+    general pow call, x*sqrt(x) is two instructions)."""
+
+    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        b, e = expr.as_base_exp()
+        if isinstance(e, sp.Rational) and e.q == 2 and abs(e.p) <= 7:
+            base = self.parenthesize(b, 1000)  # always parenthesised
+            root = f"math.sqrt({self._print(b)})"
+            whole = abs(e.p) // 2
+            text = root if whole == 0 else f"({base}**{whole}*{root})" if whole > 1 \
+                else f"({base}*{root})"
+            return f"(1.0/{text})" if e.p < 0 else text
+        return super()._print_Pow(expr, rational=rational)
+
+
 def _printer() -> PythonCodePrinter:
-    return PythonCodePrinter({"fully_qualified_modules": True})
+    return _KernelPrinter({"fully_qualified_modules": True})
 
 
 def _emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
@@ -320,12 +340,13 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     # accel(t, y, p, a, lam): M a = f + Gᵀ λ, G a = −γ
     body = list(pre)
     diagonal = nc == 0 and M.is_diagonal()
+    accel_exprs: list[Expr] = []
     if diagonal:
         # simplify only small quotients: on large ones (rational functions of square roots)
         # its cancel() step can take hours; cse in _emit still shares the work.
-        body += _emit([(f"a[{i}]", sp.simplify(f[i] / M[i, i])
-                        if sp.count_ops(f[i] / M[i, i]) <= 40 else f[i] / M[i, i])
-                       for i in range(n)])
+        accel_exprs = [sp.simplify(f[i] / M[i, i]) if sp.count_ops(f[i] / M[i, i]) <= 40
+                       else f[i] / M[i, i] for i in range(n)]
+        body += _emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
     else:
         m = n + nc
         body.append(f"    A = np.zeros(({m}, {m}))")
@@ -350,14 +371,20 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         body += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
     out.append(_func("accel", "t, y, p, a, lam", body))
 
-    # rhs
-    body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
-            "    accel(t, y, p, acc, lam)"]
-    body += pre
-    body += [f"    a_{i} = acc[{i}]" for i in range(n)]
+    # rhs: with a diagonal mass matrix and no constraints the accelerations are written
+    # inline (no array allocation per call); otherwise through accel's linear solve.
+    if diagonal:
+        dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
+        body = list(pre) + _emit([(f"a_{i}", accel_exprs[i]) for i in range(n)]
+                                 + [("P_diss", P_diss), ("dE", dE_inline)])
+    else:
+        body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+                "    accel(t, y, p, acc, lam)"]
+        body += pre
+        body += [f"    a_{i} = acc[{i}]" for i in range(n)]
+        body += _emit([("P_diss", P_diss), ("dE", dE)])
     body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
-    body += [f"    dy[{n + i}] = acc[{i}]" for i in range(n)]
-    body += _emit([("P_diss", P_diss), ("dE", dE)])
+    body += [f"    dy[{n + i}] = a_{i}" for i in range(n)]
     body += [f"    dy[{2 * n}] = dE + P_diss", f"    dy[{2 * n + 1}] = P_diss"]
     out.append(_func("rhs", "t, y, p, dy", body))
 
