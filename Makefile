@@ -4,7 +4,7 @@
 PYTHON3 ?= python3
 VENV    := .venv
 PROFILE := $(CURDIR)/src/mechsim/data/fastdds_loopback.xml
-PYTEST_ARGS ?=
+PYTEST_ARGS ?= -n 2
 
 # A guard variable of the ros-wheels .pth (it re-execs python with LD_LIBRARY_PATH set): when
 # inherited from another environment it would stop this venv's python from doing so.

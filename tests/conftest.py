@@ -23,14 +23,24 @@ def _domain_id_for(pid: int) -> int:
     return pid % 101 + 1
 
 
+_VALID_IDS = [*range(1, 102), *range(215, 233)]
+
+
 def _session_domain_id() -> int:
+    """The run's domain id (ROS_DOMAIN_ID, else from the PID); each pytest-xdist worker gets
+    its own, so parallel workers never see each other's nodes."""
     raw = os.environ.get("ROS_DOMAIN_ID", "").strip()
     if raw:
         domain_id = int(raw)
         if not valid_domain_id(domain_id):
             raise pytest.UsageError(f"ROS_DOMAIN_ID={raw} outside 0..101 and 215..232")
-        return domain_id
-    return _domain_id_for(os.getpid())
+    else:
+        domain_id = _domain_id_for(os.getpid())
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if worker.startswith("gw") and domain_id in _VALID_IDS:
+        k = int(worker[2:])
+        domain_id = _VALID_IDS[(_VALID_IDS.index(domain_id) + 41 * k) % len(_VALID_IDS)]
+    return domain_id
 
 
 ROS_DOMAIN_ID = _session_domain_id()
