@@ -432,6 +432,21 @@ def singular(system: str, quick: bool) -> list[Result]:
                    {"shape": "parabola", "curvature": 100.0},
                    {"formulation": "multiplier", "shape": "parabola", "curvature": 100.0}):
             out.append(_generic("bead_on_wire", kw, 2.0, 0.005, crit, _laws_kept(1e-6)))
+    elif system == "central_force":
+        crit = ("−a/r³ fall to the centre (a > L²/μ): a graceful end (capture event, or a stop "
+                "with a reason), never non-finite numbers published")
+
+        def check_c(model: Model, run: SimulationResult) -> tuple[bool, str, dict[str, Any]]:
+            finite = bool(np.all(np.isfinite(np.hstack([run.q, run.v]))))
+            key, w = worst(drifts(model, run))
+            return finite, (f"events {[n for _, n in run.events]}; worst drift {w:.1e} "
+                            f"[{key}] → {level_of(w)}"), {"events": len(run.events),
+                                                         "worst_drift": w, "finite": finite}
+        for form in ("cartesian", "polar"):
+            out.append(_generic("central_force", {"formulation": form,
+                                                  "potential": "inverse_cube",
+                                                  "inverse_cube_strength": 2.0}, 10.0, 0.01,
+                                crit, check_c, error_ok=True))
     elif system == "spring_pendulum":
         crit = "spring through zero length (l + x → 0, polar r = 0 singular): explained or kept"
 
@@ -447,7 +462,7 @@ def singular(system: str, quick: bool) -> list[Result]:
 
 
 SINGULAR = ("pendulum", "kepler", "symmetric_top", "moving_frames", "bead_on_wire",
-            "spring_pendulum")
+            "spring_pendulum", "central_force")
 
 
 # --- 5. step-size and tolerance sweeps, with the diagnostics node's logic -----------------------
