@@ -33,6 +33,13 @@ def contact_function(x: sp.Expr, y: sp.Expr, dx: sp.Expr, dy: sp.Expr, a: sp.Exp
     return sp.Piecewise((-rw - sp.sqrt(D), D > 0), (sp.sqrt(x**2 + y**2) + a, True))
 
 
+def deflection(vx: sp.Expr, vy: sp.Expr, speed: sp.Expr) -> sp.Expr:
+    """Unsigned angle of (vx, vy) from +x (the incident direction); 0 for a velocity below
+    10⁻¹² ``speed`` (a particle at rest, whose velocity may be a round-off residue)."""
+    return sp.Piecewise((sp.Integer(0), vx**2 + vy**2 <= (sp.Float(1e-12) * speed) ** 2),
+                        (sp.atan2(sp.Abs(vy), vx), True))
+
+
 def elastic_impulse(r12: np.ndarray, v1: np.ndarray, v2: np.ndarray, m1: float, m2: float
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Velocities after an elastic impulse along the line of centres n = r12/|r12|

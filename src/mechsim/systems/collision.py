@@ -39,6 +39,7 @@ from mechsim.errors import ParameterError
 from mechsim.params import nonnegative, positive
 from mechsim.systems._scattering import (
     contact_function,
+    deflection,
     elastic_impulse,
     energy_shares,
     hard_sphere_deflection,
@@ -49,13 +50,6 @@ from mechsim.systems._scattering import (
 )
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
-
-
-def deflection(vx: sp.Expr, vy: sp.Expr, speed: sp.Expr) -> sp.Expr:
-    """Unsigned angle of (vx, vy) from +x (the incident direction); 0 for a velocity below
-    10⁻¹² ``speed`` (a particle at rest, whose velocity may be a round-off residue)."""
-    return sp.Piecewise((sp.Integer(0), vx**2 + vy**2 <= (sp.Float(1e-12) * speed) ** 2),
-                        (sp.atan2(sp.Abs(vy), vx), True))
 
 
 class Collision(LagrangianModel):
