@@ -5,7 +5,10 @@ Source: seed 003 §5.3 (PHYS0500 "Scattering Cross-Sections", lines 1215–1372)
 I 2πb db = −I σ(θ) 2π sin θ dθ (eq. 5.5), σ = (b/sin θ)|db/dθ| (eq. 5.6), θ = π − 2Θ (eq. 5.7)
 with the orbit integral Θ(b) (line 1255), the LAB ↔ CM conversion (eq. 5.8–5.10, 1312, 1316) and
 the hard-sphere example σ = a²/4, σ_t = πa² (lines 1320–1372). The Rutherford results are the
-catalog's supplement (not in the document).
+catalog's supplement (not in the document). Typos fixed: the orbit integral of line 1243 (stray
+"ΔΘ", nested square root) is used in the form of line 1255; line 1249 T₀′ = μu₁² → ½μu₁²;
+line 1261 σ(θ)dΩ′ = σ(ψ)dΩ′ → σ(θ)dΩ′ = σ(ψ)dΩ; eq. 1312 (one branch) holds for m₁ < m₂ only,
+for m₁ > m₂ both CM branches θ = ψ + arcsin(x sin ψ) and π + ψ − arcsin(x sin ψ) add up.
 
 Model (``target``):
 - ``hard_sphere``: a point projectile m₁ on an impenetrable sphere of radius a (the document's
@@ -17,7 +20,7 @@ Coordinates: the centre of mass (cm_x, cm_y) and the relative position r = r₁ 
 T = ½MṘ² + ½μṙ² (the two-body reduction of seed 003 §4.1, as in ``central_force``). In the LAB
 the target is at rest and the projectile comes in along +x with kinetic energy T₀ (``energy``) on
 the line y = b (``impact_parameter``); so V = m₁u₁/M, the relative speed at infinity is u₁ and
-the CM energy is E = T₀′ = ½μu₁² = (m₂/M) T₀ (line 1249 prints T₀′ = μu₁²: the ½ is missing).
+the CM energy is E = T₀′ = ½μu₁² = (m₂/M) T₀.
 The run starts at |r| = ``initial_distance``: for the Coulomb centre on the exact hyperbola whose
 incoming asymptote is that line (from E, L and the Laplace–Runge–Lenz vector), so the long range
 of 1/r does not bias the deflection; the target sits at the world origin at t = 0. Motion in the
