@@ -133,10 +133,11 @@ def output_times(t_end: float, output_dt: float, t0: float = 0.0) -> np.ndarray:
 
 def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e-10,
              method: str = "auto", outputs: tuple[str, ...] = OUTPUTS,
-             step: float | None = None) -> SimulationResult:
+             step: float | None = None, closed_form: bool = False) -> SimulationResult:
     """Integrate ``model`` from its initial state to ``t_end``, sampling every ``output_dt``.
 
-    ``method``: "auto", "dop853", "yoshida8", "yoshida6" or "verlet" (see mechsim.integrators).
+    ``method``: "auto", "dop853", "exact", "yoshida8", "yoshida6" or "verlet" (see
+    mechsim.integrators); ``closed_form=True`` lets "auto" use the exact propagator.
     ``outputs``: which of energy, invariants, observables, frames to evaluate (energy always
     when asked by the balance). Wall time covers integration and output evaluation.
     """
@@ -145,7 +146,8 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
             raise ParameterError("outputs", f"unknown output {o!r} (known: {', '.join(OUTPUTS)})")
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
-    stepper: Stepper = make_stepper(model, method, tolerance, step=step)
+    stepper: Stepper = make_stepper(model, method, tolerance, step=step,
+                                       closed_form=closed_form)
     Y = stepper.advance(t)
     out = evaluate(model, t, Y, stepper.p, outputs)
     wall = time.perf_counter() - start

@@ -9,8 +9,11 @@ Methods:
   every step (keeps constraint residuals at round-off). Works for every model.
 - ``yoshida8`` / ``yoshida6`` / ``verlet``: symmetric compositions of velocity Verlet (orders
   8, 6, 2), symplectic and time-reversible, for separable Hamiltonians (bounded energy error).
+- ``exact``: closed-form propagation (``Model.propagate``) where the model has one for its
+  parameters (harmonic, damped and driven oscillators, planar and coupled oscillators, Kepler
+  via Kepler's equation): exact to round-off at any output times, no steps.
 - ``auto``: ``yoshida8`` for separable models, else ``dop853`` (always ``dop853`` for models
-  with events).
+  with events); with ``closed_form=True``, ``exact`` wherever the model has it.
 
 Stiffness (``dop853``): Hairer's stiffness test runs inside the loop (see ``kernels.py``); when
 it fires and the stability-limited step is also crawling — more than ``stiff_steps_per_output``
@@ -67,7 +70,7 @@ COMPOSITIONS: dict[str, tuple[np.ndarray, int]] = {
     "yoshida6": (_symmetric(_YOSHIDA6), 6),
     "yoshida8": (_symmetric(_YOSHIDA8), 8),
 }
-METHODS = ("auto", "dop853", *COMPOSITIONS)
+METHODS = ("auto", "dop853", "exact", *COMPOSITIONS)
 
 
 class StiffnessError(IntegrationError):
@@ -75,9 +78,15 @@ class StiffnessError(IntegrationError):
     step, whose outputs were all written."""
 
 
-def choose_method(model: Model, method: str) -> str:
+def choose_method(model: Model, method: str, closed_form: bool = False) -> str:
     if method not in METHODS:
         raise ParameterError("method", f"must be one of {', '.join(METHODS)} (got {method!r})")
+    if method == "exact" or (method == "auto" and closed_form):
+        if model.has_closed_form():
+            return "exact"
+        if method == "exact":
+            raise ParameterError("method", f"exact: {model.id} ({model.formulation}) has no "
+                                 "closed form for these parameters: use auto or dop853")
     if method == "auto":
         return "yoshida8" if model.structure.separable and not model.events else "dop853"
     if method in COMPOSITIONS and model.events:
@@ -115,6 +124,43 @@ class Stepper(ABC):
     def set_parameters(self, p: np.ndarray) -> None:
         """New parameter values, same structure (runtime ROS parameter changes)."""
         self.p = np.array(p, dtype=np.float64)
+
+    def set_model(self, model: Model) -> None:
+        """The same system with new parameter values; the state carries over."""
+        self.model = model
+        self.set_parameters(model.parameter_vector())
+
+
+class ClosedForm(Stepper):
+    """Exact propagation from an anchor state (t₀, y₀) with ``Model.propagate``."""
+
+    method = "exact"
+
+    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float) -> None:
+        super().__init__(model, y0, t0, tolerance)
+        self.t0, self.y0 = self.t, self.y.copy()
+        self.calls = 0
+
+    @property
+    def n_steps(self) -> int:
+        return 0
+
+    def set_model(self, model: Model) -> None:
+        super().set_model(model)
+        self.t0, self.y0 = self.t, self.y.copy()
+
+    def advance(self, t_out: np.ndarray) -> np.ndarray:
+        t_out = np.asarray(t_out, dtype=np.float64)
+        if t_out.size == 0:
+            return np.empty((0, self.y.size))
+        Y = self.model.propagate(self.t0, self.y0, t_out)
+        if Y is None:
+            raise IntegrationError(f"{self.model.id}: no closed form for these parameters")
+        if not np.all(np.isfinite(Y)):
+            raise IntegrationError(f"{self.model.id}: exact: non-finite state")
+        self.calls += 1
+        self.t, self.y = float(t_out[-1]), Y[-1].copy()
+        return Y
 
 
 class DOP853(Stepper):
@@ -269,9 +315,11 @@ class Composition(Stepper):
 
 def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
                  t0: float = 0.0, y0: np.ndarray | None = None,
-                 step: float | None = None) -> Stepper:
-    chosen = choose_method(model, method)
+                 step: float | None = None, closed_form: bool = False) -> Stepper:
+    chosen = choose_method(model, method, closed_form)
     y = model.initial_y() if y0 is None else y0
+    if chosen == "exact":
+        return ClosedForm(model, y, t0, tolerance)
     if chosen == "dop853":
         return DOP853(model, y, t0, tolerance)
     return Composition(model, y, t0, tolerance, method=chosen, step=step)

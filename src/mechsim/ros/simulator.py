@@ -358,7 +358,7 @@ class SimulatorNode(Node):
             self.model = self.cls(**self.values)
             self.factory.model = self.model
             self.p = self.model.parameter_vector()
-            self.stepper.set_parameters(self.p)
+            self.stepper.set_model(self.model)
             self._publish_static()
         if new_stepper and not restart:
             # Continue from the current state with the new method or tolerance.

@@ -88,11 +88,56 @@ def kepler_elements(mu: float, k: float, E: float, l: float) -> dict[str, float]
 
 def eccentric_anomaly(M: np.ndarray, e: float) -> np.ndarray:
     """Solve Kepler's equation M = E − e sin E (Newton iteration)."""
-    M = np.asarray(M, dtype=float)
-    E = M + e * np.sin(M) if e < 0.8 else np.full_like(M, math.pi) + 0 * M
+    M_full = np.asarray(M, dtype=float)
+    turns = np.floor(M_full / (2 * math.pi))
+    M = M_full - 2 * math.pi * turns  # solve in [0, 2π), add the whole turns back
+    E = M + 0.85 * e * np.sign(np.sin(M))  # Danby's start: converges for every e < 1
     for _ in range(50):
         dE = (E - e * np.sin(E) - M) / (1 - e * np.cos(E))
         E = E - dE
         if np.max(np.abs(dE)) < 1e-15:
             break
-    return E
+    return E + 2 * math.pi * turns
+
+
+def kepler_propagate(gm: float, r0: np.ndarray, v0: np.ndarray, dt: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Exact two-body motion r̈ = −GM r/|r|³ from (r₀, v₀) after times dt, by Kepler's
+    equation in difference form and the f and g functions (elliptic orbits; None otherwise).
+
+    With e cos E₀ = 1 − r₀/a and e sin E₀ = r₀·v₀/√(GM a), the eccentric-anomaly change ΔE
+    solves n dt = ΔE − e cos E₀ sin ΔE + e sin E₀ (1 − cos ΔE); then r = f r₀ + g v₀,
+    v = ḟ r₀ + ġ v₀ with f = 1 − (a/r₀)(1 − cos ΔE), g = dt − (ΔE − sin ΔE)/n,
+    ḟ = −√(GM a) sin ΔE/(r r₀), ġ = 1 − (a/r)(1 − cos ΔE).
+    """
+    r0 = np.asarray(r0, dtype=float)
+    v0 = np.asarray(v0, dtype=float)
+    rn = float(np.linalg.norm(r0))
+    energy = 0.5 * float(v0 @ v0) - gm / rn
+    if not (rn > 0 and energy < 0):
+        return None
+    a = -gm / (2 * energy)
+    n = math.sqrt(gm / a**3)
+    c = 1 - rn / a
+    s = float(r0 @ v0) / math.sqrt(gm * a)
+    dt = np.asarray(dt, dtype=float)
+    Mr = np.mod(n * dt, 2 * math.pi)  # the motion is periodic: reduce the mean-anomaly change
+    # Absolute form: E₀ from (e cos E₀, e sin E₀), M₀ = E₀ − e sin E₀; Danby's start.
+    e = math.hypot(c, s)
+    E0 = math.atan2(s, c)
+    M = (E0 - s) + Mr
+    E = M + 0.85 * e * np.sign(np.sin(M))
+    for _ in range(60):
+        step = (E - e * np.sin(E) - M) / (1 - e * np.cos(E))
+        E = E - step
+        if np.max(np.abs(step), initial=0.0) < 4e-16 * max(1.0, float(np.max(np.abs(M)))):
+            break
+    dE = E - E0
+    r = a * (1 - c * np.cos(dE) + s * np.sin(dE))
+    f = 1 - (a / rn) * (1 - np.cos(dE))
+    g = (Mr - (dE - np.sin(dE))) / n
+    fd = -math.sqrt(gm * a) * np.sin(dE) / (r * rn)
+    gd = 1 - (a / r) * (1 - np.cos(dE))
+    pos = f[:, None] * r0 + g[:, None] * v0
+    vel = fd[:, None] * r0 + gd[:, None] * v0
+    return pos, vel

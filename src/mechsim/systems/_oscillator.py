@@ -1,7 +1,7 @@
-"""Closed-form solution of the free linear oscillator ẍ + 2βẋ + ω₀²x = 0 (shared oracle).
-
-Used by harmonic_oscillator (β = 0), damped_oscillator (all three regimes), planar_oscillator
-(per axis) and coupled_oscillators (per normal mode). Not a system (leading underscore).
+"""Linear oscillators, shared: the closed-form solution of ẍ + 2βẋ + ω₀²x = 0 (used by
+harmonic_oscillator, damped_oscillator, planar_oscillator per axis and coupled_oscillators per
+normal mode), the ``LinearOscillator`` base of the 1-D oscillators (harmonic, damped, driven)
+with their exact propagator, and quadrature for work terms. Not a system (leading underscore).
 """
 
 from __future__ import annotations
@@ -9,6 +9,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import sympy as sp
+
+from mechsim.systems.base import Visual
+from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+Expr = sp.Expr
 
 
 def regime(omega0: float, beta: float, rtol: float = 1e-12) -> str:
@@ -39,3 +45,116 @@ def free_solution(t: np.ndarray, x0: float, v0: float, omega0: float,
     w = math.sqrt(beta * beta - omega0 * omega0)
     ch, sh = np.cosh(w * t), np.sinh(w * t)
     return decay * (x0 * ch + c / w * sh), decay * (v0 * ch - s / w * sh)
+
+
+def state_rows(y0: np.ndarray, columns: list[np.ndarray]) -> np.ndarray:
+    """Rows of a propagated state: the given columns, then the rest of ``y0`` (work terms,
+    modes) carried unchanged."""
+    rows = np.repeat(np.asarray(y0, dtype=float)[None, :], len(columns[0]), axis=0)
+    for j, col in enumerate(columns):
+        rows[:, j] = col
+    return rows
+
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
+
+
+def cumulative_integral(f: object, t0: float, t: np.ndarray, max_piece: float) -> np.ndarray:
+    """∫_{t₀}^{t_k} f(s) ds for increasing t_k ≥ t₀: 16-point Gauss–Legendre on pieces no
+    longer than ``max_piece`` (exact to round-off for smooth f over a fraction of its period)."""
+    t = np.asarray(t, dtype=float)
+    out = np.empty(t.size)
+    total, a = 0.0, t0
+    for k, b in enumerate(t):
+        n = max(1, int(np.ceil((b - a) / max_piece))) if b > a else 0
+        edges = np.linspace(a, b, n + 1)
+        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+            mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            total += half * float(np.dot(_GL_W, f(mid + half * _GL_X)))  # type: ignore[operator]
+        out[k] = total
+        a = b
+    return out
+
+
+class LinearOscillator(LagrangianModel):
+    """Shared shape of the 1-D oscillators m ẍ + b ẋ + k x = F₀ cos ωt (harmonic, damped,
+    driven): the coordinate x along the ``anchor`` frame's x axis, the spring, the frames and
+    visuals, ω₀ and β, and the closed-form propagator. Parameters ``damping``,
+    ``drive_amplitude`` and ``drive_frequency`` are optional (0 when a system lacks them)."""
+
+    def spring(self, b: LagrangianBuilder) -> tuple[Expr, Expr, Expr, Expr]:
+        """Declare x, T = ½mẋ², V = ½kx² and the frames; returns (x, ẋ, m, k)."""
+        x, dx = b.coordinate("x", "m")
+        m, k = b.param("mass"), b.param("spring_constant")
+        b.kinetic = m * dx**2 / 2
+        b.potential = k * x**2 / 2
+        b.frame("anchor", "world", (0, 0, 0))
+        b.frame("mass", "anchor", (x, 0, 0))
+        return x, dx, m, k
+
+    def visuals(self) -> tuple[Visual, ...]:
+        return (Visual("box", "anchor", size=(0.02, 0.3, 0.3), color=(150, 150, 150)),
+                Visual("link", "anchor", to_frame="mass", radius=0.01, color=(200, 200, 90)),
+                Visual("sphere", "mass", radius=0.08),
+                Visual("trail", "mass", color=(120, 170, 255)))
+
+    def _optional(self, name: str) -> float:
+        return self.value(name) if name in self.values else 0.0
+
+    def natural_frequency(self) -> float:
+        """ω₀ = √(k/m)."""
+        return math.sqrt(self.value("spring_constant") / self.value("mass"))
+
+    def beta(self) -> float:
+        """β = b / 2m."""
+        return self._optional("damping") / (2 * self.value("mass"))
+
+    def time_scale(self) -> float:
+        return 2 * math.pi / self.natural_frequency()
+
+    def steady_state(self) -> tuple[float, float]:
+        """Amplitude D and phase lag δ ∈ [0, π] of the particular solution x_p = D cos(ωt − δ)
+        (seed 003 eq. 1.2, with the minus sign its line 213 drops)."""
+        w0, beta, w = self.natural_frequency(), self.beta(), self._optional("drive_frequency")
+        A = self._optional("drive_amplitude") / self.value("mass")
+        D = A / math.sqrt((w0**2 - w**2) ** 2 + 4 * w**2 * beta**2)
+        return D, math.atan2(2 * w * beta, w0**2 - w**2)
+
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """x = x_p + transient (free solution from the state at t₀). Work terms: without a
+        drive W_d grows by E(t₀) − E(t); with one, W_d = ∫ b ẋ² dt by Gauss–Legendre
+        quadrature of the exact ẋ, and W_ext closes the balance."""
+        t = np.asarray(t, dtype=float)
+        m, k, c = self.value("mass"), self.value("spring_constant"), self._optional("damping")
+        F0, w = self._optional("drive_amplitude"), self._optional("drive_frequency")
+        w0, beta = self.natural_frequency(), self.beta()
+        driven = F0 != 0.0
+        if driven and beta == 0.0 and abs(w - w0) <= 1e-12 * w0:
+            return None  # undamped resonance: secular growth, not this form
+        D, delta = self.steady_state() if driven else (0.0, 0.0)
+
+        def particular(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return D * np.cos(w * s - delta), -D * w * np.sin(w * s - delta)
+
+        xp0, vp0 = particular(np.array([t0]))
+        u, du = free_solution(t - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
+        xp, vp = particular(t)
+        x, v = xp + u, vp + du
+
+        def energy(x_: np.ndarray, v_: np.ndarray) -> np.ndarray:
+            return 0.5 * m * v_**2 + 0.5 * k * x_**2
+
+        e0 = float(energy(np.array([y0[0]]), np.array([y0[1]]))[0])
+        if not driven:
+            w_ext = np.full(t.size, y0[2])
+            w_diss = y0[3] + e0 - energy(x, v)
+        else:
+            def power(s: np.ndarray) -> np.ndarray:
+                xs, vs = particular(s)
+                us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
+                return c * (vs + dus) ** 2
+
+            piece = 0.05 * 2 * math.pi / max(w0, w)
+            w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
+            w_ext = y0[2] + (energy(x, v) - e0) + (w_diss - y0[3])
+        return state_rows(y0, [x, v, w_ext, w_diss])

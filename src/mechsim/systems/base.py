@@ -214,6 +214,16 @@ class Model(ABC):
              for n in names]
         return np.array(q, dtype=np.float64), np.array(v, dtype=np.float64)
 
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """Closed-form state rows ``[q, v, work_external, work_dissipated, ...]`` at times
+        ``t`` from the state ``y0`` at ``t0``, or None where the model has none (default)."""
+        return None
+
+    def has_closed_form(self) -> bool:
+        """Whether ``propagate`` is exact for this model's formulation and parameters."""
+        return type(self).propagate is not Model.propagate and self.propagate(
+            0.0, self.initial_y(), np.zeros(1)) is not None
+
     def laws(self) -> tuple[Law, ...]:
         s = self.structure
         laws = [Law("work_balance", "work_balance")]

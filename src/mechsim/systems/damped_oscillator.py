@@ -28,12 +28,11 @@ import numpy as np
 import sympy as sp
 
 from mechsim.params import nonnegative, number, positive
-from mechsim.systems._oscillator import free_solution, regime
-from mechsim.systems.base import Visual
-from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+from mechsim.systems._oscillator import LinearOscillator, free_solution, regime
+from mechsim.systems.lagrangian import LagrangianBuilder
 
 
-class DampedOscillator(LagrangianModel):
+class DampedOscillator(LinearOscillator):
     id = "damped_oscillator"
     title = "Damped harmonic oscillator (under-, critically and over-damped)"
     source = "seed 003 §1.3 (Damped Oscillations); seed 000 S8 (Case 5, Caldirola–Kanai)"
@@ -50,39 +49,15 @@ class DampedOscillator(LagrangianModel):
     )
 
     def declare(self, b: LagrangianBuilder) -> None:
-        x, dx = b.coordinate("x", "m")
-        m, k, c = b.param("mass"), b.param("spring_constant"), b.param("damping")
-        b.kinetic = m * dx**2 / 2
-        b.potential = k * x**2 / 2
+        x, dx, m, k = self.spring(b)
+        c = b.param("damping")
         b.rayleigh = c * dx**2 / 2
         b.observable("caldirola_kanai_energy_function", "J",
                      sp.exp(c * b.t / m) * (m * dx**2 / 2 + k * x**2 / 2))
         b.observable("power_dissipated", "W", c * dx**2)
         b.observable("damping_force", "N", -c * dx)
-        b.frame("anchor", "world", (0, 0, 0))
-        b.frame("mass", "anchor", (x, 0, 0))
-
-    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array([self.value("initial.x")]), np.array([self.value("initial_rate.x")])
-
-    def visuals(self) -> tuple[Visual, ...]:
-        return (Visual("box", "anchor", size=(0.02, 0.3, 0.3), color=(150, 150, 150)),
-                Visual("link", "anchor", to_frame="mass", radius=0.01, color=(200, 200, 90)),
-                Visual("sphere", "mass", radius=0.08),
-                Visual("trail", "mass", color=(120, 170, 255)))
-
-    def time_scale(self) -> float:
-        return 2 * math.pi / self.natural_frequency()
 
     # --- analytic oracles (seed 003 §1.3, corrected) -----------------------------------------
-    def natural_frequency(self) -> float:
-        """ω₀ = √(k/m)."""
-        return math.sqrt(self.value("spring_constant") / self.value("mass"))
-
-    def beta(self) -> float:
-        """β = b / 2m."""
-        return self.value("damping") / (2 * self.value("mass"))
-
     def critical_damping(self) -> float:
         """b_c = 2√(m k) (β = ω₀)."""
         return 2 * math.sqrt(self.value("mass") * self.value("spring_constant"))

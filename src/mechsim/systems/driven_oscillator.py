@@ -18,10 +18,11 @@ import numpy as np
 import sympy as sp
 
 from mechsim.params import nonnegative, number, positive
-from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+from mechsim.systems._oscillator import LinearOscillator
+from mechsim.systems.lagrangian import LagrangianBuilder
 
 
-class DrivenOscillator(LagrangianModel):
+class DrivenOscillator(LinearOscillator):
     id = "driven_oscillator"
     title = "Driven damped harmonic oscillator"
     source = "seed 003 §1.3–1.5: Damped and driven oscillations, resonance and Q"
@@ -37,42 +38,16 @@ class DrivenOscillator(LagrangianModel):
     )
 
     def declare(self, b: LagrangianBuilder) -> None:
-        x, dx = b.coordinate("x", "m")
-        m, k = b.param("mass"), b.param("spring_constant")
+        x, dx, m, k = self.spring(b)
         c, F0, w = b.param("damping"), b.param("drive_amplitude"), b.param("drive_frequency")
-        b.kinetic = m * dx**2 / 2
-        b.potential = k * x**2 / 2
         b.rayleigh = c * dx**2 / 2
         drive = F0 * sp.cos(w * b.t)
         b.forces = [drive]
         b.observable("drive_force", "N", drive)
         b.observable("power_in", "W", drive * dx)
         b.observable("power_dissipated", "W", c * dx**2)
-        b.frame("anchor", "world", (0, 0, 0))
-        b.frame("mass", "anchor", (x, 0, 0))
-
-    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array([self.value("initial.x")]), np.array([self.value("initial_rate.x")])
-
-    def time_scale(self) -> float:
-        return 2 * math.pi / self.natural_frequency()
 
     # --- analytic oracles (seed 003 §1.4–1.5, corrected) ------------------------------------
-    def natural_frequency(self) -> float:
-        """ω₀ = √(k/m)."""
-        return math.sqrt(self.value("spring_constant") / self.value("mass"))
-
-    def beta(self) -> float:
-        """β = b / 2m."""
-        return self.value("damping") / (2 * self.value("mass"))
-
-    def steady_state(self) -> tuple[float, float]:
-        """Amplitude D and phase lag δ ∈ [0, π] of x_p = D cos(ωt − δ)."""
-        w0, b, w = self.natural_frequency(), self.beta(), self.value("drive_frequency")
-        A = self.value("drive_amplitude") / self.value("mass")
-        D = A / math.sqrt((w0**2 - w**2) ** 2 + 4 * w**2 * b**2)
-        return D, math.atan2(2 * w * b, w0**2 - w**2)
-
     def resonance_frequency(self) -> float:
         """Amplitude resonance ω_R = √(ω₀² − 2β²) (exists only for ω₀² > 2β²)."""
         w0, b = self.natural_frequency(), self.beta()

@@ -20,12 +20,11 @@ import math
 import numpy as np
 
 from mechsim.params import number, positive
-from mechsim.systems._oscillator import free_solution
-from mechsim.systems.base import Visual
-from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+from mechsim.systems._oscillator import LinearOscillator, free_solution
+from mechsim.systems.lagrangian import LagrangianBuilder
 
 
-class HarmonicOscillator(LagrangianModel):
+class HarmonicOscillator(LinearOscillator):
     id = "harmonic_oscillator"
     title = "Simple harmonic oscillator"
     source = "seed 003 §1.1 (Simple Harmonic Oscillations, Energy); seed 001 §2.9"
@@ -39,31 +38,10 @@ class HarmonicOscillator(LagrangianModel):
     )
 
     def declare(self, b: LagrangianBuilder) -> None:
-        x, dx = b.coordinate("x", "m")
-        m, k = b.param("mass"), b.param("spring_constant")
-        b.kinetic = m * dx**2 / 2
-        b.potential = k * x**2 / 2
+        x, _, _, k = self.spring(b)
         b.observable("spring_force", "N", -k * x)
-        b.frame("anchor", "world", (0, 0, 0))
-        b.frame("mass", "anchor", (x, 0, 0))
-
-    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array([self.value("initial.x")]), np.array([self.value("initial_rate.x")])
-
-    def visuals(self) -> tuple[Visual, ...]:
-        return (Visual("box", "anchor", size=(0.02, 0.3, 0.3), color=(150, 150, 150)),
-                Visual("link", "anchor", to_frame="mass", radius=0.01, color=(200, 200, 90)),
-                Visual("sphere", "mass", radius=0.08),
-                Visual("trail", "mass", color=(120, 170, 255)))
-
-    def time_scale(self) -> float:
-        return self.period()
 
     # --- analytic oracles (seed 003 §1.1, seed 001 §2.9) ------------------------------------
-    def natural_frequency(self) -> float:
-        """ω₀ = √(k/m)."""
-        return math.sqrt(self.value("spring_constant") / self.value("mass"))
-
     def period(self) -> float:
         """2π/ω₀ = 2π√(m/k)."""
         return 2 * math.pi / self.natural_frequency()

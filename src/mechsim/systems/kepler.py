@@ -19,7 +19,12 @@ import numpy as np
 import sympy as sp
 
 from mechsim.params import Parameter, positive
-from mechsim.systems._central import declare_orbit_quantities, eccentric_anomaly
+from mechsim.systems._central import (
+    declare_orbit_quantities,
+    eccentric_anomaly,
+    kepler_propagate,
+)
+from mechsim.systems._oscillator import state_rows
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 
@@ -54,6 +59,15 @@ class Kepler(LagrangianModel):
             self.value("gravitational_parameter")
         rp = a * (1 - e)
         return np.array([rp, 0.0]), np.array([0.0, math.sqrt(GM * (1 + e) / rp)])
+
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """Exact orbit from any elliptic state (f and g functions, Kepler's equation)."""
+        out = kepler_propagate(self.value("gravitational_parameter"), y0[:2], y0[2:4],
+                               np.asarray(t) - t0)
+        if out is None:
+            return None
+        pos, vel = out
+        return state_rows(y0, [pos[:, 0], pos[:, 1], vel[:, 0], vel[:, 1]])
 
     def time_scale(self) -> float:
         """Pericentre passage time 2π √(r_p³ / (GM (1 + e))): what limits a fixed step."""

@@ -27,7 +27,7 @@ import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import number, positive
-from mechsim.systems._oscillator import free_solution
+from mechsim.systems._oscillator import free_solution, state_rows
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
@@ -106,6 +106,15 @@ class PlanarOscillator(LagrangianModel):
     def natural_frequency(self) -> float:
         """ω₀ = √(k/m)."""
         return math.sqrt(self.value("spring_constant") / self.value("mass"))
+
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """Cartesian form: each axis a free oscillator from the state at t₀ (no work terms)."""
+        if self.formulation != "cartesian":
+            return None
+        w = self.natural_frequency()
+        x, vx = free_solution(np.asarray(t) - t0, y0[0], y0[2], w)
+        y, vy = free_solution(np.asarray(t) - t0, y0[1], y0[3], w)
+        return state_rows(y0, [x, y, vx, vy])
 
     def exact_position(self, t: np.ndarray) -> np.ndarray:
         """(x, y)(t): each axis a 1-D oscillator with frequency ω₀ (seed 003 line 83)."""
