@@ -9,7 +9,8 @@ contestant's sweep, flagged ``repeats: 1``). Errors against the reference: the s
 last sample and the largest over the samples (norm of ``[q, v] − ref`` over the largest
 reference state norm), and the largest relative drift of the conserved quantity.
 
-mechsim contestants: ``dop853``, ``yoshida8``, ``yoshida6`` (tolerance sets the step) and
+mechsim contestants: ``dop853``, ``yoshida8``, ``yoshida6`` (tolerance sets the step),
+``exact`` (closed-form propagation, where the system has one; tolerance has no effect) and
 ``auto``, via ``make_stepper(model, method, tolerance).advance(times)`` (the model is built,
 and its kernels loaded or compiled, before timing: see ``compile``). Peers: see
 :mod:`mechsim.bench.peers`.
@@ -67,7 +68,7 @@ from mechsim.bench.peers import Contestant, Runner
 from mechsim.bench.problems import BUILDERS, Problem, problem
 
 ERROR_LEVELS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
-MECHSIM_METHODS = ("dop853", "yoshida8", "yoshida6", "auto")
+MECHSIM_METHODS = ("dop853", "yoshida8", "yoshida6", "exact", "auto")
 DEFAULT_SYSTEMS = ("pendulum", "kepler", "driven_oscillator", "harmonic_oscillator")
 
 
@@ -100,7 +101,8 @@ def _mechsim(method: str) -> Any:
         def run() -> tuple[np.ndarray, dict[str, Any]]:
             st = make_stepper(model, method, tol)
             Y = st.advance(t)
-            n_rhs = int(st.st[7]) if st.method == "dop853" else int(st.st[2])  # type: ignore[attr-defined]
+            n_rhs = (int(st.st[7]) if st.method == "dop853"  # type: ignore[attr-defined]
+                     else 0 if st.method == "exact" else int(st.st[2]))  # type: ignore[attr-defined]
             return Y[:, :n].copy(), {"n_steps": st.n_steps, "n_rhs": n_rhs,
                                      "method": st.method}
         return run
