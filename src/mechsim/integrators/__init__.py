@@ -9,11 +9,17 @@ Methods:
   every step (keeps constraint residuals at round-off). Works for every model.
 - ``yoshida8`` / ``yoshida6`` / ``verlet``: symmetric compositions of velocity Verlet (orders
   8, 6, 2), symplectic and time-reversible, for separable Hamiltonians (bounded energy error).
+- ``gauss6``: three-stage Gauss–Legendre collocation (order 6), symplectic, on Hamilton's
+  equations in canonical variables (q, p = ∂L/∂q̇) generated from the Lagrangian, for
+  conservative systems whose Hamiltonian is not separable (double pendulum, spherical
+  pendulum, charged particle in B): bounded energy error, no drift. Fixed step, stage
+  equations by fixed-point iteration; a step that does not converge is halved.
 - ``exact``: closed-form propagation (``Model.propagate``) where the model has one for its
   parameters (harmonic, damped and driven oscillators, planar and coupled oscillators, Kepler
   via Kepler's equation): exact to round-off at any output times, no steps.
-- ``auto``: ``yoshida8`` for separable models, else ``dop853`` (always ``dop853`` for models
-  with events); with ``closed_form=True``, ``exact`` wherever the model has it.
+- ``auto``: ``yoshida8`` for separable models, ``gauss6`` for other conservative
+  unconstrained ones, else ``dop853`` (always for constraints, events, dissipation, drive or
+  explicit time dependence); with ``closed_form=True``, ``exact`` wherever the model has it.
 
 Stiffness (``dop853``): Hairer's stiffness test runs inside the loop (see ``kernels.py``); when
 it fires and the stability-limited step is also crawling — more than ``stiff_steps_per_output``
@@ -49,7 +55,7 @@ from mechsim.errors import IntegrationError, ParameterError
 from mechsim.systems.base import Model
 
 STATUS = {0: "ok", 1: "too many steps", 2: "step size underflow", 3: "non-finite state",
-          4: "event", 5: "stiff"}
+          4: "event", 5: "stiff", 6: "stage equations did not converge"}
 EVENT = 4
 STIFF = 5
 
@@ -70,7 +76,7 @@ COMPOSITIONS: dict[str, tuple[np.ndarray, int]] = {
     "yoshida6": (_symmetric(_YOSHIDA6), 6),
     "yoshida8": (_symmetric(_YOSHIDA8), 8),
 }
-METHODS = ("auto", "dop853", "exact", *COMPOSITIONS)
+METHODS = ("auto", "dop853", "gauss6", "exact", *COMPOSITIONS)
 
 
 class StiffnessError(IntegrationError):
@@ -88,7 +94,13 @@ def choose_method(model: Model, method: str, closed_form: bool = False) -> str:
             raise ParameterError("method", f"exact: {model.id} ({model.formulation}) has no "
                                  "closed form for these parameters: use auto or dop853")
     if method == "auto":
-        return "yoshida8" if model.structure.separable and not model.events else "dop853"
+        if model.structure.separable and not model.events:
+            return "yoshida8"
+        return "gauss6" if model.has_canonical_form() else "dop853"
+    if method == "gauss6" and not model.has_canonical_form():
+        raise ParameterError("method", f"gauss6 needs a conservative unconstrained system "
+                             f"without events; {model.id} ({model.formulation}) is not: "
+                             "use dop853 or auto")
     if method in COMPOSITIONS and model.events:
         raise ParameterError("method", f"{method} does not handle events; {model.id} has "
                              "events: use dop853 or auto")
@@ -313,6 +325,77 @@ class Composition(Stepper):
         return Y
 
 
+class Gauss(Stepper):
+    """Gauss–Legendre (order 6) on canonical variables; the step is the largest ≤ ``h_max``
+    dividing each output gap (as for the compositions)."""
+
+    method = "gauss6"
+
+    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float,
+                 step: float | None = None) -> None:
+        super().__init__(model, y0, t0, tolerance)
+        self.h_max = step if step is not None else (
+            model.time_scale() * 0.2 * self.tolerance ** (1.0 / 6.0))
+        self.st = np.array([self.t, 0.0, 0.0])
+        self._canonical()
+
+    def _canonical(self) -> None:
+        self.z = np.empty_like(self.y)
+        self.kernels.to_momenta(self.t, self.y, self.p, self.z)
+        f = np.empty_like(self.z)
+        self.kernels.canonical_rhs(self.t, self.z, self.p, f)
+        self.K = np.repeat(f[None, :], 3, axis=0)
+
+    def set_parameters(self, p: np.ndarray) -> None:
+        super().set_parameters(p)
+        self._canonical()
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.st[1])
+
+    def advance(self, t_out: np.ndarray) -> np.ndarray:
+        t_out = np.asarray(t_out, dtype=np.float64)
+        Y = np.empty((t_out.size, self.y.size))
+        k = 0
+        refine = 1
+        while k < t_out.size:
+            gap = t_out[k] - self.t
+            if gap < 0:
+                raise IntegrationError(f"gauss6: output time {t_out[k]} is in the past")
+            if gap == 0.0:
+                Y[k] = self.y
+                k += 1
+                continue
+            j = k + 1
+            while j < t_out.size and abs((t_out[j] - t_out[j - 1]) - gap) <= 1e-12 * gap:
+                j += 1
+            n_sub = refine * max(1, math.ceil(gap / self.h_max - 1e-9))
+            z_before, st_before = self.z.copy(), self.st.copy()
+            status, written = self.kernels.gauss_advance(
+                self.st, self.z, self.p, j - k, n_sub, gap / n_sub, Y[k:j], self.K)
+            if written:
+                self.t = float(t_out[k + written - 1])
+                self.st[0] = self.t
+                self.y = Y[k + written - 1].copy()
+            if status == 6:  # stage iteration did not converge: smaller steps, same interval
+                if refine > 2**10:
+                    raise IntegrationError(f"{self.model.id}: gauss6 stage equations do not "
+                                           f"converge near t = {self.t:.6g}: use dop853")
+                if not written:
+                    self.z, self.st = z_before, st_before
+                self.st[0] = self.t
+                self._canonical()  # fresh stages: the failed iteration's may be garbage
+                refine *= 2
+                k += written
+                continue
+            if status != 0:
+                raise IntegrationError(f"{self.model.id}: gauss6 stopped near "
+                                       f"t = {self.st[0]:.6g}: {STATUS[status]}")
+            k = j
+        return Y
+
+
 def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
                  t0: float = 0.0, y0: np.ndarray | None = None,
                  step: float | None = None, closed_form: bool = False) -> Stepper:
@@ -320,6 +403,8 @@ def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
     y = model.initial_y() if y0 is None else y0
     if chosen == "exact":
         return ClosedForm(model, y, t0, tolerance)
+    if chosen == "gauss6":
+        return Gauss(model, y, t0, tolerance, step=step)
     if chosen == "dop853":
         return DOP853(model, y, t0, tolerance)
     return Composition(model, y, t0, tolerance, method=chosen, step=step)

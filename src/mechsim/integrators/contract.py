@@ -60,3 +60,15 @@ def frames(t: float, y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
 
 def event(t: float, y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """out[N_EV] = event functions; a sign change (in the declared direction) is an event."""
+
+
+def to_momenta(t: float, y: np.ndarray, p: np.ndarray, z: np.ndarray) -> None:
+    """z = [q, ∂L/∂q̇, rest of y]: canonical variables of an unconstrained system."""
+
+
+def from_momenta(t: float, z: np.ndarray, p: np.ndarray, y: np.ndarray) -> None:
+    """The inverse of to_momenta: q̇ from M(q, t) q̇ = p − ∂L/∂q̇|_{q̇=0}."""
+
+
+def canonical_rhs(t: float, z: np.ndarray, p: np.ndarray, dz: np.ndarray) -> None:
+    """Hamilton's equations of a conservative system: q̇ = q̇(q, p), ṗ = ∂L/∂q at (q, q̇)."""

@@ -40,9 +40,11 @@ from mechsim.integrators.contract import (
     N_Q,
     N_Y,
     accel_q,
+    canonical_rhs,
     energy,
     event,
     frames,
+    from_momenta,
     invariants,
     observables,
     project,
@@ -456,6 +458,70 @@ def composition_advance(st, y, p, n_out, n_sub, h, weights, Y_out, a):
             if not (math.isfinite(q[i]) and math.isfinite(v[i])):
                 return NOT_FINITE, k
         Y_out[k, :] = y
+    return OK, n_out
+
+
+_S15 = math.sqrt(15.0)
+_GL_C = np.array([0.5 - _S15 / 10.0, 0.5, 0.5 + _S15 / 10.0])
+_GL_A = np.array([[5.0 / 36.0, 2.0 / 9.0 - _S15 / 15.0, 5.0 / 36.0 - _S15 / 30.0],
+                  [5.0 / 36.0 + _S15 / 24.0, 2.0 / 9.0, 5.0 / 36.0 - _S15 / 24.0],
+                  [5.0 / 36.0 + _S15 / 30.0, 2.0 / 9.0 + _S15 / 15.0, 5.0 / 36.0]])
+_GL_B = np.array([5.0 / 18.0, 4.0 / 9.0, 5.0 / 18.0])
+NOT_CONVERGED = 6
+
+
+@njit(cache=True)
+def gauss_advance(st, z, p, n_out, n_sub, h, Y_out, K):
+    """Three-stage Gauss–Legendre collocation (order 6, symplectic) on the canonical
+    variables z = [q, p, work terms] of a conservative system, fixed step ``h``, stage
+    equations solved by fixed-point iteration started from the last step's stages (``K``,
+    shape (3, N_Y), kept between calls). Writes y = [q, q̇, ...] after each block of ``n_sub``
+    steps. ``st`` = [t, n_steps, n_rhs]. Returns (status, written)."""
+    n = z.size
+    zs = np.empty(n)
+    Knew = np.empty((3, n))
+    for k in range(n_out):
+        for _ in range(n_sub):
+            t = st[0]
+            converged = False
+            previous = math.inf
+            for _it in range(60):
+                for i in range(3):
+                    for m in range(n):
+                        acc = 0.0
+                        for j in range(3):
+                            acc += _GL_A[i, j] * K[j, m]
+                        zs[m] = z[m] + h * acc
+                    canonical_rhs(t + _GL_C[i] * h, zs, p, Knew[i])
+                change = 0.0
+                size = 0.0
+                finite = True
+                for i in range(3):
+                    for m in range(n):
+                        if not math.isfinite(Knew[i, m]):
+                            finite = False
+                        change = max(change, abs(Knew[i, m] - K[i, m]))
+                        size = max(size, abs(Knew[i, m]))
+                        K[i, m] = Knew[i, m]
+                st[2] += 3.0
+                if not finite:
+                    break  # the iteration diverged: not converged
+                delta = change / (size + 1e-300)
+                # Converged at round-off, or stagnating there (no further decrease).
+                if delta <= 4e-16 or (delta >= previous and delta < 1e-12):
+                    converged = True
+                    break
+                previous = delta
+            if not converged:
+                return NOT_CONVERGED, k
+            for m in range(n):
+                z[m] += h * (_GL_B[0] * K[0, m] + _GL_B[1] * K[1, m] + _GL_B[2] * K[2, m])
+            st[0] = t + h
+            st[1] += 1.0
+        for m in range(n):
+            if not math.isfinite(z[m]):
+                return NOT_FINITE, k
+        from_momenta(st[0], z, p, Y_out[k])
     return OK, n_out
 
 

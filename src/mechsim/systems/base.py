@@ -219,6 +219,11 @@ class Model(ABC):
         ``t`` from the state ``y0`` at ``t0``, or None where the model has none (default)."""
         return None
 
+    def has_canonical_form(self) -> bool:
+        """Whether the kernels provide Hamilton's equations in z = [q, p] (conservative,
+        unconstrained, event-free Lagrangian systems): what Gauss–Legendre integrates."""
+        return False
+
     def has_closed_form(self) -> bool:
         """Whether ``propagate`` is exact for this model's formulation and parameters."""
         return type(self).propagate is not Model.propagate and self.propagate(

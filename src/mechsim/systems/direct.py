@@ -26,11 +26,12 @@ from mechsim import codegen
 from mechsim.systems.base import Model
 
 _CONTRACT = ("rhs", "project", "accel_q", "energy", "invariants", "observables", "frames",
-             "event")
+             "event", "to_momenta", "from_momenta", "canonical_rhs")
 _SIGNATURES = {"rhs": "t, y, p, dy", "project": "t, y, p", "accel_q": "t, q, p, a",
                "energy": "t, y, p, out", "invariants": "t, y, p, out",
                "observables": "t, y, p, out", "frames": "t, y, p, out",
-               "event": "t, y, p, out"}
+               "event": "t, y, p, out", "to_momenta": "t, y, p, z",
+               "from_momenta": "t, z, p, y", "canonical_rhs": "t, z, p, dz"}
 
 
 def parameter_constant(name: str) -> str:

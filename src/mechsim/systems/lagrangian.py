@@ -36,7 +36,7 @@ from mechsim.systems.base import Event, FrameSpec, Model, Quantity, Structure
 Expr = sp.Expr
 
 #: Bumped whenever the generated code changes, so cached derivations are not reused.
-GENERATOR_VERSION = 2
+GENERATOR_VERSION = 3
 
 
 @dataclass
@@ -236,6 +236,13 @@ class LagrangianModel(Model):
             "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes)},
             body=body)
 
+    @cached_property
+    def _canonical(self) -> bool:
+        return _canonical_ok(self.declaration, self.structure)
+
+    def has_canonical_form(self) -> bool:
+        return self._canonical
+
     def energy_function_conserved(self) -> bool:
         d = self.declaration
         L = d.kinetic - d.potential + d.linear
@@ -307,6 +314,18 @@ def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
 
 def _func(name: str, args: str, body: list[str]) -> str:
     return "\n".join(["@njit(cache=True)", f"def {name}({args}):", *body, "    return", ""])
+
+
+def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
+    """Hamilton's equations are generated (for Gauss–Legendre) when the system is unconstrained,
+    event-free, undriven, undamped, has no explicit time dependence and T is homogeneous
+    quadratic in the rates — then E = T + V equals h and is conserved, so the work terms stay
+    zero (a rotating-coordinate T with ω² terms, where the motor works, is excluded)."""
+    if d.constraints or d.events or d.modes or st.dissipative or st.driven or st.time_dependent:
+        return False
+    v = sp.Matrix(d.v)
+    M = sp.hessian(d.kinetic, d.v)
+    return sp.expand(d.kinetic - (v.T * M * v)[0, 0] / 2) == 0
 
 
 def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
@@ -422,6 +441,41 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     else:
         body = ["    pass"]
     out.append(_func("accel_q", "t, q, p, a", body))
+
+    # canonical form (conservative, unconstrained, no events): z = [q, p = ∂L/∂q̇, ...]
+    if _canonical_ok(d, st):
+        b0 = dL_dv.subs({vi: 0 for vi in d.v})
+        p_syms = [sp.Symbol(f"pm_{i}", real=True) for i in range(n)]
+        zpre = ["    t = t"] + [f"    {qs.name} = z[{i}]" for i, qs in enumerate(d.q)]
+        zpre += [f"    pm_{i} = z[{n + i}]" for i in range(n)]
+        zpre += [f"    {sym.name} = p[{pindex[name]}]" for name, sym in d.params.items()]
+        if M.is_diagonal():
+            vel = _emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
+                         for i, vs in enumerate(d.v)])
+        else:
+            vel = [f"    A = np.zeros(({n}, {n}))", f"    b = np.empty({n})"]
+            vel += _emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
+                          if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
+            vel += ["    x = _solve(A, b)"] + [f"    {vs.name} = x[{i}]"
+                                                for i, vs in enumerate(d.v)]
+        body = list(pre) + _emit([(f"z[{n + i}]", dL_dv[i]) for i in range(n)])
+        body += [f"    z[{i}] = y[{i}]" for i in range(n)]
+        body += [f"    for k in range({2 * n}, y.size):", "        z[k] = y[k]"]
+        out.append(_func("to_momenta", "t, y, p, z", body))
+        body = list(zpre) + vel
+        body += [f"    y[{i}] = z[{i}]" for i in range(n)]
+        body += [f"    y[{n + i}] = {vs.name}" for i, vs in enumerate(d.v)]
+        body += [f"    for k in range({2 * n}, z.size):", "        y[k] = z[k]"]
+        out.append(_func("from_momenta", "t, z, p, y", body))
+        dL_dq = [sp.diff(L, qi) for qi in d.q]
+        body = list(zpre) + vel + _emit([(f"dz[{n + i}]", dL_dq[i]) for i in range(n)])
+        body += [f"    dz[{i}] = {vs.name}" for i, vs in enumerate(d.v)]
+        body += [f"    for k in range({2 * n}, z.size):", "        dz[k] = 0.0"]
+        out.append(_func("canonical_rhs", "t, z, p, dz", body))
+    else:
+        for name, args in (("to_momenta", "t, y, p, z"), ("from_momenta", "t, z, p, y"),
+                           ("canonical_rhs", "t, z, p, dz")):
+            out.append(_func(name, args, ["    pass"]))
 
     # energy
     body = list(pre) + _emit([("out[0]", T), ("out[1]", V), ("out[2]", h)])
