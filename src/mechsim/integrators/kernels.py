@@ -440,17 +440,25 @@ def composition_advance(st, y, p, n_out, n_sub, h, weights, Y_out, a):
     q = y[:nq]
     v = y[nq:2 * nq]
     nw = weights.size
+    # Kick-drift-kick stages with each closing half-kick merged into the next opening one:
+    # kick coefficients (w_s + w_{s+1}) h / 2 inside a step, w h / 2 at its ends.
+    kick = np.empty(nw + 1)
+    kick[0] = 0.5 * weights[0] * h
+    for s in range(1, nw):
+        kick[s] = 0.5 * (weights[s - 1] + weights[s]) * h
+    kick[nw] = 0.5 * weights[nw - 1] * h
     for k in range(n_out):
         for _ in range(n_sub):
+            for i in range(nq):
+                v[i] += kick[0] * a[i]
             for s in range(nw):
                 hw = weights[s] * h
                 for i in range(nq):
-                    v[i] += 0.5 * hw * a[i]
-                for i in range(nq):
                     q[i] += hw * v[i]
                 accel_q(st[0], q, p, a)
+                c = kick[s + 1]
                 for i in range(nq):
-                    v[i] += 0.5 * hw * a[i]
+                    v[i] += c * a[i]
             st[0] += h
             st[1] += 1.0
         st[2] += n_sub * nw
