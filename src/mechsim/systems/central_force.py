@@ -225,6 +225,12 @@ class CentralForce(LagrangianModel):
         scales = [2 * math.pi / abs(dth)] if dth != 0 else []
         if curv > 0:
             scales.append(2 * math.pi * math.sqrt(mu / curv))
+        # The pericentre passage limits a fixed step: 2π/θ̇ at the inner turning point.
+        l = self.angular_momentum()
+        if l != 0.0:
+            inner = self.radial_range()[0]
+            if inner > 0.0:
+                scales.append(2 * math.pi * mu * inner**2 / abs(l))
         return min(scales) if scales else 1.0
 
     # --- analytic oracles ---------------------------------------------------------------------
