@@ -82,8 +82,12 @@ def test_sigkill_one_node_of_a_multiprocess_scene(ros_context: Any, ros_env: dic
         assert _spin_until(ex, lambda: all(
             v == 3 for k, v in levels.items() if k.startswith("mechsim/victim/")) and
             counts["alive"] > killed_at["alive"] + 100, 30), (levels, counts)
-        time.sleep(0.2)
-        assert counts["victim"] <= killed_at["victim"] + 10  # in flight at the kill, then none
+        # Messages already queued for the probe when the victim died (at most the
+        # subscription depth) may still arrive; after that, nothing more from the victim.
+        assert counts["victim"] <= killed_at["victim"] + 100
+        settled = counts["victim"]
+        _spin_until(ex, lambda: False, 1.0)
+        assert counts["victim"] == settled
         alive = [v for k, v in levels.items() if k.startswith("mechsim/alive/")]
         assert alive and all(v != 3 for v in alive), levels
         for w in ("alive", "diagnostics"):
