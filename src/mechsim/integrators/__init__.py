@@ -272,28 +272,28 @@ class DOP853(Stepper):
         self._reset(t, y_new, keep_dense=True)
 
 
-class Composition(Stepper):
-    """Symplectic composition; the step is the largest ≤ ``h_max`` dividing each output gap."""
+class FixedStep(Stepper):
+    """Fixed-step methods: the step is the largest ≤ ``h_max`` dividing each output gap; a
+    run of equal gaps goes to the kernel in one call (``_block``). A subclass may recover
+    from a failed block (``_recover``: e.g. smaller steps); otherwise the run stops."""
 
-    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float,
-                 method: str = "yoshida8", step: float | None = None) -> None:
+    h_max: float
+
+    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float) -> None:
         super().__init__(model, y0, t0, tolerance)
-        self.method = method
-        self.weights, order = COMPOSITIONS[method]
-        # Error per unit time ~ (h/τ)^order: pick h so that it is about the tolerance.
-        self.h_max = step if step is not None else (
-            model.time_scale() * 0.07 * self.tolerance ** (1.0 / order))
-        self.st = np.array([self.t, 0.0, 0.0])
-        self.a = np.empty(model.coordinates.__len__())
-        self.kernels.accel_q(self.t, self.y[: self.a.size], self.p, self.a)
-
-    def set_parameters(self, p: np.ndarray) -> None:
-        super().set_parameters(p)
-        self.kernels.accel_q(self.t, self.y[: self.a.size], self.p, self.a)
+        self.st = np.array([self.t, 0.0, 0.0])  # [t, n_steps, n_force_evaluations]
+        self.refine = 1
 
     @property
     def n_steps(self) -> int:
         return int(self.st[1])
+
+    @abstractmethod
+    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[int, int]:
+        """Integrate len(Y) output intervals of n_sub steps of h; (status, rows written)."""
+
+    def _recover(self, status: int) -> bool:
+        return False
 
     def advance(self, t_out: np.ndarray) -> np.ndarray:
         t_out = np.asarray(t_out, dtype=np.float64)
@@ -307,27 +307,52 @@ class Composition(Stepper):
                 Y[k] = self.y
                 k += 1
                 continue
-            # A run of equal gaps goes to the kernel in one call.
             j = k + 1
             while j < t_out.size and abs((t_out[j] - t_out[j - 1]) - gap) <= 1e-12 * gap:
                 j += 1
-            n_sub = max(1, math.ceil(gap / self.h_max - 1e-9))
-            status, written = self.kernels.composition_advance(
-                self.st, self.y, self.p, j - k, n_sub, gap / n_sub, self.weights, Y[k:j],
-                self.a)
+            n_sub = self.refine * max(1, math.ceil(gap / self.h_max - 1e-9))
+            status, written = self._block(Y[k:j], n_sub, gap / n_sub)
+            if written:
+                # Snap the clock to the requested times so round-off does not accumulate in t.
+                self.t = float(t_out[k + written - 1])
+                self.st[0] = self.t
+                self.y = Y[k + written - 1].copy()
             if status != 0:
+                if self._recover(status):
+                    k += written
+                    continue
                 raise IntegrationError(f"{self.model.id}: {self.method} stopped near "
                                        f"t = {self.st[0]:.6g}: {STATUS[status]}")
-            # Snap the clock to the requested times so round-off does not accumulate in t.
-            self.st[0] = t_out[j - 1]
-            self.t = float(t_out[j - 1])
             k = j
         return Y
 
 
-class Gauss(Stepper):
-    """Gauss–Legendre (order 6) on canonical variables; the step is the largest ≤ ``h_max``
-    dividing each output gap (as for the compositions)."""
+class Composition(FixedStep):
+    """Symplectic composition of velocity Verlet (separable systems)."""
+
+    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float,
+                 method: str = "yoshida8", step: float | None = None) -> None:
+        super().__init__(model, y0, t0, tolerance)
+        self.method = method
+        self.weights, order = COMPOSITIONS[method]
+        # Error per unit time ~ (h/τ)^order: pick h so that it is about the tolerance.
+        self.h_max = step if step is not None else (
+            model.time_scale() * 0.07 * self.tolerance ** (1.0 / order))
+        self.a = np.empty(len(model.coordinates))
+        self.kernels.accel_q(self.t, self.y[: self.a.size], self.p, self.a)
+
+    def set_parameters(self, p: np.ndarray) -> None:
+        super().set_parameters(p)
+        self.kernels.accel_q(self.t, self.y[: self.a.size], self.p, self.a)
+
+    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[int, int]:
+        status, written = self.kernels.composition_advance(
+            self.st, self.y, self.p, len(Y), n_sub, h, self.weights, Y, self.a)
+        return int(status), int(written)
+
+
+class Gauss(FixedStep):
+    """Gauss–Legendre (order 6) on canonical variables z = [q, p, ...]."""
 
     method = "gauss6"
 
@@ -336,10 +361,10 @@ class Gauss(Stepper):
         super().__init__(model, y0, t0, tolerance)
         self.h_max = step if step is not None else (
             model.time_scale() * 0.2 * self.tolerance ** (1.0 / 6.0))
-        self.st = np.array([self.t, 0.0, 0.0])
         self._canonical()
 
     def _canonical(self) -> None:
+        """z from the current y, and stage guesses f(z) for the fixed-point iteration."""
         self.z = np.empty_like(self.y)
         self.kernels.to_momenta(self.t, self.y, self.p, self.z)
         f = np.empty_like(self.z)
@@ -350,50 +375,23 @@ class Gauss(Stepper):
         super().set_parameters(p)
         self._canonical()
 
-    @property
-    def n_steps(self) -> int:
-        return int(self.st[1])
+    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[int, int]:
+        status, written = self.kernels.gauss_advance(
+            self.st, self.z, self.p, len(Y), n_sub, h, Y, self.K)
+        return int(status), int(written)
 
-    def advance(self, t_out: np.ndarray) -> np.ndarray:
-        t_out = np.asarray(t_out, dtype=np.float64)
-        Y = np.empty((t_out.size, self.y.size))
-        k = 0
-        refine = 1
-        while k < t_out.size:
-            gap = t_out[k] - self.t
-            if gap < 0:
-                raise IntegrationError(f"gauss6: output time {t_out[k]} is in the past")
-            if gap == 0.0:
-                Y[k] = self.y
-                k += 1
-                continue
-            j = k + 1
-            while j < t_out.size and abs((t_out[j] - t_out[j - 1]) - gap) <= 1e-12 * gap:
-                j += 1
-            n_sub = refine * max(1, math.ceil(gap / self.h_max - 1e-9))
-            z_before, st_before = self.z.copy(), self.st.copy()
-            status, written = self.kernels.gauss_advance(
-                self.st, self.z, self.p, j - k, n_sub, gap / n_sub, Y[k:j], self.K)
-            if written:
-                self.t = float(t_out[k + written - 1])
-                self.st[0] = self.t
-                self.y = Y[k + written - 1].copy()
-            if status == 6:  # stage iteration did not converge: smaller steps, same interval
-                if refine > 2**10:
-                    raise IntegrationError(f"{self.model.id}: gauss6 stage equations do not "
-                                           f"converge near t = {self.t:.6g}: use dop853")
-                if not written:
-                    self.z, self.st = z_before, st_before
-                self.st[0] = self.t
-                self._canonical()  # fresh stages: the failed iteration's may be garbage
-                refine *= 2
-                k += written
-                continue
-            if status != 0:
-                raise IntegrationError(f"{self.model.id}: gauss6 stopped near "
-                                       f"t = {self.st[0]:.6g}: {STATUS[status]}")
-            k = j
-        return Y
+    def _recover(self, status: int) -> bool:
+        """Stage iteration did not converge: restart from the last written state with
+        fresh stages and halved steps (up to 2¹⁰ times smaller)."""
+        if status != 6:
+            return False
+        if self.refine > 2**10:
+            raise IntegrationError(f"{self.model.id}: gauss6 stage equations do not "
+                                   f"converge near t = {self.t:.6g}: use dop853")
+        self.st[0] = self.t
+        self._canonical()
+        self.refine *= 2
+        return True
 
 
 def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
