@@ -173,8 +173,9 @@ def markdown(res: dict[str, Any]) -> str:
     lines += ["", f"Laziness saves {s['wall_s']:.3f} s ({100 * s['fraction']:.0f} % of the "
               "wall time) when nothing consumes energy, invariants, observables or /tf "
               "(nodes + sink vs nodes only).",
-              f"Through run_scene the saving is {rs['wall_s'] - rn['wall_s']:.3f} s: run_scene "
-              "attaches its diagnostics feed as a sink, and Outlet.wanted() is True for every "
-              "topic once any sink is attached, so everything is computed either way"
-              + (" (counters equal)." if rs["computed"] == rn["computed"] else ".")]
+              f"Through run_scene the saving is {rs['wall_s'] - rn['wall_s']:.3f} s: its "
+              "diagnostics feed consumes energy and invariants (the laws it checks), so only "
+              "observables and frames can be skipped"
+              + (" (counters equal: nothing skipped)." if rs["computed"] == rn["computed"]
+                 else ".")]
     return "\n".join(lines) + "\n"
