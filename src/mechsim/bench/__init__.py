@@ -4,6 +4,7 @@
   in its docstring), problems in :mod:`mechsim.bench.problems`, peers in
   :mod:`mechsim.bench.peers`.
 - ``mechsim bench --scene SCENE --out DIR``: see :mod:`mechsim.bench.scene_cost`.
+- ``mechsim bench --streaming [SYSTEM ...] --out DIR``: see :mod:`mechsim.bench.streaming`.
 
 This module only registers the subcommand; everything heavy is imported when it runs.
 """
@@ -33,6 +34,9 @@ def add_parser(sub: Any) -> None:
     b.add_argument("--scene", metavar="SCENE",
                    help="measure a scene with all outputs consumed vs state only")
     b.add_argument("--duration", type=float, help="simulated seconds for --scene")
+    b.add_argument("--streaming", action="store_true",
+                   help="real-time factor of each system recording at 100 Hz, and the CPU "
+                   "share of all systems streaming in real time")
     b.set_defaults(func=cmd_bench)
 
 
@@ -40,6 +44,11 @@ def cmd_bench(a: argparse.Namespace) -> int:
     from mechsim.errors import ParameterError
 
     out = Path(a.out)
+    if a.streaming:
+        from mechsim.bench.streaming import run_streaming
+
+        run_streaming(out, list(a.systems), duration=a.duration or 5.0)
+        return 0
     if a.scene:
         if a.systems:
             raise ParameterError("--scene", "takes no SYSTEM arguments")
