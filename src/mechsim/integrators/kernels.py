@@ -161,6 +161,19 @@ def dop853_initial_step(t, y, p, f0, rtol, atol):
 
 
 @njit(cache=True)
+def _rk_stages(t0, y0, h, K, first, last, ytmp, p):
+    """Stages ``first`` … ``last − 1`` of the DOP853 tableau from (t0, y0) into K."""
+    n = y0.size
+    for s in range(first, last):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += _DOP_A[s, j] * K[j, i]
+            ytmp[i] = y0[i] + h * acc
+        rhs(t0 + _DOP_C[s] * h, ytmp, p, K[s])
+
+
+@njit(cache=True)
 def _dense_eval(F, y_old, x, out):
     n = y_old.size
     for i in range(n):
@@ -180,14 +193,7 @@ def _dense_prepare(st, y, y_old, K, F, p):
     n = y.size
     t_old = st[2]
     h = st[3]
-    ytmp = np.empty(n)
-    for s in range(13, 16):
-        for i in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += _DOP_A[s, j] * K[j, i]
-            ytmp[i] = y_old[i] + h * acc
-        rhs(t_old + _DOP_C[s] * h, ytmp, p, K[s])
+    _rk_stages(t_old, y_old, h, K, 13, 16, np.empty(n), p)
     for i in range(n):
         dlt = y[i] - y_old[i]
         F[0, i] = dlt
@@ -307,13 +313,7 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
             # FSAL: f(t, y) of the last accepted step end becomes this step's first stage.
             for i in range(n):
                 K[0, i] = K[12, i]
-        for s in range(1, 12):
-            for i in range(n):
-                acc = 0.0
-                for j in range(s):
-                    acc += _DOP_A[s, j] * K[j, i]
-                ytmp[i] = y[i] + h * acc
-            rhs(t + _DOP_C[s] * h, ytmp, p, K[s])
+        _rk_stages(t, y, h, K, 1, 12, ytmp, p)
         for i in range(n):
             acc = 0.0
             for j in range(12):
