@@ -70,3 +70,13 @@ def test_short_run_prints_conservation_table(ros_env: dict[str, str]) -> None:
     assert r.returncode == 0, r.stderr
     assert "Conservation results" in r.stdout
     assert "pendulum" in r.stdout and "energy" in r.stdout and "OK" in r.stdout
+
+
+def test_output_into_a_closed_pipe_is_quiet(ros_env: dict[str, str]) -> None:
+    proc = subprocess.Popen([*MECHSIM, "systems"], env=ros_env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    proc.stdout.readline()
+    proc.stdout.close()  # like `mechsim systems | head -1`
+    _, err = proc.communicate(timeout=120)
+    assert "Traceback" not in err and proc.returncode == 0
