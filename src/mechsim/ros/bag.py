@@ -415,6 +415,12 @@ class BagWriter:
 
     # main thread: serialize and queue (never touches the file)
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        self.write_serialized(topic, type_name, msg, qos, ns, cdr_bytes(msg))
+
+    def write_serialized(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int,
+                         data: bytes) -> None:
+        """``write`` with the CDR payload already made (by the Outlet, which publishes the
+        same bytes, so each message is serialized once)."""
         if self.error is not None:
             raise self.error
         if self._closed:
@@ -425,7 +431,7 @@ class BagWriter:
         if type_name == SYSTEM_INFO:
             for key, value in system_info_custom(msg).items():
                 self._queue.put(("custom", key, value))
-        self._queue.put((topic, ns, cdr_bytes(msg)))
+        self._queue.put((topic, ns, data))
 
     def set_custom(self, key: str, value: Any) -> None:
         self._queue.put(("custom", key, str(value)))

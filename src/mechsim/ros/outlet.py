@@ -75,7 +75,19 @@ class Outlet:
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
         ch = self.channels[topic]
-        ch.publisher.publish(msg)
+        serialized = [s for s in self.sinks if hasattr(s, "write_serialized")]
+        if serialized:
+            # A recorder wants the CDR bytes: make them once and publish those same bytes
+            # (rclpy publishes serialized messages as they are).
+            from mechsim.ros.bag import cdr_bytes
+
+            data = cdr_bytes(msg)
+            ch.publisher.publish(data)
+        else:
+            ch.publisher.publish(msg)
         self.counts[topic] += 1
         for sink in self.sinks:
-            sink.write(topic, ch.type_name, msg, ch.qos, ns)
+            if serialized and sink in serialized:
+                sink.write_serialized(topic, ch.type_name, msg, ch.qos, ns, data)
+            else:
+                sink.write(topic, ch.type_name, msg, ch.qos, ns)
