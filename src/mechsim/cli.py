@@ -103,6 +103,11 @@ def cmd_run(a: argparse.Namespace) -> int:
             from mechsim.errors import ParameterError
             raise ParameterError("--rrd", "not available with --processes (record in-process)")
         from mechsim.ros.launch import run_processes
+        if scene.bag or scene.rrd:
+            print("mechsim: the scene's outputs (bag, rrd) are recorded in-process only; "
+                  "not with --processes (use `mechsim record`)", file=sys.stderr)
+        print(f"mechsim: {len(scene.systems)} simulator processes and a diagnostics process "
+              "(Ctrl-C stops them)", file=sys.stderr)
         return run_processes(Path(a.target), scene, a.set, a.duration or scene.duration)
     from mechsim.ros.launch import run_scene
 
