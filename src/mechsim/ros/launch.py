@@ -279,6 +279,8 @@ def _main(argv: list[str]) -> int:
     except MechsimError as e:
         print(f"mechsim: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # stopped (SIGINT/SIGTERM) while still starting up
+        return 130
 
 
 if __name__ == "__main__":
