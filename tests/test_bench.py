@@ -90,9 +90,10 @@ def test_missing_peer_reported(quick_run: tuple[dict, Path, str]) -> None:
 
 
 @pytest.mark.parametrize("system", ["pendulum", "kepler", "driven_oscillator",
-                                    "harmonic_oscillator"])
+                                    "harmonic_oscillator", "double_pendulum"])
 def test_reference_matches_tight_scipy(system: str) -> None:
-    """The closed-form references agree with a tight DOP853 run of the bench's numpy RHS."""
+    """The closed-form references (Radau at 1e-14 for the double pendulum) agree with a tight
+    DOP853 run of the bench's numpy RHS."""
     pb = problems.problem(system, quick=True)
     t = pb.times()
     sol = solve_ivp(pb.rhs, (0, pb.t_end), pb.y0, method="DOP853", t_eval=t, rtol=1e-13,
@@ -113,3 +114,29 @@ def test_pareto_interpolation() -> None:
     e = error_at(front, math.sqrt(10.0))
     assert e is not None and math.isclose(e, 1e-6)
     assert error_at(front, 0.5) is None
+
+
+def test_double_pendulum_rhs_matches_mechsim() -> None:
+    """The bench's hand-written RHS and mechsim's generated kernels describe the same system."""
+    from mechsim.integrators import make_stepper
+    from mechsim.systems import load_system
+
+    pb = problems.problem("double_pendulum", quick=True)
+    model = load_system(pb.system, **pb.params)
+    q0, v0 = model.initial_state()
+    assert np.allclose(np.concatenate([q0, v0]), pb.y0)
+    Y = make_stepper(model, "dop853", 1e-12).advance(pb.times())[:, :4]
+    assert pb.errors(Y)["max_error"] < 1e-9
+
+
+def test_double_pendulum_reference_vs_double_precision() -> None:
+    """The extended-precision reference agrees with scipy Radau and DOP853 at 1e-14."""
+    import warnings
+
+    pb = problems.problem("double_pendulum", quick=True)
+    for method in ("Radau", "DOP853"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sol = solve_ivp(pb.rhs, (0, pb.t_end), pb.y0, method=method, t_eval=pb.times(),
+                            rtol=1e-14, atol=1e-14)
+        assert pb.errors(sol.y.T)["max_error"] < 1e-11, method

@@ -10,10 +10,14 @@ object and stepping is.
   the samples, on the plain numpy right-hand side of the problem (no Jacobian given).
 - rebound (kepler): IAS15 with ``epsilon`` = setting; WHFast with a fixed step (setting = steps
   per orbit). A test particle of mass 0 around a unit mass, G = 1.
-- mujoco (pendulum): hinge joint, point mass (inertia 1e-15 kg m² about its centre), RK4 and
-  semi-implicit Euler with a fixed step (setting = steps per second).
-- drake (pendulum): continuous MultibodyPlant (revolute joint, point mass), Simulator with the
-  error-controlled runge_kutta3, runge_kutta5 and radau3 schemes, accuracy = setting.
+- mujoco (pendulum, double_pendulum): hinge joints, point masses (inertia 1e-15 kg m² about
+  their centres; the double pendulum's second body hangs from the first at l₁, its hinge angle
+  is relative, converted to and from the absolute θ₂), RK4 and semi-implicit Euler with a
+  fixed step (setting = steps per second).
+- drake (pendulum, double_pendulum): continuous MultibodyPlant (revolute joints, point masses;
+  the second joint's parent frame is fixed to the first body at l₁, its angle relative),
+  Simulator with the error-controlled runge_kutta3, runge_kutta5 and radau3 schemes,
+  accuracy = setting.
 
 A family whose package cannot be imported is reported missing (one line) and skipped.
 """
@@ -143,11 +147,42 @@ def _pendulum_mjcf(pb: Problem, integrator: str) -> str:
 </mujoco>"""
 
 
+def _double_pendulum_mjcf(pb: Problem, integrator: str) -> str:
+    x = pb.extra
+    return f"""<mujoco model="double_pendulum">
+  <option gravity="0 0 {-x['g']}" timestep="0.001" integrator="{integrator}"/>
+  <worldbody>
+    <body name="bob_1">
+      <joint name="angle_1" type="hinge" axis="1 0 0" pos="0 0 0"/>
+      <inertial pos="0 0 {-x['l1']}" mass="{x['m1']}" diaginertia="1e-15 1e-15 1e-15"/>
+      <body name="bob_2" pos="0 0 {-x['l1']}">
+        <joint name="angle_2" type="hinge" axis="1 0 0" pos="0 0 0"/>
+        <inertial pos="0 0 {-x['l2']}" mass="{x['m2']}" diaginertia="1e-15 1e-15 1e-15"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def _chain_to_joints(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Absolute angles/rates [q, v] of a planar chain -> joint (relative) positions, rates."""
+    n = y.size // 2
+    q, v = y[:n], y[n:]
+    return np.diff(q, prepend=0.0), np.diff(v, prepend=0.0)
+
+
+def _joints_to_chain(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return np.concatenate([np.cumsum(q), np.cumsum(v)])
+
+
+_MJCF = {"pendulum": _pendulum_mjcf, "double_pendulum": _double_pendulum_mjcf}
+
+
 def _mujoco(integrator: str) -> Callable[[Problem, float], Runner]:
     def prepare(pb: Problem, steps_per_second: float) -> Runner:
         import mujoco
 
-        model = mujoco.MjModel.from_xml_string(_pendulum_mjcf(pb, integrator))
+        model = mujoco.MjModel.from_xml_string(_MJCF[pb.system](pb, integrator))
         t = pb.times()
         gap = t[1] - t[0]
         k = max(1, math.ceil(gap * steps_per_second - 1e-9))
@@ -155,14 +190,13 @@ def _mujoco(integrator: str) -> Callable[[Problem, float], Runner]:
 
         def run() -> tuple[np.ndarray, dict[str, Any]]:
             data = mujoco.MjData(model)
-            data.qpos[0] = pb.y0[0]
-            data.qvel[0] = pb.y0[1]
-            out = np.empty((t.size, 2))
+            data.qpos[:], data.qvel[:] = _chain_to_joints(pb.y0)
+            out = np.empty((t.size, pb.y0.size))
             out[0] = pb.y0
             for i in range(1, t.size):
                 n = round((t[i] - t[i - 1]) / model.opt.timestep)
                 mujoco.mj_step(model, data, nstep=n)
-                out[i] = (data.qpos[0], data.qvel[0])
+                out[i] = _joints_to_chain(data.qpos, data.qvel)
             return out, {"n_steps": round(t[-1] / model.opt.timestep), "n_rhs": None,
                          "dt": model.opt.timestep}
         return run
@@ -175,22 +209,32 @@ def _drake(scheme: str) -> Callable[[Problem, float], Runner]:
         from pydrake.all import (
             ApplySimulatorConfig,
             DiagramBuilder,
+            FixedOffsetFrame,
             MultibodyPlant,
             RevoluteJoint,
+            RigidTransform,
             RotationalInertia,
             Simulator,
             SimulatorConfig,
             SpatialInertia,
         )
 
-        R, g, m = pb.extra["R"], pb.extra["g"], pb.extra["m"]
+        x = pb.extra
+        # (mass, rod length) per link of the planar chain hanging from the origin.
+        links = ([(x["m"], x["R"])] if pb.system == "pendulum"
+                 else [(x["m1"], x["l1"]), (x["m2"], x["l2"])])
         builder = DiagramBuilder()
         plant = builder.AddSystem(MultibodyPlant(0.0))
-        body = plant.AddRigidBody("bob", SpatialInertia.MakeFromCentralInertia(
-            m, [0.0, 0.0, -R], RotationalInertia(0.0, 0.0, 0.0)))
-        joint = plant.AddJoint(RevoluteJoint("angle", plant.world_frame(), body.body_frame(),
-                                             [1.0, 0.0, 0.0]))
-        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -g])
+        joints = []
+        parent = plant.world_frame()
+        for k, (m, R) in enumerate(links):
+            body = plant.AddRigidBody(f"bob_{k + 1}", SpatialInertia.MakeFromCentralInertia(
+                m, [0.0, 0.0, -R], RotationalInertia(0.0, 0.0, 0.0)))
+            joints.append(plant.AddJoint(RevoluteJoint(f"angle_{k + 1}", parent,
+                                                       body.body_frame(), [1.0, 0.0, 0.0])))
+            parent = plant.AddFrame(FixedOffsetFrame(f"end_{k + 1}", body.body_frame(),
+                                                     RigidTransform([0.0, 0.0, -R])))
+        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -x["g"]])
         plant.Finalize()
         diagram = builder.Build()
         config = SimulatorConfig(integration_scheme=scheme, accuracy=accuracy,
@@ -203,14 +247,17 @@ def _drake(scheme: str) -> Callable[[Problem, float], Runner]:
             ApplySimulatorConfig(config, sim)
             ctx = sim.get_mutable_context()
             pc = plant.GetMyMutableContextFromRoot(ctx)
-            joint.set_angle(pc, float(pb.y0[0]))
-            joint.set_angular_rate(pc, float(pb.y0[1]))
+            q0, v0 = _chain_to_joints(pb.y0)
+            for j, qj, vj in zip(joints, q0, v0, strict=True):
+                j.set_angle(pc, float(qj))
+                j.set_angular_rate(pc, float(vj))
             sim.Initialize()
-            out = np.empty((t.size, 2))
+            out = np.empty((t.size, pb.y0.size))
             out[0] = pb.y0
             for i in range(1, t.size):
                 sim.AdvanceTo(float(t[i]))
-                out[i] = (joint.get_angle(pc), joint.get_angular_rate(pc))
+                out[i] = _joints_to_chain(np.array([j.get_angle(pc) for j in joints]),
+                                          np.array([j.get_angular_rate(pc) for j in joints]))
             integ = sim.get_integrator()
             return out, {"n_steps": int(integ.get_num_steps_taken()),
                          "n_rhs": int(integ.get_num_derivative_evaluations())}

@@ -9,8 +9,16 @@ reference solution at the sample times.
 References: closed forms where the system module offers one (Kepler's equation for ``kepler``,
 the transient + steady-state solution of ``driven_oscillator``, Jacobi elliptic functions for
 the ``pendulum`` released from rest, the normal-mode solution of ``harmonic_oscillator``).
-Systems without a closed form would use a high-precision run of a different method
-(``reference_kind = "scipy:DOP853@1e-14"``); none is benchmarked yet.
+Systems without a closed form use a high-precision run of the hand-written RHS, checked
+against independent ones: ``double_pendulum`` (chaotic, λ ≈ 1.9 /s, so a short horizon of
+5 s) takes a fixed-step run of the DOP853 tableau in extended precision (``np.longdouble``,
+80-bit on x86: ε ≈ 1.1e-19; steps of 1.25 ms and of 0.31 ms agree to 4e-15 at the end point
+and 1.2e-14 over the run, relative to the state scale). Double precision cannot do this
+well: scipy Radau and DOP853 at rtol = atol = 1e-14 agree with each other to 1e-12 at the
+end point but are 2.7e-12 and 1.7e-12 away from the extended-precision run (7.5e-12 and
+5.1e-12 over the run), i.e. round-off amplified by the chaos. The extended run uses the
+same double-precision g and initial angles as every contestant. Where ``longdouble`` is plain
+double, the reference falls back to Radau at 1e-14 (and says so in ``reference_kind``).
 """
 
 from __future__ import annotations
@@ -197,11 +205,100 @@ def harmonic_oscillator(t_end: float = 100.0, n_samples: int = 200) -> Problem:
                    energy, "energy", peers=("scipy",), extra={"conserved_scale": 0.5 * k * x0**2})
 
 
+def _fixed_dop853_longdouble(rhs: Callable[[float, Array], Array], y0: Array, t: Array,
+                             h_max: float) -> Array:
+    """States at ``t`` from a fixed-step run of the DOP853 tableau (autonomous ``rhs``, which
+    must be written with numpy functions so that it keeps ``np.longdouble``) in extended
+    precision; a whole number of steps of at most ``h_max`` between samples."""
+    from scipy.integrate._ivp import dop853_coefficients as dc
+
+    L = np.longdouble
+    A, B = dc.A.astype(L), dc.B.astype(L)
+    ns = dc.N_STAGES
+    y = np.asarray(y0, dtype=L)
+    K = np.empty((ns, y.size), dtype=L)
+    out = np.empty((t.size, y.size))
+    out[0] = y0
+    for i in range(1, t.size):
+        gap = L(t[i]) - L(t[i - 1])
+        k = max(1, math.ceil(float(gap) / h_max))
+        h = gap / k
+        for _ in range(k):
+            K[0] = rhs(0.0, y)
+            for j in range(1, ns):
+                K[j] = rhs(0.0, y + h * (A[j, :j] @ K[:j]))
+            y = y + h * (B @ K)
+        out[i] = y.astype(float)
+    return out
+
+
+# --- double_pendulum --------------------------------------------------------------------------
+def double_pendulum(t_end: float = 5.0, n_samples: int = 200) -> Problem:
+    # Defaults of load_system("double_pendulum") (angles form): absolute angles θ₁, θ₂ from
+    # straight down, point masses on massless rods.
+    m1, m2, l1, l2, g = 1.0, 1.0, 1.0, 1.0, 9.81
+    th1, th2 = 2.0, 2.5
+
+    def accel(y: Any, sin: Any, cos: Any) -> list[Any]:
+        # Euler–Lagrange equations of L = T − V (derived independently with sympy from the
+        # Cartesian bob positions): M(θ) θ̈ = f(θ, θ̇), M 2×2 solved by Cramer's rule.
+        t1, t2, w1, w2 = y
+        c, s = cos(t1 - t2), sin(t1 - t2)
+        m11, m12, m22 = (m1 + m2) * l1 * l1, m2 * l1 * l2 * c, m2 * l2 * l2
+        f1 = -m2 * l1 * l2 * w2 * w2 * s - (m1 + m2) * g * l1 * sin(t1)
+        f2 = m2 * l1 * l2 * w1 * w1 * s - m2 * g * l2 * sin(t2)
+        det = m11 * m22 - m12 * m12
+        return [w1, w2, (m22 * f1 - m12 * f2) / det, (m11 * f2 - m12 * f1) / det]
+
+    def rhs(t: float, y: Array) -> Array:  # what scipy users would write: math on floats
+        return np.array(accel(y, math.sin, math.cos))
+
+    def rhs_ext(t: float, y: Array) -> Array:  # the same in numpy, keeping np.longdouble
+        return np.array(accel(y, np.sin, np.cos), dtype=y.dtype)
+
+    y0 = np.array([th1, th2, 0.0, 0.0])
+
+    extended = bool(np.finfo(np.longdouble).eps < 1e-18)
+
+    def reference(t: Array) -> Array:
+        if extended:
+            return _fixed_dop853_longdouble(rhs_ext, y0, np.asarray(t, dtype=float), 1.25e-3)
+        import warnings
+
+        from scipy.integrate import solve_ivp
+
+        with warnings.catch_warnings():  # rtol below 100 ε is raised to it: fine here
+            warnings.simplefilter("ignore")
+            sol = solve_ivp(rhs, (0.0, float(t[-1])), y0, method="Radau", t_eval=t,
+                            rtol=1e-14, atol=1e-14)
+        if not sol.success:
+            raise RuntimeError(sol.message)
+        return sol.y.T.copy()
+
+    def energy(t: Array, Y: Array) -> Array:
+        t1, t2, w1, w2 = Y.T
+        T = 0.5 * m1 * l1**2 * w1**2 + 0.5 * m2 * (l1**2 * w1**2 + l2**2 * w2**2 + 2 * l1 * l2
+                                                   * w1 * w2 * np.cos(t1 - t2))
+        V = (m1 * g * (l1 + l2 - l1 * np.cos(t1))
+             + m2 * g * (l1 + l2 - l1 * np.cos(t1) - l2 * np.cos(t2)))
+        return T + V
+
+    return Problem("double_pendulum", {}, t_end, n_samples,
+                   f"double pendulum, m₁ = m₂ = {m1}, l₁ = l₂ = {l1}, g = {g}, from rest at "
+                   f"θ₁ = {th1}, θ₂ = {th2} rad (chaotic, λ ≈ 1.9 /s); {t_end:g} s",
+                   rhs, y0, reference,
+                   "DOP853 tableau, fixed step 1.25 ms, long double (error ~1e-14)" if extended
+                   else "scipy Radau @ rtol=atol=1e-14 (error ~3e-12: no long double here)",
+                   energy, "energy", peers=("scipy", "mujoco", "drake"),
+                   extra={"m1": m1, "m2": m2, "l1": l1, "l2": l2, "g": g})
+
+
 BUILDERS: dict[str, Callable[..., Problem]] = {
     "pendulum": pendulum,
     "kepler": kepler,
     "driven_oscillator": driven_oscillator,
     "harmonic_oscillator": harmonic_oscillator,
+    "double_pendulum": double_pendulum,
 }
 
 # Horizons of --quick (CI): a few periods.
@@ -210,6 +307,7 @@ QUICK: dict[str, dict[str, Any]] = {
     "kepler": {"orbits": 2.0, "n_samples": 20},
     "driven_oscillator": {"t_end": 5.0, "n_samples": 20},
     "harmonic_oscillator": {"t_end": 5.0, "n_samples": 20},
+    "double_pendulum": {"t_end": 2.0, "n_samples": 20},
 }
 
 
