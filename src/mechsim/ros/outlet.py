@@ -11,6 +11,8 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from mechsim.ros.bag import cdr_bytes
+
 # QoS by role (ROS_CONVENTIONS §1, §2, §5).
 STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
@@ -75,19 +77,17 @@ class Outlet:
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
         ch = self.channels[topic]
-        serialized = [s for s in self.sinks if hasattr(s, "write_serialized")]
-        if serialized:
+        data: bytes | None = None
+        if any(hasattr(sink, "write_serialized") for sink in self.sinks):
             # A recorder wants the CDR bytes: make them once and publish those same bytes
             # (rclpy publishes serialized messages as they are).
-            from mechsim.ros.bag import cdr_bytes
-
             data = cdr_bytes(msg)
             ch.publisher.publish(data)
         else:
             ch.publisher.publish(msg)
         self.counts[topic] += 1
         for sink in self.sinks:
-            if serialized and sink in serialized:
+            if data is not None and hasattr(sink, "write_serialized"):
                 sink.write_serialized(topic, ch.type_name, msg, ch.qos, ns, data)
             else:
                 sink.write(topic, ch.type_name, msg, ch.qos, ns)

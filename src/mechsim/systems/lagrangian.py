@@ -31,7 +31,7 @@ import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
-from mechsim.systems.base import Event, FrameSpec, Model, Quantity, Structure
+from mechsim.systems.base import Event, FrameSpec, Law, Model, Quantity, Structure
 
 Expr = sp.Expr
 
@@ -252,7 +252,6 @@ class LagrangianModel(Model):
 
     def laws(self):  # type: ignore[override]
         laws = list(super().laws())
-        from mechsim.systems.base import Law
         if self.energy_function_conserved():
             laws.insert(1 if laws[0].kind == "energy" else 0,
                         Law("energy_function", "energy_function"))
