@@ -250,7 +250,7 @@ class LagrangianModel(Model):
                 and not any(f != 0 for f in d.forces)
                 and not any(d.t in g.free_symbols for _, g in d.constraints))
 
-    def laws(self):  # type: ignore[override]
+    def laws(self) -> tuple[Law, ...]:
         laws = list(super().laws())
         if self.energy_function_conserved():
             laws.insert(1 if laws[0].kind == "energy" else 0,
