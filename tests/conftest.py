@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from mechsim.ros.environment import configure_ros_environment, valid_domain_id
+from mechsim.environment import configure_ros_environment, valid_domain_id
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -64,7 +64,7 @@ def ros_context(ros_domain_id: int) -> Iterator[Context]:
 
     Pass ``context=ros_context`` to every Node and Executor.
     """
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     ctx = rclpy.context.Context()

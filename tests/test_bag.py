@@ -46,10 +46,10 @@ class Capture:
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """The default scene (three systems) recorded for 1 s, in process, plus a capture."""
-    from mechsim.cli import _scene_from
     from mechsim.ros import launch, record
+    from mechsim.scene import scene_from_target
 
-    scene = _scene_from(str(REPO / "scenes" / "default.yaml"), [])
+    scene = scene_from_target(str(REPO / "scenes" / "default.yaml"), [])
     path = tmp_path_factory.mktemp("bags") / "rec"
     capture = Capture()
     real_run_scene = launch.run_scene
@@ -414,7 +414,7 @@ def test_bad_bags_are_one_line_errors(tmp_path: Path, capsys: Any) -> None:
     assert not (tmp_path / "neg").exists()
     assert (junk / "junk_0.mcap").read_bytes() == junk_bytes  # not "repaired" into nothing
     from mechsim.errors import MechsimError
-    from mechsim.ros.bag import read_messages
+    from mechsim.outputs.bag import read_messages
 
     with pytest.raises(MechsimError, match="corrupt"):
         list(read_messages(corrupt))

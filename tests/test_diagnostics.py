@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from mechsim.ros.environment import import_rclpy
+from mechsim.environment import import_rclpy
 
 rclpy = import_rclpy()
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402

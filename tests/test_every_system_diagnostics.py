@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 
 import mechsim
-from mechsim.ros.environment import import_rclpy
+from mechsim.environment import import_rclpy
 
 import_rclpy()
 from mechsim.ros.launch import run_scene  # noqa: E402

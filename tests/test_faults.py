@@ -162,7 +162,7 @@ def test_restart_recorder_after_kill_into_new_bag(ros_env: dict[str, str],
     assert ok.returncode == 0, ok.stderr
     assert _bag_counts(second)["/pendulum/state"] == 101
     # The killed bag is repaired from its flushed chunks and reads back.
-    from mechsim.ros.bag import repair_bag
+    from mechsim.outputs.bag import repair_bag
 
     r = repair_bag(first)
     assert r.messages > 0 and sum(_bag_counts(first).values()) == r.messages
@@ -186,7 +186,7 @@ def test_slow_subscriber_does_not_block_publisher(ros_context: Any, ros_env: dic
         timed(500)  # warm-up
         baseline = timed(3000)
         code = ("import sys, time\n"
-                "from mechsim.ros.environment import import_rclpy\n"
+                "from mechsim.environment import import_rclpy\n"
                 "rclpy = import_rclpy()\n"
                 "from sensor_msgs.msg import JointState\n"
                 "rclpy.init()\n"

@@ -164,7 +164,7 @@ def test_load_scene_missing_and_unreadable(tmp_path: Path) -> None:
 # --- runtime ROS parameter changes: same validation, bad values rejected, simulation goes on ---
 @pytest.fixture(scope="module")
 def sim_node() -> Iterator[Any]:
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     ctx = rclpy.context.Context()
@@ -224,7 +224,7 @@ def real_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _read_all(path: Path) -> int:
-    from mechsim.ros.bag import read_messages, read_metadata
+    from mechsim.outputs.bag import read_messages, read_metadata
 
     read_metadata(path)
     return sum(1 for _ in read_messages(path))
@@ -240,7 +240,7 @@ def _no_partial_files(d: Path, before: set[str]) -> None:
 @given(st.binary(max_size=2048), st.booleans())
 def test_bag_reader_random_bytes(tmp_path_factory: pytest.TempPathFactory, real_bag: Path,
                                  blob: bytes, with_metadata: bool) -> None:
-    from mechsim.ros.bag import repair_bag
+    from mechsim.outputs.bag import repair_bag
 
     d = tmp_path_factory.mktemp("rand") / "rand"
     d.mkdir()
@@ -259,7 +259,7 @@ def test_bag_reader_random_bytes(tmp_path_factory: pytest.TempPathFactory, real_
 @given(st.floats(min_value=0.0, max_value=1.0), st.booleans())
 def test_truncated_real_bag(tmp_path_factory: pytest.TempPathFactory, real_bag: Path,
                             fraction: float, keep_metadata: bool) -> None:
-    from mechsim.ros.bag import repair_bag
+    from mechsim.outputs.bag import repair_bag
 
     data = (real_bag / "real_0.mcap").read_bytes()
     d = tmp_path_factory.mktemp("trunc") / "trunc"

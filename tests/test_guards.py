@@ -70,7 +70,7 @@ def _scene() -> Any:
 
 def _run(ros_context: Any, tmp_path: Path, corrupt: Any,
          caplog: pytest.LogCaptureFixture | None = None) -> tuple[Any, Injector, Path]:
-    from mechsim.ros.bag import BagWriter
+    from mechsim.outputs.bag import BagWriter
     from mechsim.ros.launch import run_scene
     from mechsim.ros.record import scene_custom_data
 
@@ -163,7 +163,7 @@ def test_constraint_guard_quiet_on_healthy_runs(ros_context: Any) -> None:
 
 
 def test_constraint_limit_parameter_validated(ros_context: Any) -> None:
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     import_rclpy()
     from rclpy.parameter import Parameter

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import psutil
 import pytest
 
-from mechsim.ros.environment import FASTDDS_PROFILE, import_rclpy
+from mechsim.environment import FASTDDS_PROFILE, import_rclpy
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -27,7 +27,7 @@ TFMESSAGE_HASH = "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe8
 # A second ROS process: publishes mechsim_msgs/Energy (kinetic = counter) until terminated.
 CHILD = f"""
 import os, sys, time
-from mechsim.ros.environment import import_rclpy
+from mechsim.environment import import_rclpy
 rclpy = import_rclpy()
 from rclpy.node import Node
 from mechsim_msgs.msg import Energy

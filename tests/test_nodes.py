@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from mechsim.ros.environment import import_rclpy
+from mechsim.environment import import_rclpy
 
 rclpy = import_rclpy()
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -113,7 +113,7 @@ def test_every_topic_in_process(ros_context: Any, sim: Any) -> None:
 def test_second_process_receives(ros_context: Any, sim: Any, ros_env: dict[str, str]) -> None:
     script = textwrap.dedent(f"""
         import sys, time
-        from mechsim.ros.environment import import_rclpy
+        from mechsim.environment import import_rclpy
         rclpy = import_rclpy()
         from rclpy.node import Node
         from mechsim_msgs.msg import Energy

@@ -16,7 +16,7 @@ REFERENCE = REPO / "bags" / "reference"
 
 LISTENER = r"""
 import json, sys, time
-from mechsim.ros.environment import import_rclpy
+from mechsim.environment import import_rclpy
 rclpy = import_rclpy()
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy

@@ -1,5 +1,6 @@
-"""Rerun recordings (mechsim.rerun_log), read back with Rerun's own reader (rerun.chunk.RrdReader)
-and compared with the ROS messages the run published (captured by an independent sink)."""
+"""Rerun recordings (mechsim.outputs.rerun), read back with Rerun's own reader
+(rerun.chunk.RrdReader) and compared with the ROS messages the run published (captured by an
+independent sink)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-from mechsim.ros.environment import import_rclpy
+from mechsim.environment import import_rclpy
 
 import_rclpy()
 
@@ -79,8 +80,8 @@ def stamp_ns(stamp: Any) -> int:
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """One run of pendulum + kepler with the Rerun sink, the bag writer and a capture attached;
     then the bag converted. (run_scene makes its own rclpy context.)"""
-    from mechsim.rerun_log import RerunSink, convert_bag
-    from mechsim.ros.bag import BagWriter
+    from mechsim.outputs.bag import BagWriter
+    from mechsim.outputs.rerun import RerunSink, convert_bag
     from mechsim.ros.launch import run_scene
     from mechsim.scene import parse_scene
 
@@ -233,7 +234,7 @@ def test_convert_bag_gives_the_live_recording(recorded: dict[str, Any]) -> None:
 
 def test_static_visual_kinds(tmp_path: Path) -> None:
     """box, polyline, axes visuals from a system_info message alone (no samples needed)."""
-    from mechsim.rerun_log import RerunSink
+    from mechsim.outputs.rerun import RerunSink
     from mechsim_msgs.msg import SystemInfo
 
     path = tmp_path / "v.rrd"

@@ -16,8 +16,9 @@ from scipy.integrate import solve_ivp
 
 import mechsim
 from mechsim.errors import ParameterError
+from mechsim.experiments.scattering_beam import beam
 from mechsim.systems._scattering import cm_angles_of_lab, lab_angle, lab_cross_section
-from mechsim.systems.scattering import COULOMB, beam
+from mechsim.systems.scattering import COULOMB
 
 
 def load(**kw: object) -> mechsim.systems.base.Model:

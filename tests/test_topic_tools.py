@@ -18,7 +18,7 @@ MECHSIM = [sys.executable, "-m", "mechsim.cli"]
 
 
 def test_message_yaml_layout() -> None:
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     import_rclpy()
     from builtin_interfaces.msg import Time

@@ -28,7 +28,7 @@ from typing import Any
 
 import yaml
 
-from mechsim.errors import MechsimError, ParameterError
+from mechsim.errors import MechsimError, ParameterError, UnknownSystemError
 from mechsim.integrators import METHODS
 from mechsim.params import flatten
 from mechsim.systems import system_class
@@ -61,7 +61,7 @@ class Scene:
     source: Path | None = None
 
 
-def _number(field_name: str, value: Any, positive: bool = True) -> float:
+def positive_number(field_name: str, value: Any, positive: bool = True) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ParameterError(field_name, f"must be a number (got {value!r})")
     x = float(value)
@@ -100,13 +100,13 @@ def parse_instance(data: Any, index: int) -> Instance:
     method = data.get("method", "auto")
     if method not in METHODS:
         raise ParameterError(f"{where}.method", f"must be one of {', '.join(METHODS)}")
-    tol = _number(f"{where}.tolerance", data.get("tolerance", 1e-10))
+    tol = positive_number(f"{where}.tolerance", data.get("tolerance", 1e-10))
     if tol >= 1:
         raise ParameterError(f"{where}.tolerance", f"must be < 1 (got {tol!r})")
     origin = data.get("origin", [0.0, 0.0, 0.0])
     if not (isinstance(origin, list | tuple) and len(origin) == 3):
         raise ParameterError(f"{where}.origin", "must be a list of three numbers [x, y, z]")
-    org = tuple(_number(f"{where}.origin", v, positive=False) for v in origin)
+    org = tuple(positive_number(f"{where}.origin", v, positive=False) for v in origin)
     return Instance(system, name, flatten(params), method, tol, org)  # type: ignore[arg-type]
 
 
@@ -128,17 +128,17 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
         raise ParameterError("pacing", f"must be realtime or fast (got {pacing!r})")
     scene = Scene(name=str(data.get("name", default_name)), systems=instances, pacing=pacing)
     if "real_time_factor" in data:
-        scene.real_time_factor = _number("real_time_factor", data["real_time_factor"])
+        scene.real_time_factor = positive_number("real_time_factor", data["real_time_factor"])
     if data.get("duration") is not None:
-        scene.duration = _number("duration", data["duration"])
+        scene.duration = positive_number("duration", data["duration"])
     if "publish_rate" in data:
-        scene.publish_rate = _number("publish_rate", data["publish_rate"])
+        scene.publish_rate = positive_number("publish_rate", data["publish_rate"])
     diag = data.get("diagnostics") or {}
     if not isinstance(diag, dict):
         raise ParameterError("diagnostics", "must be a mapping")
     _keys("diagnostics", diag, {"warn_drift", "error_drift"})
-    scene.warn_drift = _number("diagnostics.warn_drift", diag.get("warn_drift", 1e-6))
-    scene.error_drift = _number("diagnostics.error_drift", diag.get("error_drift", 1e-3))
+    scene.warn_drift = positive_number("diagnostics.warn_drift", diag.get("warn_drift", 1e-6))
+    scene.error_drift = positive_number("diagnostics.error_drift", diag.get("error_drift", 1e-3))
     if scene.warn_drift >= scene.error_drift:
         raise ParameterError("diagnostics.warn_drift", "must be smaller than error_drift")
     outputs = data.get("outputs") or {}
@@ -177,3 +177,47 @@ def single_system_scene(system: str, parameters: dict[str, Any] | None = None) -
     """The scene `mechsim run SYSTEM` uses: one instance with default settings."""
     return parse_scene({"name": system, "systems": [{"system": system,
                                                       "parameters": parameters or {}}]})
+
+
+def apply_overrides(scene: Scene, sets: list[str]) -> None:
+    """``name=value`` for every instance that has the parameter, ``inst:name=value`` for one."""
+    for item in sets:
+        if "=" not in item:
+            raise ParameterError("--set", f"expected name=value (got {item!r})")
+        key, raw = item.split("=", 1)
+        target, _, name = key.rpartition(":")
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError:
+            value = raw
+        hit = False
+        for idx, inst in enumerate(scene.systems):
+            if target and inst.name != target:
+                continue
+            names = {p.name for p in system_class(inst.system).parameter_spec()}
+            if name in names:
+                params = dict(inst.parameters)
+                params[name] = value
+                scene.systems[idx] = parse_instance(
+                    {"system": inst.system, "name": inst.name, "parameters": params,
+                     "method": inst.method, "tolerance": inst.tolerance,
+                     "origin": list(inst.origin)}, idx)
+                hit = True
+        if not hit:
+            where = f"instance {target!r}" if target else "any system of the scene"
+            raise ParameterError(f"--set {name}", f"not a parameter of {where}")
+
+
+def scene_from_target(target: str, sets: list[str]) -> Scene:
+    """The scene a command names: a scene file, or a system id run with its default scene;
+    then the ``--set`` overrides."""
+    from mechsim.systems import system_ids
+
+    if target.endswith((".yaml", ".yml")) or Path(target).is_file():
+        scene = load_scene(target)
+    elif target in system_ids():
+        scene = single_system_scene(target)
+    else:
+        raise UnknownSystemError(target, system_ids())
+    apply_overrides(scene, sets)
+    return scene

@@ -77,7 +77,7 @@ def _via_run_scene(scene: Any, duration: float, sink: bool) -> dict[str, Any]:
 
 def _bare_nodes(scene: Any, duration: float, sink: bool) -> dict[str, Any]:
     """The simulator nodes alone, stepped like run_scene does (no diagnostics node)."""
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
@@ -120,10 +120,11 @@ def _bare_nodes(scene: Any, duration: float, sink: bool) -> dict[str, Any]:
 
 def run_scene_cost(target: str, out: Path, duration: float | None = None,
                    repeats: int = 3) -> dict[str, Any]:
-    from mechsim.cli import _scene_from
+
+    from mechsim.scene import scene_from_target
 
     os.environ.setdefault("ROS_DOMAIN_ID", str(os.getpid() % 101 + 1))
-    scene = _scene_from(target, [])
+    scene = scene_from_target(target, [])
     dur = duration if duration is not None else (scene.duration or 20.0)
     res: dict[str, Any] = {"schema": "mechsim-bench-scene/1", "scene": scene.name,
                            "systems": [f"{i.name} ({i.system})" for i in scene.systems],

@@ -71,7 +71,7 @@ def first_message_latency(repeats: int = 3) -> list[float]:
     import signal
     import subprocess
 
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor

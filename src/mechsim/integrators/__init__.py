@@ -52,7 +52,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from mechsim.errors import IntegrationError, ParameterError
-from mechsim.systems.base import Model
+from mechsim.integrators.model import SteppableModel as Model
 
 STATUS = {0: "ok", 1: "too many steps", 2: "step size underflow", 3: "non-finite state",
           4: "event", 5: "stiff", 6: "stage equations did not converge"}

@@ -22,7 +22,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from std_msgs.msg import Header
 
-from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet, Sink
+from mechsim.outputs.sink import Sink
+from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet
 from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
 
 LEVEL_NAMES = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from mechsim.errors import MechsimError, ParameterError
-from mechsim.scene import Scene, load_scene, parse_instance
+from mechsim.scene import Scene, apply_overrides, load_scene
 
 
 @dataclass
@@ -35,39 +35,6 @@ class SceneRun:
 
 class _Stop(Exception):
     pass
-
-
-def apply_overrides(scene: Scene, sets: list[str]) -> None:
-    """``name=value`` for every instance that has the parameter, ``inst:name=value`` for one."""
-    import yaml
-
-    from mechsim.systems import system_class
-
-    for item in sets:
-        if "=" not in item:
-            raise ParameterError("--set", f"expected name=value (got {item!r})")
-        key, raw = item.split("=", 1)
-        target, _, name = key.rpartition(":")
-        try:
-            value = yaml.safe_load(raw)
-        except yaml.YAMLError:
-            value = raw
-        hit = False
-        for idx, inst in enumerate(scene.systems):
-            if target and inst.name != target:
-                continue
-            names = {p.name for p in system_class(inst.system).parameter_spec()}
-            if name in names:
-                params = dict(inst.parameters)
-                params[name] = value
-                scene.systems[idx] = parse_instance(
-                    {"system": inst.system, "name": inst.name, "parameters": params,
-                     "method": inst.method, "tolerance": inst.tolerance,
-                     "origin": list(inst.origin)}, idx)
-                hit = True
-        if not hit:
-            where = f"instance {target!r}" if target else "any system of the scene"
-            raise ParameterError(f"--set {name}", f"not a parameter of {where}")
 
 
 class DiagnosticsFeed:
@@ -96,7 +63,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
               diagnostics_period: float = 1.0) -> SceneRun:
     """Run every system of ``scene`` in this process until ``duration`` (simulated seconds)
     or Ctrl-C / SIGTERM. ``fast``: as fast as possible instead of the scene's pacing."""
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
@@ -224,7 +191,7 @@ def run_processes(scene_path: Path, scene: Scene, sets: list[str],
 
 def run_single_node(scene: Scene, which: str) -> int:
     """Body of one process of ``run_processes``: one node, spun until SIGINT/SIGTERM."""
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
@@ -257,13 +224,6 @@ def run_single_node(scene: Scene, which: str) -> int:
         node.destroy_node()
         context.try_shutdown()
     return 0
-
-
-def launch_scene(scene_path: Path | str, argv: list[str]) -> int:
-    """Entry point of the launch scripts: ``[--processes] [--fast] [--duration S] [--set ...]``."""
-    from mechsim.cli import main
-
-    return main(["run", str(scene_path), *argv])
 
 
 def _main(argv: list[str]) -> int:

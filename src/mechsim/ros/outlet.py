@@ -5,13 +5,14 @@ Rerun logger). In-process sinks see every message, so a recording cannot drop on
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from mechsim.ros.bag import cdr_bytes
+from mechsim.outputs.bag import cdr_bytes
+from mechsim.outputs.sink import Sink
 
 # QoS by role (ROS_CONVENTIONS §1, §2, §5).
 STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -26,15 +27,6 @@ CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
 DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST)
-
-
-class Sink(Protocol):
-    """Receives every message an outlet sends: ``write(topic, type_name, msg, qos, ns)``.
-
-    A sink may also define ``wants(topic) -> bool``; without it, it wants every topic (a
-    recorder). Outputs nobody wants are not computed."""
-
-    def write(self, topic: str, type_name: str, msg: Any, qos: QoSProfile, ns: int) -> None: ...
 
 
 @dataclass

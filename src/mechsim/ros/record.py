@@ -14,15 +14,12 @@ directory lacks metadata.yaml; ``mechsim bag repair DIR`` completes it from the 
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
-import math
 import sys
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-from mechsim.errors import MechsimError, ParameterError
+from mechsim.errors import MechsimError
 
 DEFAULT_BAG = "runs/{scene}_%Y%m%d-%H%M%S"
 
@@ -32,12 +29,12 @@ def _msg(text: str) -> None:
 
 
 def rerun_sink(path: str) -> Any | None:
-    """The Rerun sink (``mechsim.rerun_log.RerunSink``) if that module exists, else None."""
-    if importlib.util.find_spec("mechsim.rerun_log") is None:
-        _msg(f"--rrd {path}: Rerun output unavailable (mechsim.rerun_log not installed); "
+    """The Rerun sink (``mechsim.outputs.rerun.RerunSink``) if that module exists, else None."""
+    if importlib.util.find_spec("mechsim.outputs.rerun") is None:
+        _msg(f"--rrd {path}: Rerun output unavailable (mechsim.outputs.rerun not installed); "
              "recording without it")
         return None
-    from mechsim.rerun_log import RerunSink  # type: ignore[import-not-found,unused-ignore]
+    from mechsim.outputs.rerun import RerunSink  # type: ignore[import-not-found,unused-ignore]
 
     return RerunSink(path)
 
@@ -85,7 +82,7 @@ class Outputs:
 def scene_custom_data(scene: Any) -> dict[str, str]:
     """Run-level ``custom_data`` of the bag (per-instance entries come from system_info)."""
     from mechsim import __version__
-    from mechsim.ros.messages import DEFAULT_TIME_OFFSET
+    from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
 
     data = {"mechsim.version": __version__, "mechsim.scene": scene.name,
             "mechsim.instances": ",".join(i.name for i in scene.systems),
@@ -101,10 +98,10 @@ def scene_custom_data(scene: Any) -> dict[str, str]:
 
 
 def open_outputs(scene: Any, bag: str | None, rrd: str | None) -> Outputs:
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     import_rclpy()
-    from mechsim.ros.bag import BagWriter
+    from mechsim.outputs.bag import BagWriter
 
     out = Outputs(rrd_path=rrd)
     if bag is not None:
@@ -141,88 +138,3 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
         out.close()  # Ctrl-C outside the run loop: keep what was recorded, complete
         raise
     return run, lines
-
-
-def _duration(a: argparse.Namespace, scene: Any) -> float:
-    d = a.duration if a.duration is not None else scene.duration
-    if d is None:
-        raise ParameterError("--duration", "required (the scene sets no duration and a "
-                             "recording runs as fast as possible)")
-    if not (math.isfinite(d) and d > 0):
-        raise ParameterError("--duration", f"must be a finite positive number (got {d!r})")
-    return float(d)
-
-
-def cmd_record(a: argparse.Namespace) -> int:
-    from mechsim.cli import _progress, _scene_from, print_summary
-    from mechsim.scene import _number
-
-    scene = _scene_from(a.target, a.set)
-    if a.rate is not None:
-        scene.publish_rate = _number("--rate", a.rate)
-    duration = _duration(a, scene)
-    bag = a.bag or scene.bag or DEFAULT_BAG
-    show = _progress(sys.stderr.isatty())
-    _msg(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {duration:g} s "
-         f"simulated, as fast as possible)")
-    run, lines = run_with_outputs(scene, fast=True, duration=duration, bag=bag,
-                                  rrd=a.rrd or scene.rrd, progress=show)
-    if run.interrupted:
-        _msg(f"interrupted at t = {run.sim_time:g} s; outputs completed up to there")
-    print_summary(run)
-    for line in lines:
-        print(f"  {line}")
-    return 1 if run.failures else 0
-
-
-def add_parser(sub: Any) -> None:
-    r = sub.add_parser("record", help="run a scene as fast as possible and record every "
-                       "message to a rosbag2 (MCAP) bag")
-    r.add_argument("target", help="scene YAML file or system id")
-    r.add_argument("--duration", type=float, help="simulated seconds (default: the scene's)")
-    r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter override; INSTANCE:NAME=VALUE for one instance")
-    r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
-    r.add_argument("--bag", metavar="DIR", help="new bag directory (strftime fields expanded; "
-                   f"default: scene outputs.bag, else {DEFAULT_BAG})")
-    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording")
-    r.set_defaults(func=cmd_record)
-
-
-def add_bag_parser(sub: Any) -> None:
-    b = sub.add_parser("bag", help="inspect or repair a recorded bag")
-    bsub = b.add_subparsers(dest="bag_command", required=True)
-    i = bsub.add_parser("info", help="what a bag holds (like `ros2 bag info`)")
-    i.add_argument("bag", metavar="DIR")
-    i.set_defaults(func=cmd_bag_info)
-    r = bsub.add_parser("repair", help="complete an interrupted bag (rewrite the MCAP with "
-                        "its summary, write metadata.yaml)")
-    r.add_argument("bag", metavar="DIR")
-    r.set_defaults(func=cmd_bag_repair)
-
-
-def cmd_bag_info(a: argparse.Namespace) -> int:
-    from mechsim.ros.bag import describe, read_metadata
-
-    text = describe(read_metadata(Path(a.bag)))
-    try:
-        print(text, flush=True)
-    except BrokenPipeError:  # `mechsim bag info DIR | head`
-        import os
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    return 0
-
-
-def cmd_bag_repair(a: argparse.Namespace) -> int:
-    from mechsim.ros.bag import repair_bag
-    from mechsim.ros.environment import import_rclpy
-
-    try:
-        import_rclpy()  # to read SystemInfo messages back into custom_data; optional
-    except RuntimeError:
-        pass
-    r = repair_bag(Path(a.bag))
-    state = "was complete" if r.complete else "was truncated; readable chunks kept"
-    print(f"bag {r.path}: {r.messages} messages on {r.topics} topics ({state}); "
-          "metadata.yaml written")
-    return 0

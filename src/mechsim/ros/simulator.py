@@ -41,9 +41,10 @@ from std_srvs.srv import SetBool, Trigger
 
 from mechsim.errors import IntegrationError, MechsimError, ParameterError
 from mechsim.integrators import METHODS, Stepper, make_stepper
+from mechsim.outputs import messages
+from mechsim.outputs.messages import MessageFactory, Sample
+from mechsim.outputs.sink import Sink
 from mechsim.params import Parameter
-from mechsim.ros import messages
-from mechsim.ros.messages import MessageFactory, Sample
 from mechsim.ros.outlet import (
     CLOCK_QOS,
     DIAGNOSTICS_QOS,
@@ -51,7 +52,6 @@ from mechsim.ros.outlet import (
     STATE_QOS,
     TF_QOS,
     Outlet,
-    Sink,
 )
 from mechsim.scene import Instance
 from mechsim.systems import system_class

@@ -14,7 +14,6 @@ line, exit 2) and run until Ctrl-C, ``--once``, ``--count N`` or ``--duration S`
 
 from __future__ import annotations
 
-import argparse
 import array
 import json
 import math
@@ -25,14 +24,14 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from mechsim.errors import MechsimError, ParameterError
+from mechsim.errors import MechsimError
 
 DISCOVERY_WAIT = 1.0
 
 
 @contextmanager
-def _graph_node(name: str) -> Iterator[Any]:
-    from mechsim.ros.environment import import_rclpy
+def graph_node(name: str) -> Iterator[Any]:
+    from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
@@ -115,7 +114,7 @@ def message_yaml(msg: Any, indent: int = 0) -> str:
 
 
 # --- commands ---------------------------------------------------------------------------------
-def _wait_for_type(node: Any, ex: Any, topic: str, timeout: float | None) -> tuple[str, Any]:
+def wait_for_type(node: Any, ex: Any, topic: str, timeout: float | None) -> tuple[str, Any]:
     """(type name, QoS) of ``topic`` once it is published; MechsimError after ``timeout``."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -146,56 +145,6 @@ def _wait_for_type(node: Any, ex: Any, topic: str, timeout: float | None) -> tup
         ex.spin_once(timeout_sec=0.05)
 
 
-def _topic_name(topic: str) -> str:
-    if not topic or topic != topic.strip():
-        raise ParameterError("topic", f"invalid name {topic!r}")
-    return topic if topic.startswith("/") else "/" + topic
-
-
-def cmd_list(a: argparse.Namespace) -> int:
-    with _graph_node("topic_list") as (node, ex):
-        end = time.monotonic() + a.wait
-        while time.monotonic() < end:
-            ex.spin_once(timeout_sec=0.05)
-        own = {"/rosout", "/parameter_events"}
-        topics = sorted(node.get_topic_names_and_types())
-        for name, types in topics:
-            if name in own and not node.get_publishers_info_by_topic(name):
-                continue  # only this tool's own endpoints
-            print(f"{name} [{', '.join(types)}]" if a.show_types else name)
-    return 0
-
-
-def _run_until(ex: Any, done: Any, duration: float | None) -> None:
-    end = None if duration is None else time.monotonic() + duration
-    while not done():
-        if end is not None and time.monotonic() >= end:
-            return
-        ex.spin_once(timeout_sec=0.1)
-
-
-def cmd_echo(a: argparse.Namespace) -> int:
-    from mechsim.ros.bag import message_class
-
-    topic = _topic_name(a.topic)
-    count = 1 if a.once else a.count
-    with _graph_node("topic_echo") as (node, ex):
-        type_name, qos = _wait_for_type(node, ex, topic, a.timeout)
-        cls = message_class(type_name)
-        seen = [0]
-
-        def on_msg(msg: Any) -> None:
-            if count is not None and seen[0] >= count:
-                return
-            seen[0] += 1
-            sys.stdout.write(message_yaml(msg) + "\n---\n")
-            sys.stdout.flush()
-
-        node.create_subscription(cls, topic, on_msg, qos)
-        _run_until(ex, lambda: count is not None and seen[0] >= count, a.duration)
-    return 0
-
-
 class RateWindow:
     """Arrival times of the last ``window`` messages and ``ros2 topic hz`` statistics."""
 
@@ -221,49 +170,3 @@ def format_hz(s: tuple[float, float, float, float, int]) -> str:
     rate, lo, hi, std, n = s
     return (f"average rate: {rate:.3f}\n"
             f"\tmin: {lo:.3f}s max: {hi:.3f}s std dev: {std:.5f}s window: {n}")
-
-
-def cmd_hz(a: argparse.Namespace) -> int:
-    from mechsim.ros.bag import message_class
-
-    topic = _topic_name(a.topic)
-    if a.window < 1:
-        raise ParameterError("--window", f"must be >= 1 (got {a.window})")
-    with _graph_node("topic_hz") as (node, ex):
-        type_name, qos = _wait_for_type(node, ex, topic, a.timeout)
-        win = RateWindow(a.window)
-        node.create_subscription(message_class(type_name), topic,
-                                 lambda _m: win.add(time.monotonic()), qos)
-        end = None if a.duration is None else time.monotonic() + a.duration
-        next_print = time.monotonic() + 1.0
-        while end is None or time.monotonic() < end:
-            ex.spin_once(timeout_sec=0.05)
-            if time.monotonic() >= next_print:
-                next_print += 1.0
-                s = win.stats()
-                print(format_hz(s) if s else "no new messages", flush=True)
-    return 0
-
-
-def add_parser(sub: Any) -> None:
-    t = sub.add_parser("topic", help="list, echo and measure topics of the live graph")
-    tsub = t.add_subparsers(dest="topic_command", required=True)
-    lp = tsub.add_parser("list", help="topics of the live graph")
-    lp.add_argument("-t", "--show-types", action="store_true", help="append the type")
-    lp.add_argument("--wait", type=float, default=DISCOVERY_WAIT,
-                    help="discovery wait [s] (default %(default)s)")
-    lp.set_defaults(func=cmd_list)
-    for name, func, hlp in (("echo", cmd_echo, "print messages as YAML"),
-                            ("hz", cmd_hz, "print the publishing rate")):
-        p = tsub.add_parser(name, help=hlp)
-        p.add_argument("topic")
-        p.add_argument("--timeout", type=float, help="give up if the topic does not appear "
-                       "within this many seconds")
-        p.add_argument("--duration", type=float, help="stop after this many wall seconds")
-        if name == "echo":
-            p.add_argument("--once", action="store_true", help="print one message and exit")
-            p.add_argument("--count", type=int, help="print this many messages and exit")
-        else:
-            p.add_argument("--window", type=int, default=10000,
-                           help="messages in the statistics window (default %(default)s)")
-        p.set_defaults(func=func)

@@ -483,7 +483,7 @@ class _Diag:
     """A real DiagnosticsNode (no discovery, no timer traffic) fed a run's messages."""
 
     def __init__(self) -> None:
-        from mechsim.ros.environment import import_rclpy
+        from mechsim.environment import import_rclpy
 
         rclpy = import_rclpy()
         self.rclpy = rclpy
@@ -492,7 +492,7 @@ class _Diag:
 
     def levels(self, model: Model, run: SimulationResult, method: str,
                tol: float) -> tuple[int, float]:
-        from mechsim.ros import messages
+        from mechsim.outputs import messages
         from mechsim.ros.diagnostics import DiagnosticsNode
 
         node = DiagnosticsNode(context=self.context, warn_drift=WARN_DRIFT,

@@ -33,8 +33,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
-import subprocess
 import sys
 import uuid
 from dataclasses import dataclass, field
@@ -141,7 +139,7 @@ class RerunSink:
         self.rec.save(str(self.path), default_blueprint=self._blueprint())
         self.rec.set_log_time_enabled(False)
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        from mechsim.ros.messages import DEFAULT_TIME_OFFSET
+        from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
 
         self.default_offset_ns = int(round(DEFAULT_TIME_OFFSET * 1e9))
         self.systems: dict[str, _System] = {}
@@ -510,15 +508,15 @@ class RerunSink:
 
 # --- bags ---------------------------------------------------------------------------------------
 def convert_bag(bag: str | Path, rrd: str | Path) -> dict[str, int]:
-    """Feed every drawable message of a rosbag2 MCAP bag (``mechsim.ros.bag.read_messages``,
+    """Feed every drawable message of a rosbag2 MCAP bag (``mechsim.outputs.bag.read_messages``,
     recording order) through a RerunSink writing ``rrd``: the same recording as a live run.
     Returns the number of messages per topic that were drawn."""
-    from mechsim.ros.environment import import_rclpy
+    from mechsim.environment import import_rclpy
 
     import_rclpy()
     from rclpy.serialization import deserialize_message
 
-    from mechsim.ros.bag import message_class, read_messages, read_metadata
+    from mechsim.outputs.bag import message_class, read_messages, read_metadata
 
     read_metadata(bag)  # a clear error before the .rrd is created
     counts: dict[str, int] = {}
@@ -547,44 +545,3 @@ def viewer_command() -> list[str]:
     """The Rerun viewer of this environment (``rerun`` next to the interpreter)."""
     exe = Path(sys.executable).parent / "rerun"
     return [str(exe) if exe.exists() else "rerun"]
-
-
-def cmd_view(a: Any) -> int:
-    path = Path(a.file)
-    if path.is_dir():  # a bag: Rerun reads MCAP with ROS 2 messages directly
-        files = [str(p) for p in sorted(path.glob("*.mcap"))]
-        if not files:
-            raise MechsimError(f"{path}: no .mcap files in this directory")
-    elif path.is_file():
-        files = [str(path)]
-    else:
-        raise MechsimError(f"{path}: no such file (an .rrd recording, an .mcap file or a bag)")
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        shown = " ".join(files)
-        print(f"mechsim: no display here; open it where there is one with `rerun {shown}`, "
-              f"or in a browser with `rerun --web-viewer {shown}`")
-        return 0
-    # The viewer's own gRPC server listens on loopback only.
-    return subprocess.call([*viewer_command(), "--bind", "127.0.0.1", *files])
-
-
-def cmd_convert(a: Any) -> int:
-    bag = Path(a.bag)
-    rrd = Path(a.rrd) if a.rrd else bag.with_name(bag.name.rstrip("/") + ".rrd")
-    counts = convert_bag(bag, rrd)
-    print(f"mechsim: wrote {rrd} ({sum(counts.values())} messages on {len(counts)} topics)",
-          file=sys.stderr)
-    return 0
-
-
-def add_parsers(sub: Any) -> None:
-    """``mechsim view`` and ``mechsim convert`` (Rerun imported only when they run)."""
-    v = sub.add_parser("view", help="open a Rerun recording (.rrd), an .mcap file or a bag "
-                       "in the Rerun viewer")
-    v.add_argument("file", help=".rrd file, .mcap file or bag directory")
-    v.set_defaults(func=cmd_view)
-    c = sub.add_parser("convert", help="convert a rosbag2 MCAP bag to a Rerun recording "
-                       "(the same entities as `run --rrd`)")
-    c.add_argument("bag", help="bag directory (metadata.yaml + .mcap)")
-    c.add_argument("--rrd", metavar="FILE", help="output .rrd (default: <bag>.rrd)")
-    c.set_defaults(func=cmd_convert)

@@ -45,7 +45,7 @@ __all__ = [
 ]
 
 #: The loopback-only Fast DDS profile (single source of truth; config/ links to it).
-FASTDDS_PROFILE: Path = Path(__file__).resolve().parent.parent / "data" / "fastdds_loopback.xml"
+FASTDDS_PROFILE: Path = Path(__file__).resolve().parent / "data" / "fastdds_loopback.xml"
 
 BOOTSTRAP_HINT = "run `make test` or `python3 tools/bootstrap.py` first"
 

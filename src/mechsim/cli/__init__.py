@@ -1,0 +1,50 @@
+"""The ``mechsim`` command. Every user error is one line on stderr and exit status 2."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from mechsim.errors import MechsimError
+
+EXIT_USAGE = 2
+
+
+#: The verbs, in the order ``mechsim --help`` lists them: one module each in this package.
+VERBS = ("systems", "run", "record", "bag", "replay", "topic", "view", "convert", "bench",
+         "stress")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="mechsim", description="Simulated classical mechanics "
+                                 "streamed as ROS 2 topics.")
+    sub = ap.add_subparsers(dest="command", required=True)
+    for verb in VERBS:  # each module registers its parser; heavy imports wait for the run
+        importlib.import_module(f"mechsim.cli.{verb}").add_parser(sub)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = build_parser()
+    a = ap.parse_args(argv)
+    try:
+        return int(a.func(a))
+    except MechsimError as e:
+        print(f"mechsim: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        # Output piped into `head` and the like: stop quietly, as command-line tools do.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except RuntimeError as e:  # RosEnvironmentError and rclpy start-up failures
+        print(f"mechsim: error: {str(e).splitlines()[0] if str(e) else type(e).__name__}",
+              file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

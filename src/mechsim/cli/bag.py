@@ -1,0 +1,48 @@
+"""`mechsim bag`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def add_parser(sub: Any) -> None:
+    b = sub.add_parser("bag", help="inspect or repair a recorded bag")
+    bsub = b.add_subparsers(dest="bag_command", required=True)
+    i = bsub.add_parser("info", help="what a bag holds (like `ros2 bag info`)")
+    i.add_argument("bag", metavar="DIR")
+    i.set_defaults(func=cmd_bag_info)
+    r = bsub.add_parser("repair", help="complete an interrupted bag (rewrite the MCAP with "
+                        "its summary, write metadata.yaml)")
+    r.add_argument("bag", metavar="DIR")
+    r.set_defaults(func=cmd_bag_repair)
+
+
+def cmd_bag_info(a: argparse.Namespace) -> int:
+    from mechsim.outputs.bag import describe, read_metadata
+
+    text = describe(read_metadata(Path(a.bag)))
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:  # `mechsim bag info DIR | head`
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0
+
+
+def cmd_bag_repair(a: argparse.Namespace) -> int:
+    from mechsim.environment import import_rclpy
+    from mechsim.outputs.bag import repair_bag
+
+    try:
+        import_rclpy()  # to read SystemInfo messages back into custom_data; optional
+    except RuntimeError:
+        pass
+    r = repair_bag(Path(a.bag))
+    state = "was complete" if r.complete else "was truncated; readable chunks kept"
+    print(f"bag {r.path}: {r.messages} messages on {r.topics} topics ({state}); "
+          "metadata.yaml written")
+    return 0
+

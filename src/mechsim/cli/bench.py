@@ -1,0 +1,64 @@
+"""`mechsim bench`."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+
+def add_parser(sub: Any) -> None:
+    b = sub.add_parser("bench", help="work-precision benchmark against scipy, REBOUND, MuJoCo, "
+                       "Drake; or the cost of a scene's outputs (--scene)")
+    b.add_argument("systems", nargs="*", metavar="SYSTEM",
+                   help="systems to benchmark (default: all with a benchmark problem)")
+    b.add_argument("--quick", action="store_true",
+                   help="tiny horizons, 3 tolerances, scipy only (for CI)")
+    b.add_argument("--out", required=True, metavar="DIR",
+                   help="directory for results.json, results.md and PNGs")
+    b.add_argument("--repeats", type=int, default=3, help="timed runs per point (median)")
+    b.add_argument("--budget", type=float, help="seconds per run before a sweep stops")
+    b.add_argument("--peers", help="comma-separated peer families to use (default: all)")
+    b.add_argument("--no-cold", action="store_true",
+                   help="skip the compile-time measurement in a fresh process")
+    b.add_argument("--no-plots", action="store_true")
+    b.add_argument("--scene", metavar="SCENE",
+                   help="measure a scene with all outputs consumed vs state only")
+    b.add_argument("--duration", type=float, help="simulated seconds for --scene")
+    b.add_argument("--streaming", action="store_true",
+                   help="real-time factor of each system recording at 100 Hz, and the CPU "
+                   "share of all systems streaming in real time")
+    b.set_defaults(func=cmd_bench)
+
+
+def cmd_bench(a: argparse.Namespace) -> int:
+    from mechsim.errors import ParameterError
+
+    out = Path(a.out)
+    if a.streaming:
+        from mechsim.bench.streaming import run_streaming
+
+        run_streaming(out, list(a.systems), duration=a.duration or 5.0)
+        return 0
+    if a.scene:
+        if a.systems:
+            raise ParameterError("--scene", "takes no SYSTEM arguments")
+        from mechsim.bench.scene_cost import run_scene_cost
+
+        run_scene_cost(a.scene, out, duration=a.duration)
+        return 0
+    from mechsim.bench.run import known_systems, run_bench
+
+    known = known_systems()
+    systems = a.systems or known
+    for s in systems:
+        if s not in known:
+            raise ParameterError("SYSTEM", f"no benchmark problem for {s!r} (have: "
+                                 f"{', '.join(known)})")
+    if a.repeats < 1:
+        raise ParameterError("--repeats", "must be at least 1")
+    families = tuple(a.peers.split(",")) if a.peers else None
+    run_bench(systems, out, quick=a.quick, repeats=a.repeats, budget_s=a.budget,
+              families=families, cold=False if a.no_cold else None, plots=not a.no_plots)
+    return 0
+

@@ -1,0 +1,45 @@
+"""Helpers every verb shares: progress bar, the conservation table, one-line messages."""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+
+def progress_bar(enabled: bool) -> Any:
+    """A one-line progress bar on a terminal; nothing otherwise."""
+    if not enabled:
+        return None
+    state = {"last": -1}
+
+    def show(t: float, total: float) -> None:
+        pct = int(100 * t / total) if total > 0 else 100
+        if pct != state["last"]:
+            state["last"] = pct
+            bar = "#" * (pct // 4) + "." * (25 - pct // 4)
+            sys.stderr.write(f"\r[{bar}] {pct:3d}%  t = {t:8.3f} / {total:g} s")
+            if pct >= 100:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+    return show
+
+
+def print_summary(run: Any) -> None:
+    from mechsim.ros.diagnostics import LEVEL_NAMES
+
+    print(f"\nConservation results ({run.scene.name}: {run.sim_time:g} s simulated in "
+          f"{run.wall_time:.2f} s wall after {run.startup_time:.2f} s start-up):")
+    rows = sorted(run.summary)
+    w1 = max([len("system")] + [len(r[0]) for r in rows])
+    w2 = max([len("law")] + [len(r[1]) for r in rows])
+    print(f"  {'system':<{w1}}  {'law':<{w2}}  {'max relative drift':>18}  level")
+    for system, law, drift, level in rows:
+        print(f"  {system:<{w1}}  {law:<{w2}}  {drift:>18.3e}  {LEVEL_NAMES[level]}")
+    for name, reason in run.failures.items():
+        print(f"  {name}: integration stopped: {reason}")
+
+
+
+def say(text: str) -> None:
+    """One line on stderr, prefixed like every mechsim message."""
+    print(f"mechsim: {text}", file=sys.stderr)

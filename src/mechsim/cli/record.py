@@ -1,0 +1,59 @@
+"""`mechsim record`."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import Any
+
+from mechsim.cli.common import print_summary, progress_bar, say
+from mechsim.errors import ParameterError
+from mechsim.ros.record import DEFAULT_BAG, run_with_outputs
+from mechsim.scene import scene_from_target
+
+
+def _duration(a: argparse.Namespace, scene: Any) -> float:
+    d = a.duration if a.duration is not None else scene.duration
+    if d is None:
+        raise ParameterError("--duration", "required (the scene sets no duration and a "
+                             "recording runs as fast as possible)")
+    if not (math.isfinite(d) and d > 0):
+        raise ParameterError("--duration", f"must be a finite positive number (got {d!r})")
+    return float(d)
+
+
+def cmd_record(a: argparse.Namespace) -> int:
+    from mechsim.scene import positive_number
+
+    scene = scene_from_target(a.target, a.set)
+    if a.rate is not None:
+        scene.publish_rate = positive_number("--rate", a.rate)
+    duration = _duration(a, scene)
+    bag = a.bag or scene.bag or DEFAULT_BAG
+    show = progress_bar(sys.stderr.isatty())
+    say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {duration:g} s "
+         f"simulated, as fast as possible)")
+    run, lines = run_with_outputs(scene, fast=True, duration=duration, bag=bag,
+                                  rrd=a.rrd or scene.rrd, progress=show)
+    if run.interrupted:
+        say(f"interrupted at t = {run.sim_time:g} s; outputs completed up to there")
+    print_summary(run)
+    for line in lines:
+        print(f"  {line}")
+    return 1 if run.failures else 0
+
+
+def add_parser(sub: Any) -> None:
+    r = sub.add_parser("record", help="run a scene as fast as possible and record every "
+                       "message to a rosbag2 (MCAP) bag")
+    r.add_argument("target", help="scene YAML file or system id")
+    r.add_argument("--duration", type=float, help="simulated seconds (default: the scene's)")
+    r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="parameter override; INSTANCE:NAME=VALUE for one instance")
+    r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
+    r.add_argument("--bag", metavar="DIR", help="new bag directory (strftime fields expanded; "
+                   f"default: scene outputs.bag, else {DEFAULT_BAG.replace('%', '%%')})")
+    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording")
+    r.set_defaults(func=cmd_record)
+

@@ -1,0 +1,1 @@
+"""Experiments run on systems (above the physics and stepping layers)."""

@@ -1,0 +1,31 @@
+"""What a stepper needs of a model: the protocol the integrators define and every system
+satisfies. The integrators never import the physics layer; they see a model through this."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from types import ModuleType
+from typing import Any, Protocol
+
+import numpy as np
+
+
+class StructureLike(Protocol):
+    separable: bool  # H = T(p) + V(q): compositions of velocity Verlet apply
+
+
+class SteppableModel(Protocol):
+    id: str
+    formulation: str
+    coordinates: Sequence[Any]
+    events: Sequence[Any]
+    structure: StructureLike
+    kernels: ModuleType  # compiled functions (see ``contract.py``)
+
+    def parameter_vector(self) -> np.ndarray: ...
+    def initial_y(self) -> np.ndarray: ...
+    def time_scale(self) -> float: ...
+    def has_closed_form(self) -> bool: ...
+    def has_canonical_form(self) -> bool: ...
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None: ...
+    def handle_event(self, index: int, t: float, y: np.ndarray) -> np.ndarray: ...

@@ -1,0 +1,1 @@
+"""Recordings: rosbag2 (MCAP) bags and Rerun recordings. No nodes, no CLI."""
