@@ -12,7 +12,8 @@ from scipy.integrate import quad
 
 from mechsim.errors import ParameterError
 from mechsim.integrators import make_stepper
-from mechsim.systems.scattering import Scattering, lab_cross_section
+from mechsim.systems._scattering import lab_cross_section
+from mechsim.systems.scattering import Scattering
 
 
 @dataclass
