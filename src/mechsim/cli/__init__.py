@@ -13,8 +13,8 @@ EXIT_USAGE = 2
 
 
 #: The verbs, in the order ``mechsim --help`` lists them: one module each in this package.
-VERBS = ("systems", "run", "record", "bag", "replay", "topic", "view", "convert", "bench",
-         "stress")
+VERBS = ("systems", "run", "record", "bag", "replay", "topic", "node", "param", "service",
+         "view", "convert", "bench", "stress")
 
 
 def build_parser() -> argparse.ArgumentParser:

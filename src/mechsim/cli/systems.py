@@ -1,4 +1,4 @@
-"""`mechsim systems`."""
+"""`mechsim systems [ID ...]`: systems, their parameters, coordinates, laws and sources."""
 
 from __future__ import annotations
 
@@ -8,17 +8,28 @@ from typing import Any
 
 
 def cmd_systems(a: argparse.Namespace) -> int:
+    from mechsim.errors import UnknownSystemError
     from mechsim.systems import system_class, system_ids
 
-    described = []
-    for sid in system_ids():
-        cls = system_class(sid)
-        model = cls()
-        d = model.describe()
-        d["oracles"] = cls.oracles
-        described.append(d)
+    known = system_ids()
+    for sid in a.ids:
+        if sid not in known:
+            raise UnknownSystemError(sid, known)
+    if a.ids or a.json:
+        described = []
+        for sid in a.ids or known:
+            cls = system_class(sid)
+            d = cls().describe()
+            d["oracles"] = cls.oracles
+            described.append(d)
     if a.json:
         print(json.dumps(described, indent=2, ensure_ascii=False))
+        return 0
+    if not a.ids:  # the overview: one line a system
+        width = max(len(s) for s in known)
+        for sid in known:
+            print(f"{sid:<{width}}  {system_class(sid).title}")
+        print("\n`mechsim systems ID` shows one system's parameters, coordinates, laws and source.")
         return 0
     for d in described:
         coords = ", ".join(f"{c['name']} [{c['unit']}]" for c in d["coordinates"])
@@ -32,8 +43,9 @@ def cmd_systems(a: argparse.Namespace) -> int:
     return 0
 
 
-
 def add_parser(sub: Any) -> None:
-    s = sub.add_parser("systems", help="list systems, parameters, coordinates and sources")
-    s.add_argument("--json", action="store_true")
+    s = sub.add_parser("systems", help="list the systems; with IDs, their parameters, "
+                       "coordinates, laws and sources")
+    s.add_argument("ids", nargs="*", metavar="ID", help="system ids to describe in full")
+    s.add_argument("--json", action="store_true", help="machine-readable (all, or the IDs)")
     s.set_defaults(func=cmd_systems)
