@@ -13,6 +13,8 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mechsim.errors import MechsimError, UnknownSystemError
 
 
@@ -157,12 +159,17 @@ def plot(results: list[Any], out: Path) -> list[str]:
     if chaos:
         fig, axes = plt.subplots(1, len(chaos), figsize=(6 * len(chaos), 3.5), squeeze=False)
         for ax, r in zip(axes.flat, chaos, strict=False):
-            ax.plot(r.series["t"], r.series["log_sep_ic"], label="ICs 1e-9 apart")
-            ax.plot(r.series["t"], r.series["log_sep_tol"], label="tolerance 1e-10 vs 1e-13")
-            ax.plot(r.series["t"], r.series["log_drift"], label=f"{r.metrics['law']} drift")
+            # The series hold log10 of values floored at 1e-300 (separations) or 1e-17
+            # (drifts): a floored point is an exact zero, not a number to draw.
+            for key, label, floor in (("log_sep_ic", "ICs 1e-9 apart: |Δy|", -299.0),
+                                      ("log_sep_tol", "tolerance 1e-10 vs 1e-13: |Δy|", -299.0),
+                                      ("log_drift", f"{r.metrics['law']}: relative drift",
+                                       -16.9)):
+                y = np.asarray(r.series[key], dtype=float)
+                ax.plot(r.series["t"], np.where(y > floor, y, np.nan), label=label)
             ax.set_title(f"{r.system}: λ ≈ {r.metrics['lyapunov_exponent']:.3f}/s", fontsize=9)
             ax.set_xlabel("t [s]")
-            ax.set_ylabel("log10")
+            ax.set_ylabel("log10 (|Δy| in state units; drift relative)")
             ax.legend(fontsize=7)
             ax.grid(True, alpha=0.3)
         fig.tight_layout()
@@ -171,44 +178,60 @@ def plot(results: list[Any], out: Path) -> list[str]:
         written.append("chaos.png")
     sw = [r for r in results if r.case == "sweeps" and r.series]
     if sw:
-        fig, axes = plt.subplots(1, len(sw), figsize=(5 * len(sw), 3.5), squeeze=False)
-        colors = {"OK": "tab:green", "WARN": "tab:orange", "ERROR": "tab:red"}
-        for ax, r in zip(axes.flat, sw, strict=False):
-            for meth, marker in (("dop853", "o"), ("verlet", "s"), ("yoshida8", "^")):
+        from matplotlib.lines import Line2D
+
+        fig, axes = plt.subplots(len(sw), 2, figsize=(10, 3.2 * len(sw)), squeeze=False)
+        colors = {"OK": "tab:green", "WARN": "tab:orange", "ERROR": "tab:red",
+                  "ERROR (guard)": "tab:purple"}
+        markers = {"dop853": "o", "verlet": "s", "yoshida8": "^"}
+        for row, r in zip(axes, sw, strict=True):
+            for meth, marker in markers.items():
+                ax = row[0] if meth == "dop853" else row[1]
+                knob = "tolerance" if meth == "dop853" else "step"
                 pts = [p for p in r.series["points"] if p["method"] == meth
                        and "state_error" in p]
                 if not pts:
                     continue
-                x = list(range(len(pts)))
+                x = [p[knob] for p in pts]
                 y = [max(p["state_error"], 1e-17) if math.isfinite(p["state_error"]) else 1e3
                      for p in pts]
-                ax.semilogy(x, y, "-", color="gray", lw=0.5)
+                ax.loglog(x, y, "-", color="gray", lw=0.5)
                 for xi, yi, p in zip(x, y, pts, strict=True):
-                    ax.semilogy(xi, yi, marker, color=colors.get(p["level"], "k"))
-                ax.plot([], [], marker, color="k", label=meth)
-            ax.axhline(1e-2, color="k", ls=":", lw=0.8)
-            ax.set_title(f"{r.system}: state error vs setting (colour = level)", fontsize=8)
-            ax.set_xlabel("setting index (looser → tighter)")
-            ax.legend(fontsize=7)
+                    ax.loglog(xi, yi, marker, color=colors.get(p["level"], "k"))
+            for ax, what in ((row[0], "dop853: tolerance"), (row[1], "fixed step h [s]")):
+                ax.axhline(1e-2, color="k", ls=":", lw=0.8)
+                ax.set_title(f"{r.system}: end error against {what}", fontsize=8)
+                ax.set_xlabel(what)
+                ax.set_ylabel("state error (relative to scale)")
+                ax.grid(True, which="both", alpha=0.3)
+            handles = [Line2D([], [], ls="", marker=m, color="k", label=meth)
+                       for meth, m in markers.items()]
+            handles += [Line2D([], [], ls="", marker="o", color=c,
+                               label=f"diagnostics {lv}") for lv, c in colors.items()]
+            handles.append(Line2D([], [], ls=":", color="k", label="garbage threshold 1e-2"))
+            row[1].legend(handles=handles, fontsize=6, loc="best")
         fig.tight_layout()
         fig.savefig(out / "sweeps.png", dpi=90)
         plt.close(fig)
         written.append("sweeps.png")
     ham = [r for r in results if r.case == "hamilton" and r.series]
     if ham:
-        fig, axes = plt.subplots(1, 2, figsize=(10, 3.5))
-        for r in ham:
-            axes[0].loglog(r.series["eps"], [max(x, 1e-300) for x in r.series["dS"]], "-o",
-                           ms=3, label=r.system)
-            axes[1].loglog(r.series["eps"],
-                           [max(x, 1e-300) for x in r.series["dS_control"]], "-o", ms=3)
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+        palette = plt.get_cmap("tab20").colors
+        styles = ("-", "--", ":", "-.")
+        for i, r in enumerate(ham):  # distinct colour (and dash once the 20 colours repeat)
+            look = {"color": palette[i % len(palette)], "ls": styles[i // len(palette) % 4]}
+            axes[0].loglog(r.series["eps"], [max(x, 1e-300) for x in r.series["dS"]],
+                           marker="o", ms=3, label=r.system, **look)
+            axes[1].loglog(r.series["eps"], [max(x, 1e-300) for x in r.series["dS_control"]],
+                           marker="o", ms=3, label=r.system, **look)
         axes[0].set_title("trajectory: |ΔS| ∝ ε²", fontsize=9)
         axes[1].set_title("bent path (control): |ΔS| ∝ ε", fontsize=9)
         for ax in axes:
-            ax.set_xlabel("ε")
+            ax.set_xlabel("variation amplitude ε (state units)")
             ax.set_ylabel("|ΔS| [J s]")
             ax.grid(True, which="both", alpha=0.3)
-        axes[0].legend(fontsize=6, ncol=2)
+            ax.legend(fontsize=5, ncol=2)
         fig.tight_layout()
         fig.savefig(out / "hamilton.png", dpi=90)
         plt.close(fig)
