@@ -16,6 +16,12 @@ It sets, in ``os.environ``:
 - ``AMENT_PREFIX_PATH`` gains the venv prefix, so ament_index lookups
   (``get_package_share_directory("tf2_msgs")``) find the wheels and the generated packages.
 
+Several hosts (opt-in). With ``MECHSIM_DDS_INTERFACE`` set to an IPv4 address of this host and
+``MECHSIM_DDS_PEERS`` to the comma-separated IPv4 addresses of the other hosts, the profile is
+generated instead (:func:`hosts_profile`): the same shape, with that interface allowed beside
+127.0.0.1, discovery unicast on it, and the peers as initial peers (unicast discovery, no
+multicast). Every other interface stays closed. Unset, the loopback profile is used.
+
 Variables that would widen discovery beyond loopback (``ROS_LOCALHOST_ONLY``, ``ROS_STATIC_PEERS``,
 ``ROS_DISCOVERY_SERVER``, ``ROS_SUPER_CLIENT``, ``ROS2_EASY_MODE``, ``FASTDDS_BUILTIN_TRANSPORTS``,
 ``FASTRTPS_DEFAULT_PROFILES_FILE``) are removed.
@@ -41,6 +47,7 @@ __all__ = [
     "RosEnvironmentError",
     "configure_ros_environment",
     "import_rclpy",
+    "hosts_profile",
     "valid_domain_id",
 ]
 
@@ -76,6 +83,64 @@ def valid_domain_id(domain_id: int) -> bool:
     return 0 <= domain_id <= 101 or 215 <= domain_id <= 232
 
 
+def _ipv4(field: str, text: str) -> str:
+    """A unicast IPv4 address of a host, or a one-line error naming the variable."""
+    import ipaddress
+
+    try:
+        addr = ipaddress.IPv4Address(text.strip())
+    except ValueError:
+        raise RosEnvironmentError(f"{field}: not an IPv4 address ({text[:64]!r})") from None
+    if addr.is_unspecified or addr.is_multicast or addr.is_reserved:
+        raise RosEnvironmentError(f"{field}: {addr} is not a unicast host address")
+    return str(addr)
+
+
+def hosts_profile(interface: str, peers: list[str]) -> str:
+    """The Fast DDS profile for several hosts: loopback plus ``interface``; discovery unicast
+    to ``peers`` (and this host). Text only; see :func:`configure_ros_environment`."""
+    iface = _ipv4("MECHSIM_DDS_INTERFACE", interface)
+    hosts = [_ipv4("MECHSIM_DDS_PEERS", p) for p in peers if p.strip()]
+    if not hosts:
+        raise RosEnvironmentError("MECHSIM_DDS_PEERS: no peer address given")
+    text = FASTDDS_PROFILE.read_text()
+    text = text.replace("mechsim_loopback", "mechsim_hosts")
+    text = text.replace("<interfaceWhiteList>\n          <address>127.0.0.1</address>",
+                        "<interfaceWhiteList>\n          <address>127.0.0.1</address>\n"
+                        f"          <address>{iface}</address>")
+    meta = "<metatrafficUnicastLocatorList>"
+    loc = "\n            <locator>\n              <udpv4>\n                <address>{}</address>" \
+          "\n              </udpv4>\n            </locator>"
+    text = text.replace(meta, meta + loc.format(iface), 1)
+    peers_tag = "<initialPeersList>"
+    text = text.replace(peers_tag, peers_tag + "".join(loc.format(h) for h in hosts), 1)
+    return text
+
+
+def _profile_file() -> Path:
+    """The profile this process uses: the loopback one, or the generated several-hosts one
+    (written once per content, exclusively and atomically, in a private directory)."""
+    interface = os.environ.get("MECHSIM_DDS_INTERFACE")
+    if not interface:
+        return FASTDDS_PROFILE
+    import hashlib
+    import tempfile
+
+    text = hosts_profile(interface, os.environ.get("MECHSIM_DDS_PEERS", "").split(","))
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    folder = Path(tempfile.gettempdir()) / f"mechsim-dds-{os.getuid()}"
+    folder.mkdir(mode=0o700, exist_ok=True)
+    if folder.is_symlink() or folder.stat().st_uid != os.getuid():
+        raise RosEnvironmentError(f"{folder}: not a private directory of this user")
+    target = folder / f"fastdds_hosts_{digest}.xml"
+    if not target.is_file():
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, target)
+    return target
+
+
 def _prepend_path(var: str, entry: str) -> None:
     parts = [p for p in os.environ.get(var, "").split(os.pathsep) if p]
     if entry not in parts:
@@ -101,9 +166,10 @@ def configure_ros_environment(
         os.environ["ROS_DOMAIN_ID"] = str(domain_id)
     if not FASTDDS_PROFILE.is_file():
         raise RosEnvironmentError(f"Fast DDS profile {FASTDDS_PROFILE} missing")
+    profile = _profile_file()
     for var in _REMOVED_VARS:
         os.environ.pop(var, None)
-    os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] = str(FASTDDS_PROFILE)
+    os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
     os.environ["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
     os.environ["ROS_DISTRO"] = "kilted"
