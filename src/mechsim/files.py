@@ -90,9 +90,12 @@ def make_dir(path: str | Path) -> bool:
     """Create directory ``path`` (parents as needed). True if this call created it; False if
     it already was a directory (not a symlink to one); MechsimError otherwise."""
     d = Path(path)
-    d.parent.mkdir(parents=True, exist_ok=True)
     try:
-        os.mkdir(d)
+        try:
+            os.mkdir(d)
+        except FileNotFoundError:
+            d.parent.mkdir(parents=True, exist_ok=True)
+            os.mkdir(d)
         return True
     except FileExistsError:
         st = os.lstat(d)
