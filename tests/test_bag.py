@@ -281,6 +281,8 @@ def test_sigint_mid_record_gives_a_complete_bag(tmp_path: Path,
 
 
 def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
+    from mechsim.outputs.bag import LOCK_FILE
+
     bag = tmp_path / "killed"
     f = bag / "killed_0.mcap"
     proc = subprocess.Popen([*MECHSIM, "record", "pendulum", "--duration", "1000", "--bag",
@@ -293,12 +295,13 @@ def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
     finally:
         proc.kill()
     assert not (bag / "metadata.yaml").exists()
+    assert (bag / LOCK_FILE).exists()  # the killed recorder's lock: stale (its PID is gone)
     info = _cli("bag", "info", str(bag), env=ros_env)
     assert info.returncode == 2 and info.stderr.count("\n") == 1
     assert "mechsim bag repair" in info.stderr
     rep = _cli("bag", "repair", str(bag), env=ros_env)
     assert rep.returncode == 0, rep.stderr
-    assert "truncated" in rep.stdout
+    assert "truncated" in rep.stdout and not (bag / LOCK_FILE).exists()
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     counts = _counts_from_file(bag)
     assert meta["message_count"] == sum(counts.values()) > 100

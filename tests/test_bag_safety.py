@@ -365,10 +365,13 @@ def test_bag_directories_are_claimed_exclusively(tmp_path: Path,
         return real_make_dir(d)
 
     monkeypatch.setattr(writer_module, "make_dir", make_dir_with_competitor)
-    with pytest.raises(MechsimError, match="not empty"):
-        BagWriter(path)
-    _write_states(others[0], 10)
-    others[0].close()
+    try:
+        with pytest.raises(MechsimError, match="not empty"):
+            BagWriter(path)
+        _write_states(others[0], 10)
+    finally:
+        for w in others:
+            w.close()
     assert len(_rosbags(path)) == 10
     # An existing empty directory is claimed; a symlink to one is refused, its target untouched.
     empty = tmp_path / "empty"

@@ -76,7 +76,7 @@ def publish(tmp: str | Path, path: str | Path, *, replace: bool = True) -> None:
     try:
         os.link(tmp, path, follow_symlinks=False)
     except OSError as e:
-        if e.errno in (errno.EEXIST,):
+        if e.errno == errno.EEXIST:
             raise
         # A file system without hard links: the check and the rename are two steps here.
         if os.path.lexists(path):

@@ -136,7 +136,8 @@ class RerunSink:
     ``path`` and renamed onto ``path`` by :meth:`close` once Rerun has flushed it completely, so
     a failed write (a full disk) never leaves a half-written ``path``, and the error names it.
     ``replace=False``: an existing ``path`` is never overwritten (MechsimError at close);
-    :meth:`discard` drops the recording."""
+    :meth:`discard` drops the recording. After a hard kill the recording so far stays in the
+    hidden ``.<name>.*.partial`` directory (Rerun reads it)."""
 
     def __init__(self, path: str | Path, *, application_id: str = "mechsim",
                  recording_id: str | None = None, replace: bool = True) -> None:
@@ -151,9 +152,13 @@ class RerunSink:
         except OSError as e:
             raise MechsimError(f"rrd {self.path}: cannot write ({e.strerror or e})") from None
         self._tmp = self._tmpdir / self.path.name
-        self.rec = rr.RecordingStream(application_id,
-                                      recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
-        self.rec.save(str(self._tmp), default_blueprint=self._blueprint())
+        try:
+            self.rec = rr.RecordingStream(
+                application_id, recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
+            self.rec.save(str(self._tmp), default_blueprint=self._blueprint())
+        except BaseException:
+            self._remove_tmp()
+            raise
         self.rec.set_log_time_enabled(False)
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
