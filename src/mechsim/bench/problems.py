@@ -534,6 +534,21 @@ def free_rigid_body_omega(inertia: Array, w0: Array) -> Callable[[Array], Array]
     return omega
 
 
+def free_rigid_body_period(inertia: Array, w0: Array) -> float:
+    """Period of ω(t) of the torque-free body: 4K(m)/λ (K of 1 − m, accurate near m = 1)."""
+    from scipy.special import ellipkm1
+
+    I = [float(v) for v in inertia]
+    M2 = sum((i * float(x)) ** 2 for i, x in zip(I, w0, strict=True))
+    E2 = sum(i * float(x) ** 2 for i, x in zip(I, w0, strict=True))
+    if M2 < E2 * I[1]:
+        I = I[::-1]
+    I1, I2, I3 = I
+    den = (I3 - I2) * (M2 - E2 * I1)
+    lam = math.sqrt(den / (I1 * I2 * I3))
+    return 4 * float(ellipkm1((I3 - I1) * (M2 - E2 * I2) / den)) / lam
+
+
 def _cumulative_quadrature(f: Callable[[Array], Array], t: Array, h_max: float) -> Array:
     """∫₀^t f at each sample time (f vectorised, evaluated in ``np.longdouble``): 20-point
     Gauss–Legendre on pieces of at most ``h_max`` between samples (f smooth: exact to
@@ -610,7 +625,8 @@ def _rigid_body(name: str, omega: tuple[float, float, float], t_end: float, n_sa
     return Problem(name, "rigid_body", params, t_end, n_samples,
                    f"torque-free box {a}×{b}×{c} m, {mass} kg (I = {I[0]:.4g}, {I[1]:.4g}, "
                    f"{I[2]:.4g} kg m²), ω₀ = {omega} rad/s {what}, |L|²/(2E I₂) = "
-                   f"{M2 / (E2 * I[1]):.6f}; {t_end:g} s",
+                   f"{M2 / (E2 * I[1]):.6f}, period of ω {free_rigid_body_period(I, w0):.4g} s; "
+                   f"{t_end:g} s",
                    _rigid_body_deriv, I.copy(), np.concatenate([q0, w0]), reference,
                    "closed form (ω: Jacobi sn, cn, dn; attitude: Euler angles about L, φ by "
                    "Gauss–Legendre quadrature)", 2 * math.pi / scale, twice_kinetic,
@@ -621,7 +637,7 @@ def _rigid_body(name: str, omega: tuple[float, float, float], t_end: float, n_sa
 
 def rigid_body_intermediate(t_end: float = 50.0, n_samples: int = 200) -> Problem:
     return _rigid_body("rigid_body_intermediate", (0.02, 4.0, 0.02), t_end, n_samples,
-                       "near the intermediate axis (it flips every ≈7.1 s)")
+                       "near the intermediate axis (it flips over every half period)")
 
 
 def rigid_body_generic(t_end: float = 50.0, n_samples: int = 200) -> Problem:

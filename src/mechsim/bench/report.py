@@ -125,6 +125,9 @@ FAMILY_STYLE = {  # (line style, marker, line width) per family; colours are per
     "drake": ("-.", "P", 1.0)}
 
 
+ZERO_AT = 1e-17  # an error of exactly 0 (a closed form) is drawn here: a log axis has no 0
+
+
 def palette(n: int) -> list[Any]:
     """``n`` distinct colours (qualitative maps first, then evenly spaced hues)."""
     from matplotlib import colormaps
@@ -141,9 +144,18 @@ def palette(n: int) -> list[Any]:
 
 
 def plot(res: dict[str, Any], sid: str, path: Path) -> None:
-    """Work-precision plot of one problem: wall time against end-point error (top) and
+    """Write :func:`figure` of problem ``sid`` to ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig = figure(res, sid)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def figure(res: dict[str, Any], sid: str) -> Any:
+    """Work-precision figure of one problem: wall time against end-point error (top) and
     against the conserved quantity's drift (bottom). Each contestant keeps one colour, used
-    by no other line of the figure, and each panel's legend lists exactly its own lines."""
+    by no other contestant, and each panel's legend lists exactly its own lines."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -161,14 +173,16 @@ def plot(res: dict[str, Any], sid: str, path: Path) -> None:
     for ax, key, xlabel, title in panels:
         for name in names:
             rows = [r for r in s["runs"] if r["contestant"] == name]
-            pts = sorted((r[key], r["time_s"]) for r in rows if r["status"] == "ok"
-                         and r[key] is not None and 0 < r[key] <= 10)
+            pts = sorted((max(r[key], ZERO_AT), r["time_s"]) for r in rows
+                         if r["status"] == "ok" and r[key] is not None and 0 <= r[key] <= 10)
             if not pts:
                 continue
+            label = name + (f" (error 0 drawn at {ZERO_AT:g})" if pts[0][0] == ZERO_AT
+                            else "")
             ls, marker, lw = (("--", "x", 1.0) if name == "mechsim:auto"  # over its pick
                               else FAMILY_STYLE.get(rows[0]["family"], ("-", ".", 1.0)))
             ax.loglog([p[0] for p in pts], [p[1] * 1e3 for p in pts], linestyle=ls or "none",
-                      marker=marker, lw=lw, ms=5, color=colour[name], label=name)
+                      marker=marker, lw=lw, ms=5, color=colour[name], label=label)
         ax.set_xlabel(xlabel)
         ax.set_ylabel("wall time [ms]")
         ax.set_title(f"{sid}: {title}", fontsize=10)
@@ -183,5 +197,4 @@ def plot(res: dict[str, Any], sid: str, path: Path) -> None:
             ax.set_xticks([])
             ax.set_yticks([])
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    return fig

@@ -225,8 +225,8 @@ def sweep(pb: Problem, c: Contestant, repeats: int, budget_s: float,
             continue
         same = None
         if done is not None and c.name == "mechsim:auto":
-            def same(Y: np.ndarray, stats: dict[str, Any], setting: float = setting
-                     ) -> Timing | None:
+            def same(Y: np.ndarray, stats: dict[str, Any], setting: float = setting,
+                     row: dict[str, Any] = row) -> Timing | None:
                 hit = done.get((f"mechsim:{stats.get('method')}", setting))
                 if hit is not None and hit[0] == _digest(Y):
                     row["same_as"] = f"mechsim:{stats.get('method')}"
@@ -299,7 +299,9 @@ def best_at(rows: list[dict[str, Any]], level: float, family_filter: Any
     best: dict[str, Any] | None = None
     names = sorted({r["contestant"] for r in rows if family_filter(r["family"])})
     for name in names:
-        hit = time_at(pareto([r for r in rows if r["contestant"] == name]), level)
+        # rows that copy another contestant's run (auto's "same_as") are that contestant's
+        hit = time_at(pareto([r for r in rows if r["contestant"] == name
+                              and not r.get("same_as")]), level)
         if hit and (best is None or hit[0] < best["time_s"]):
             best = {"contestant": name, "time_s": hit[0], "bound": hit[1]}
     return best
