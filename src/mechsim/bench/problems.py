@@ -703,7 +703,7 @@ def heavy_top_reference(I1: float, I3: float, mgr: float, init: Array, t: Array)
     th = np.arccos(u)
     dphi = phidot(u)
     return np.stack([phi, th, psi0 + w3 * t - slip, dphi, -du / np.sin(th),
-                     w3 - u * dphi], axis=1)
+                     w3 - u * dphi], axis=1).astype(float)
 
 
 def heavy_top(t_end: float = 10.0, n_samples: int = 200) -> Problem:

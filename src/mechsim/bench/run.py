@@ -4,11 +4,11 @@ matrix exponentials, REBOUND, MuJoCo and Drake.
 For each benchmark problem (see :mod:`mechsim.bench.problems`; each runs on one mechsim
 system) every contestant integrates the same IVP over the same horizon, sampling the same
 times, once per setting of its accuracy knob. Time: median of ``repeats`` runs (more, up to
-21, for runs under 0.1 s) after one warm-up run (the warm-up time is kept separately; a
-setting whose warm-up exceeds ``budget_s`` is timed once and ends that contestant's sweep,
-flagged ``repeats: 1``). Errors against the reference, on the problem's compared states: the
-state at the last sample and the largest over the samples (‖C − C_ref‖ over the largest
-‖C_ref‖), and the largest relative drift of the conserved quantity.
+21, for runs under 0.1 s; not with ``--quick``) after one warm-up run (the warm-up time is
+kept separately; a setting whose warm-up exceeds ``budget_s`` is timed once and ends that
+contestant's sweep, flagged ``repeats: 1``). Errors against the reference, on the problem's
+compared states: the state at the last sample and the largest over the samples (‖C − C_ref‖
+over the largest ‖C_ref‖), and the largest relative drift of the conserved quantity.
 
 mechsim contestants: every method of ``mechsim.integrators.METHODS`` except those in
 ``SKIP_METHODS``, via ``make_stepper(model, method, tolerance).advance(times)`` (the model is
@@ -159,10 +159,11 @@ class Timing:
 Shortcut = Callable[[np.ndarray, dict[str, Any]], "Timing | None"]
 
 
-def measure(run: Runner, repeats: int, budget_s: float, same: Shortcut | None = None
-            ) -> Timing:
+def measure(run: Runner, repeats: int, budget_s: float, same: Shortcut | None = None,
+            steady_s: float = 0.3) -> Timing:
     """Warm-up run, then the timed repeats; ``same`` may answer from the warm-up's result
-    (a run already timed under another name) and skip the repeats."""
+    (a run already timed under another name) and skip the repeats. Runs under 0.1 s are
+    repeated more, up to about ``steady_s`` in all (at most 21 runs)."""
     t0 = time.perf_counter()
     Y, stats = run()
     warm = time.perf_counter() - t0
@@ -174,8 +175,8 @@ def measure(run: Runner, repeats: int, budget_s: float, same: Shortcut | None = 
     if warm > budget_s:
         times = [warm]
     else:
-        # Cheap runs are repeated more (up to ~0.3 s, at most 21): the median is steadier.
-        n = repeats if warm > 0.1 else min(21, max(repeats, int(0.3 / max(warm, 1e-6))))
+        # Cheap runs are repeated more (at most 21): the median is steadier.
+        n = repeats if warm > 0.1 else min(21, max(repeats, int(steady_s / max(warm, 1e-6))))
         for _ in range(n):
             t0 = time.perf_counter()
             Y, stats = run()
@@ -200,8 +201,8 @@ def _digest(Y: np.ndarray) -> str:
 
 
 def sweep(pb: Problem, c: Contestant, repeats: int, budget_s: float,
-          done: dict[tuple[str, float], tuple[str, Timing]] | None = None
-          ) -> list[dict[str, Any]]:
+          done: dict[tuple[str, float], tuple[str, Timing]] | None = None,
+          steady_s: float = 0.3) -> list[dict[str, Any]]:
     """Rows of one contestant over its settings. ``done`` collects (contestant, setting) ->
     (digest of the states, timing) of mechsim runs; ``mechsim:auto`` answers from it when its
     states equal those of the method it picked."""
@@ -233,7 +234,7 @@ def sweep(pb: Problem, c: Contestant, repeats: int, budget_s: float,
                     return hit[1]
                 return None
         try:
-            m = measure(run, repeats, budget_s, same)
+            m = measure(run, repeats, budget_s, same, steady_s)
         except Exception as e:  # noqa: BLE001 - a failed run is a data point, not a crash
             row["status"] = f"failed: {type(e).__name__}: {str(e).splitlines()[0][:120]}"
             continue
@@ -479,7 +480,8 @@ def bench_system(name: str, quick: bool, repeats: int, budget_s: float,
         t_first = prime(pb, c)
         if t_first is not None:
             first[c.name] = t_first
-        rows += sweep(pb, c, repeats, budget_s, done)
+        # --quick checks that everything runs: cheap runs are not repeated for steadiness
+        rows += sweep(pb, c, repeats, budget_s, done, steady_s=0.0 if quick else 0.3)
     cold_s = None
     if cold:
         meths = [m for m in ("dop853", "yoshida8") if f"mechsim:{m}" in first]
