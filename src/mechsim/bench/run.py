@@ -98,7 +98,7 @@ def _model(pb: Problem) -> Any:
     return _models[key]
 
 
-def _stepper_counts(st: Any) -> int | None:
+def stepper_counts(st: Any) -> int | None:
     """Right-hand-side (or force) evaluations of a finished stepper, where it tells."""
     for name in ("n_rhs", "n_evaluations", "nfev"):
         v = getattr(st, name, None)
@@ -123,7 +123,7 @@ def _mechsim(method: str) -> Any:
         def run() -> tuple[np.ndarray, dict[str, Any]]:
             st = make_stepper(model, method, tol)
             Y = st.advance(t)
-            return Y, {"n_steps": st.n_steps, "n_rhs": _stepper_counts(st),
+            return Y, {"n_steps": st.n_steps, "n_rhs": stepper_counts(st),
                        "method": st.method}
         return run
     return prepare
