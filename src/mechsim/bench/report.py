@@ -106,7 +106,15 @@ def markdown(res: dict[str, Any]) -> str:
         head = ["contestant", "knob", "setting", "time [ms]", "warm-up [ms]", "end error",
                 "max error", "invariant", "steps", "f evals", "status"]
         rows = []
+        shown: set[str] = set()
         for r in s["runs"]:
+            same = [x for x in s["runs"] if x["contestant"] == r["contestant"]]
+            if all(x["status"] == same[0]["status"] != "ok" for x in same):
+                if r["contestant"] not in shown:  # one line for a method that never applies
+                    shown.add(r["contestant"])
+                    rows.append([r["contestant"], r["knob"], "all"] + ["—"] * 7
+                                + [r["status"]])
+                continue
             rows.append([r["contestant"] + (f" ({r['method']})" if r.get("method") and
                                             r["contestant"].endswith("auto") else ""),
                          r["knob"], f"{r['setting']:g}", _ms(r["time_s"]), _ms(r["warmup_s"]),
