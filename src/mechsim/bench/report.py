@@ -187,7 +187,7 @@ def figure(res: dict[str, Any], sid: str) -> Any:
                 continue
             label = name + (f" (error 0 drawn at {ZERO_AT:g})" if pts[0][0] == ZERO_AT
                             else "")
-            ls, marker, lw = (("--", "x", 1.0) if name == "mechsim:auto"  # over its pick
+            ls, marker, lw = (("", "x", 1.0) if name == "mechsim:auto"  # marks on its pick
                               else FAMILY_STYLE.get(rows[0]["family"], ("-", ".", 1.0)))
             ax.loglog([p[0] for p in pts], [p[1] * 1e3 for p in pts], linestyle=ls or "none",
                       marker=marker, lw=lw, ms=5, color=colour[name], label=label)
