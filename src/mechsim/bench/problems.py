@@ -550,9 +550,9 @@ def free_rigid_body_period(inertia: Array, w0: Array) -> float:
 
 
 def _cumulative_quadrature(f: Callable[[Array], Array], t: Array, h_max: float) -> Array:
-    """∫₀^t f at each sample time (f vectorised, evaluated in ``np.longdouble``): 20-point
-    Gauss–Legendre on pieces of at most ``h_max`` between samples (f smooth: exact to
-    round-off for pieces well under its time scale)."""
+    """∫₀^t f at each sample time (f vectorised; nodes, weights and sums in ``np.longdouble``):
+    20-point Gauss–Legendre on pieces of at most ``h_max`` between samples (f smooth: exact
+    to round-off for pieces well under its time scale)."""
     L = np.longdouble
     x, wts = (v.astype(L) for v in np.polynomial.legendre.leggauss(20))
     out = np.zeros(t.size, dtype=L)
