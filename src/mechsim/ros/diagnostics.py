@@ -23,8 +23,9 @@ so a spoofed ``system_info`` or sample cannot re-base a running system. When the
 publisher has left the graph, the system is forgotten and rediscovered with its new publisher.
 At most ``max_systems`` namespaces are followed (those that also have an energy topic first); a
 followed namespace silent for ``expire_timeout`` (or for ``stale_timeout`` once its topics have
-left the graph) is forgotten, subscriptions destroyed; a silent one is not followed again before
-``expire_timeout`` has passed. Messages fed in-process (:meth:`feed`) are trusted.
+left the graph) is forgotten, subscriptions destroyed; namespaces are followed in turns, and a
+silent one not again before ``expire_timeout`` has passed. Messages fed in-process
+(:meth:`feed`) are trusted.
 """
 
 from __future__ import annotations
@@ -168,7 +169,7 @@ class DiagnosticsNode(Node):
         self.add_on_set_parameters_callback(self._check_thresholds)
         self.systems: dict[str, SystemState] = {}
         self._follows: dict[str, _Follow] = {}
-        self._quiet: dict[str, float] = {}  # forgotten while still in the graph: since when
+        self._quiet: dict[str, float] = {}  # forgotten while still in the graph: when
         self.ignored = 0  # messages from a publisher that does not own the stream
         self.outlet = Outlet(self, sinks)
         self.t_diag = self.outlet.channel("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS)
@@ -213,14 +214,17 @@ class DiagnosticsNode(Node):
                 self.forget(ns)
                 if not gone:
                     self._quiet[ns] = now
-        for ns, since in list(self._quiet.items()):
-            if ns not in present or now - since > expire:
-                del self._quiet[ns]
+        for ns in [ns for ns in self._quiet if ns not in present]:
+            del self._quiet[ns]
         limit = int(self._param("max_systems"))
-        while len(self._quiet) > 4 * limit:  # oldest first: they may be followed again
+        while len(self._quiet) > 10 * limit:  # oldest first: they may be followed again
             del self._quiet[min(self._quiet, key=self._quiet.__getitem__)]
-        candidates = sorted(present - self._follows.keys() - self._quiet.keys(),
-                            key=lambda ns: (f"{ns}/energy" not in topics, ns))
+        # In turns: namespaces with an energy topic first, then those never (or longest not)
+        # followed; a silent one waits expire_timeout before it is followed again.
+        candidates = sorted((ns for ns in present - self._follows.keys()
+                             if now - self._quiet.get(ns, -math.inf) > expire),
+                            key=lambda ns: (f"{ns}/energy" not in topics,
+                                            self._quiet.get(ns, -math.inf), ns))
         for ns in candidates[: max(0, limit - len(self._follows))]:
             self.watch(ns)
 
