@@ -132,7 +132,8 @@ def long_horizon(system: str, quick: bool) -> list[Result]:
             "(or round-off: ≤ max(1e-11, steps × 1e-15))" if symplectic else
             "DOP853: worst drift grows no faster than ~t (fitted exponent ≤ 1.5 on the last "
             "90 % of the run, or round-off: ≤ max(1e-11, steps × 1e-15))") + (
-        f"; in every case below the diagnostics ERROR threshold ({ERROR_DRIFT:g}); "
+        "; in every case below the diagnostics ERROR threshold "
+        f"({f'{ERROR_DRIFT:.0e}'.replace('e-0', 'e-')}); "
         "drift relative to max(law scale, running magnitude of T, V and the work terms); "
         "10⁶ steps, or 10⁵ time scales for systems that take few, big steps")
     t_probe = 5.0 * model.time_scale()
@@ -320,7 +321,7 @@ def singular(system: str, quick: bool) -> list[Result]:
                 ang = run.coordinate("angle") if "angle" in [c.name for c in
                                                               model.coordinates] else None
                 if ang is None:  # Cartesian (y, z): the bob's height
-                    z = run.q[:, -1]
+                    z = run.coordinate("z")
                     off = np.abs(z - z[0]) / model.value("length")
                 else:
                     off = np.abs(np.abs(ang) - math.pi)
