@@ -94,25 +94,23 @@ def test_ok_on_correct_runs_error_on_broken(ros_context: Any) -> None:
 def test_discovers_systems_over_dds(ros_context: Any) -> None:
     sim = SimulatorNode(Instance("pendulum", "found", {"formulation": "multiplier"}),
                         context=ros_context, real_time_factor=0.0)
-    diag = DiagnosticsNode(context=ros_context, period=0.2)
+    diag = DiagnosticsNode(context=ros_context, period=0.2, stale_timeout=3600.0)
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(sim)
     ex.add_node(diag)
-    end = time.monotonic() + 10
-    while time.monotonic() < end and "/found" not in diag.systems:
-        ex.spin_once(timeout_sec=0.05)
-    assert "/found" in diag.systems
+    spin_until(ex, lambda: "/found" in diag.systems and
+               sim.count_subscribers("/found/energy") > 0, "discovery of /found")
+    law = diag.systems["/found"].laws["energy"]
     for k in range(1, 101):
         sim.advance_to(0.01 * k)
-        for _ in range(6):
-            ex.spin_once(timeout_sec=0.001)
+        spin_until(ex, lambda k=k: law.samples >= k, f"sample {k} of /found")
     statuses = {s.name: s for s in diag.statuses()}
     assert statuses["mechsim/found/energy"].level == DiagnosticStatus.OK
     assert statuses["mechsim/found/constraint/constraint_rod_length"].level == \
         DiagnosticStatus.OK
     samples = int(next(kv.value for kv in statuses["mechsim/found/energy"].values
                        if kv.key == "samples"))
-    assert samples > 50
+    assert samples == 100
     ex.shutdown()
     diag.destroy_node()
     sim.destroy_node()
@@ -135,8 +133,9 @@ def test_hostile_peer_is_bounded_and_forgotten(ros_context: Any) -> None:
     every fake is forgotten: subscriptions back to the real system's three, nothing queued."""
     diag = DiagnosticsNode(context=ros_context, period=3600.0, stale_timeout=0.2,
                            expire_timeout=1.0, max_systems=8)
-    idle = len(list(diag.subscriptions))
-    sim = SimulatorNode(Instance("pendulum", "real"), context=ros_context,
+    # Subscriptions that are not for a followed namespace (left over from other tests: none).
+    idle = len(list(diag.subscriptions)) - sum(len(f.subs) for f in diag._follows.values())
+    sim = SimulatorNode(Instance("pendulum", "target"), context=ros_context,
                         real_time_factor=0.0)
     hostile = Node("hostile", context=ros_context)
     for k in range(300):
@@ -156,7 +155,7 @@ def test_hostile_peer_is_bounded_and_forgotten(ros_context: Any) -> None:
         nonlocal most
         most = max(most, len(diag._follows))
         fakes_seen.update(ns for ns in diag._follows if ns.startswith("/fake"))
-        return "/real" in diag.systems and len(fakes_seen) > 3 * 8
+        return "/target" in diag.systems and len(fakes_seen) > 3 * 8
     spin_until(ex, bounded_and_rotating, "fakes followed in turns", step)
     assert most <= 8
     assert all(len(st.laws) <= 256 for st in diag.systems.values())
@@ -164,11 +163,11 @@ def test_hostile_peer_is_bounded_and_forgotten(ros_context: Any) -> None:
     hostile.destroy_node()  # the peer leaves
 
     def idle_again() -> bool:
-        return (set(diag._follows) == {"/real"} and set(diag.systems) == {"/real"}
+        return (set(diag._follows) == {"/target"} and set(diag.systems) == {"/target"}
                 and not diag._quiet and len(list(diag.subscriptions)) == idle + 3)
     spin_until(ex, idle_again, "the fakes to be forgotten", step)
-    assert {key: level_of(diag, "/real", key) for key in diag.systems["/real"].laws} == \
-        dict.fromkeys(diag.systems["/real"].laws, 0)
+    assert {key: level_of(diag, "/target", key) for key in diag.systems["/target"].laws} == \
+        dict.fromkeys(diag.systems["/target"].laws, 0)
     ex.shutdown()
     for n in (diag, sim):
         n.destroy_node()
@@ -222,7 +221,7 @@ def test_nan_sample_is_error_until_finite_values_return(ros_context: Any) -> Non
 
 
 def test_spoofed_info_and_samples_are_ignored(ros_context: Any) -> None:
-    sim = SimulatorNode(Instance("pendulum", "real", {"initial.angle": 1.0}),
+    sim = SimulatorNode(Instance("pendulum", "victim", {"initial.angle": 1.0}),
                         context=ros_context, real_time_factor=0.0)
     diag = DiagnosticsNode(context=ros_context, period=3600.0, stale_timeout=3600.0)
     spoofer = Node("spoofer", context=ros_context)
@@ -230,17 +229,18 @@ def test_spoofed_info_and_samples_are_ignored(ros_context: Any) -> None:
     for n in (diag, sim, spoofer):
         ex.add_node(n)
     step = Stepper(sim)
-    spin_until(ex, lambda: "/real" in diag.systems and
-               diag.systems["/real"].laws["energy"].samples >= 20, "the real system", step)
-    st = diag.systems["/real"]
+    spin_until(ex, lambda: "/victim" in diag.systems and
+               diag.systems["/victim"].laws["energy"].samples >= 20, "the real system", step)
+    st = diag.systems["/victim"]
     info, laws = st.info.parameters_yaml, dict(st.laws)
     initial = st.laws["energy"].initial
-    assert initial == pytest.approx(9.81 * (1 - math.cos(1.0)), rel=1e-12)
-    fake_info = spoofer.create_publisher(SystemInfo, "/real/system_info", LATCHED_QOS)
-    fake_info.publish(SystemInfo(instance="real", system="pendulum",
+    # Based on the first sample heard (energy is kept to ~1e-10 between samples).
+    assert initial == pytest.approx(9.81 * (1 - math.cos(1.0)), rel=1e-8)
+    fake_info = spoofer.create_publisher(SystemInfo, "/victim/system_info", LATCHED_QOS)
+    fake_info.publish(SystemInfo(instance="victim", system="pendulum",
                                  parameters_yaml="initial.angle: 3.0\n",
                                  laws=["energy", "invariant:x"], law_scales=[1e9, 1.0]))
-    fake_energy = spoofer.create_publisher(Energy, "/real/energy", STATE_QOS)
+    fake_energy = spoofer.create_publisher(Energy, "/victim/energy", STATE_QOS)
 
     def spoof_heard() -> bool:
         fake_energy.publish(Energy(total=123.0))  # stamp 0: would start a new epoch
@@ -248,10 +248,10 @@ def test_spoofed_info_and_samples_are_ignored(ros_context: Any) -> None:
     spin_until(ex, spoof_heard, "the spoofed messages", step)
     n = st.laws["energy"].samples
     spin_until(ex, lambda: st.laws["energy"].samples >= n + 20, "more real samples", step)
-    assert diag.systems["/real"] is st and st.info.parameters_yaml == info
+    assert diag.systems["/victim"] is st and st.info.parameters_yaml == info
     assert set(st.laws) == set(laws) and st.laws["energy"].initial == initial
     assert st.epoch == 0 and st.laws["energy"].scale == laws["energy"].scale
-    assert all(level_of(diag, "/real", key) == 0 for key in st.laws)
+    assert all(level_of(diag, "/victim", key) == 0 for key in st.laws)
     ex.shutdown()
     for n in (diag, sim, spoofer):
         n.destroy_node()
@@ -288,7 +288,7 @@ def test_reset_and_parameter_change_start_a_new_epoch(ros_context: Any) -> None:
     spin_until(ex, lambda: energy_samples() >= n + 100 and st.epoch > epoch,
                "samples of the new epoch", step)
     law = st.laws["energy"]
-    assert law.initial == pytest.approx(9.81 * (1 - math.cos(2.5)), rel=1e-12)
+    assert law.initial == pytest.approx(9.81 * (1 - math.cos(2.5)), rel=1e-8)  # new angle
     assert {key: level_of(diag, "/swing", key) for key in st.laws} == dict.fromkeys(st.laws, 0)
     # Gravity changed while the pendulum swings: E = T + V jumps with V, a new epoch starts.
     epoch = st.epoch
