@@ -32,6 +32,7 @@ from mechsim.errors import MechsimError, ParameterError, UnknownSystemError
 from mechsim.integrators import METHODS
 from mechsim.params import flatten
 from mechsim.systems import system_class
+from mechsim.systems.base import Law
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
@@ -54,8 +55,8 @@ class Scene:
     real_time_factor: float = 1.0
     duration: float | None = None
     publish_rate: float = 100.0
-    warn_drift: float = 1e-6
-    error_drift: float = 1e-3
+    warn_drift: float = Law.WARN_DRIFT
+    error_drift: float = Law.ERROR_DRIFT
     bag: str | None = None
     rrd: str | None = None
     source: Path | None = None
@@ -137,8 +138,10 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
     if not isinstance(diag, dict):
         raise ParameterError("diagnostics", "must be a mapping")
     _keys("diagnostics", diag, {"warn_drift", "error_drift"})
-    scene.warn_drift = positive_number("diagnostics.warn_drift", diag.get("warn_drift", 1e-6))
-    scene.error_drift = positive_number("diagnostics.error_drift", diag.get("error_drift", 1e-3))
+    scene.warn_drift = positive_number("diagnostics.warn_drift",
+                                       diag.get("warn_drift", Law.WARN_DRIFT))
+    scene.error_drift = positive_number("diagnostics.error_drift",
+                                        diag.get("error_drift", Law.ERROR_DRIFT))
     if scene.warn_drift >= scene.error_drift:
         raise ParameterError("diagnostics.warn_drift", "must be smaller than error_drift")
     outputs = data.get("outputs") or {}

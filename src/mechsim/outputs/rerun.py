@@ -17,7 +17,8 @@ Layout of the recording (Rerun 0.41, one timeline ``sim_time``: duration = stamp
   plots/<ns>/energy/<term>               kinetic, potential, total, energy_function,
                                          work_external, work_dissipated [J]
   plots/<ns>/balance_residual            (total − total₀) − (W_ext − W_diss) [J]
-  plots/<ns>/drift/<invariant>           I − I₀ (a constraint residual as it is: it should be 0)
+  plots/<ns>/drift/<invariant>           I − I₀ (a constraint residual as it is: it should be 0),
+                                         as the invariant's ``Law`` (from system_info) says
   plots/<ns>/invariants/<name>, plots/<ns>/observables/<name>, plots/<ns>/state/<coordinate>
   plots/<ns>/diagnostics/<law>           level 0 OK, 1 WARN, 2 ERROR, 3 STALE from /diagnostics
                                          statuses named ``mechsim/<ns>/<law>``
@@ -47,6 +48,7 @@ import numpy as np
 
 from mechsim.errors import MechsimError
 from mechsim.files import publish
+from mechsim.systems.base import Law
 
 TIMELINE = "sim_time"
 ENERGY_TERMS = ("kinetic", "potential", "total", "energy_function", "work_external",
@@ -58,6 +60,7 @@ HANDLED_TYPES = {
     "diagnostic_msgs/msg/DiagnosticArray",
 }
 _FLUSH_ROWS = 4096
+_BALANCE = Law("work_balance")
 
 
 def _ns(stamp: Any) -> int:
@@ -124,8 +127,9 @@ class _System:
     links: list[tuple[str, str, str]] = field(default_factory=list)  # entity, frame a, frame b
     trails: list[tuple[str, str]] = field(default_factory=list)  # entity, frame
     last_trail: dict[str, tuple[float, float, float]] = field(default_factory=dict)
-    energy0: float | None = None
+    balance0: float | None = None  # the work balance's value at the epoch's first sample
     invariants0: dict[str, float] = field(default_factory=dict)
+    laws: dict[str, Law] = field(default_factory=dict)  # invariant laws from system_info
     last_t: int = 0
 
 
@@ -265,7 +269,7 @@ class RerunSink:
         return t
 
     def _rebaseline(self, st: _System) -> None:
-        st.energy0 = None
+        st.balance0 = None
         st.invariants0.clear()
         st.last_trail.clear()
 
@@ -281,6 +285,14 @@ class RerunSink:
         first = not st.key
         st.key, st.system = key, info.system
         self._rebaseline(st)
+        st.laws = {}
+        for law_key in info.laws:
+            try:
+                law = Law.from_key(law_key)
+            except ValueError:
+                continue
+            if law.stream == "invariants":
+                st.laws[law.name] = law
         if first:
             self._label_plots(st, info)
         try:
@@ -442,20 +454,18 @@ class RerunSink:
                   m.work_dissipated)
         for term, value in zip(ENERGY_TERMS, values, strict=True):
             self._scalar(_path("plots", st.ns, "energy", term), t, value)
-        if st.energy0 is None:
-            st.energy0 = float(m.total)
-        residual = (m.total - st.energy0) - (m.work_external - m.work_dissipated)
-        self._scalar(_path("plots", st.ns, "balance_residual"), t, residual)
+        balance = float(_BALANCE.value(energy=m))
+        if st.balance0 is None:
+            st.balance0 = balance
+        self._scalar(_path("plots", st.ns, "balance_residual"), t,
+                     _BALANCE.deviation(balance, st.balance0))
 
     def _on_invariants(self, st: _System, t: int, m: Any) -> None:
         for name, value in zip(m.names, m.values, strict=False):
             self._scalar(_path("plots", st.ns, "invariants", name), t, value)
-            if name.startswith("constraint_"):
-                drift = float(value)
-            else:
-                v0 = st.invariants0.setdefault(name, float(value))
-                drift = float(value) - v0
-            self._scalar(_path("plots", st.ns, "drift", name), t, drift)
+            law = st.laws.get(name) or Law.for_invariant(name)
+            v0 = st.invariants0.setdefault(name, float(value))
+            self._scalar(_path("plots", st.ns, "drift", name), t, law.deviation(float(value), v0))
 
     def _on_diagnostics(self, msg: Any) -> None:
         import rerun as rr

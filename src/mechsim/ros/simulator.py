@@ -360,6 +360,7 @@ class SimulatorNode(Node):
             self.p = self.model.parameter_vector()
             self.stepper.set_model(self.model)
             self._publish_static()
+            self._publish_sample(self.t, self.stepper.y)  # same stamp: diagnostics' new epoch
         if new_stepper and not restart:
             # Continue from the current state with the new method or tolerance.
             self.stepper = make_stepper(self.model, self.method, self.tolerance, t0=self.t,
