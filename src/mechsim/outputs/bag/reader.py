@@ -43,8 +43,11 @@ def bag_dir(path: str | Path) -> Path:
 
 def bag_files(d: Path) -> list[Path]:
     """The storage files ``<name>_<N>.mcap`` of a bag directory, by N."""
-    files = [(int(m.group(1)), p) for p in d.iterdir()
-             if (m := _FILE_RE.match(p.name)) and p.is_file()]
+    try:
+        files = [(int(m.group(1)), p) for p in d.iterdir()
+                 if (m := _FILE_RE.match(p.name)) and p.is_file()]
+    except OSError as e:
+        raise MechsimError(f"bag {d}: cannot list ({e.strerror or e})") from None
     return [p for _, p in sorted(files)]
 
 

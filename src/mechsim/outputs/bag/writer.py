@@ -74,16 +74,21 @@ def claim_bag_dir(path: str | Path) -> tuple[Path, BagLock, bool]:
         raise MechsimError(f"bag {e}") from None
     except OSError as e:
         raise MechsimError(f"bag {d}: cannot create ({e.strerror or e})") from None
-    if not created and any(d.iterdir()):
-        raise MechsimError(f"bag {d}: directory exists and is not empty (choose a new path)")
+    not_empty = MechsimError(f"bag {d}: directory exists and is not empty (choose a new path)")
     try:
+        if not created and any(d.iterdir()):
+            raise not_empty
         lock = BagLock.acquire(d, "recording", break_stale=False)
     except OSError as e:
         _remove_dir(d, created)
         raise MechsimError(f"bag {d}: cannot write ({e.strerror or e})") from None
-    if any(p.name != LOCK_FILE for p in d.iterdir()):  # a file appeared before the lock
+    try:
+        others = any(p.name != LOCK_FILE for p in d.iterdir())  # appeared before the lock?
+    except OSError:
+        others = True
+    if others:
         lock.release()
-        raise MechsimError(f"bag {d}: directory exists and is not empty (choose a new path)")
+        raise not_empty
     return d, lock, created
 
 
@@ -203,9 +208,8 @@ class BagWriter:
     def _describe(self, e: Exception) -> Exception:
         if not isinstance(e, OSError):
             return e
-        kept = (f"; the {self.stats.message_count} messages recorded before are kept: "
-                f"`mechsim bag repair {self.path}` completes the bag"
-                if self.stats.message_count else "; nothing was recorded")
+        kept = (f"; the chunks written so far are kept: `mechsim bag repair {self.path}` "
+                "completes the bag" if self.stats.message_count else "; nothing was recorded")
         return MechsimError(f"bag {self.path}: write failed ({e.strerror or e}){kept}")
 
     def _write_loop(self) -> None:
