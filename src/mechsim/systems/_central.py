@@ -61,6 +61,25 @@ def declare_orbit_vectors(b: LagrangianBuilder, mu: Expr, r: tuple[Expr, Expr, E
     return L, A
 
 
+def vector_law_scales(scales: dict[str, float], angular_momentum: float,
+                      runge_lenz: float | None = None, energy: float | None = None
+                      ) -> dict[str, float]:
+    """Drift scales for the component laws of ``declare_orbit_vectors``: |L| for each L
+    component, μk for each A component (|A| = μkε), and ``energy`` for per-axis energies
+    (``energy_x`` …): a component's own initial value may be zero or round-off (cos π/2), which
+    would make round-off look like a large relative drift."""
+    out = dict(scales)
+    for key in out:
+        name = key.split(":", 1)[-1]
+        if name.startswith("angular_momentum_") and angular_momentum > 0:
+            out[key] = angular_momentum
+        elif name.startswith("runge_lenz_") and runge_lenz:
+            out[key] = runge_lenz
+        elif name.startswith("energy_") and energy:
+            out[key] = energy
+    return out
+
+
 def orbit_quaternion(L: tuple[Expr, Expr, Expr], A: tuple[Expr, Expr, Expr] | None = None
                      ) -> tuple[Expr, Expr, Expr, Expr]:
     """Quaternion (x, y, z, w) of the orbit frame: z along L, x toward periapsis (along A;

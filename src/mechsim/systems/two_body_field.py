@@ -40,7 +40,12 @@ import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import nonnegative, number, positive
-from mechsim.systems._central import declare_orbit_vectors, kepler_elements, orbit_quaternion
+from mechsim.systems._central import (
+    declare_orbit_vectors,
+    kepler_elements,
+    orbit_quaternion,
+    vector_law_scales,
+)
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
@@ -146,6 +151,14 @@ class TwoBodyField(LagrangianModel):
                 Visual("sphere", "cm", radius=0.2 * s, color=(255, 255, 255)),
                 Visual("trail", "cm", color=(200, 200, 200)),
                 Visual("axes", "orbit", radius=0.3 * float(np.linalg.norm(self._state()[2]))))
+
+    def law_scales(self) -> dict[str, float]:
+        """Components of L against |L|, of A against μk (a zero component would otherwise
+        turn round-off into a large relative drift)."""
+        _, _, r, v = self._state()
+        mu = self.reduced_mass()
+        return vector_law_scales(super().law_scales(), mu * float(np.linalg.norm(np.cross(r, v))),
+                                 mu * self.value("force_constant"))
 
     def time_scale(self) -> float:
         """The pericentre passage, 2π √(r_p³ / (GM (1 + e))) with GM = k/μ (as for Kepler)."""
