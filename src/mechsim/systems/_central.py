@@ -152,6 +152,24 @@ def kepler_elements(mu: float, k: float, E: float, l: float) -> dict[str, float]
     return out
 
 
+def pericentre_time(gm: float, r: np.ndarray, v: np.ndarray) -> float:
+    """Pericentre passage time 2π √(r_p³ / (GM (1 + e))) of r̈ = −GM r/r³ from the state
+    (r, v), in specific quantities (h = |r × v|, p = h²/GM, e from the specific energy): the
+    time that limits a fixed step. 1 s when the values leave it undefined (h = 0, or
+    parameters so extreme that it under- or overflows): it is only a step-size hint."""
+    try:
+        with np.errstate(all="ignore"):
+            rn, h = math.hypot(*r), math.hypot(*np.cross(r, v))
+            energy = 0.5 * math.hypot(*v) ** 2 - gm / rn
+            p = h * h / gm
+            e = math.sqrt(max(0.0, 1.0 + 2.0 * energy * p / gm))
+            rp = p / (1.0 + e)
+            ts = 2 * math.pi * math.sqrt(rp**3 / (gm * (1.0 + e)))
+    except (ArithmeticError, ValueError):
+        return 1.0
+    return ts if math.isfinite(ts) and ts > 0 else 1.0
+
+
 def eccentric_anomaly(M: np.ndarray, e: float) -> np.ndarray:
     """Solve Kepler's equation M = E − e sin E (Newton iteration)."""
     M_full = np.asarray(M, dtype=float)

@@ -39,6 +39,7 @@ from mechsim.systems._central import (
     declare_orbit_vectors,
     kepler_elements,
     orbit_quaternion,
+    pericentre_time,
     vector_law_scales,
 )
 from mechsim.systems.base import Visual
@@ -166,9 +167,8 @@ class CentralForce3D(LagrangianModel):
         m = self.value("mass")
         if self.potential_name == "harmonic":
             return 2 * math.pi * math.sqrt(m / self.value("spring_constant"))
-        el = self.kepler_elements()
-        gm = self.value("force_constant") / m
-        return 2 * math.pi * math.sqrt(el["r_min"] ** 3 / (gm * (1 + el["eccentricity"])))
+        r, v = self.cartesian_state()
+        return pericentre_time(self.value("force_constant") / m, r, v)
 
     # --- analytic oracles ------------------------------------------------------------------
     def angular_momentum(self) -> np.ndarray:

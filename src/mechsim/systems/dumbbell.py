@@ -170,11 +170,11 @@ class Dumbbell(LagrangianModel):
                                  float(np.linalg.norm(self.angular_momentum())))
 
     def time_scale(self) -> float:
-        w = self.angular_speed()
-        if w > 0:
-            return 2 * math.pi / w
-        g = self.value("gravity")
-        return math.sqrt(self.value("rod_length") / g) if g > 0 else 1.0
+        """A turn of the rod, else √(d/g); 1 s where neither is a positive finite time."""
+        w, g = self.angular_speed(), self.value("gravity")
+        ts = 2 * math.pi / w if w > 0 else math.sqrt(self.value("rod_length") / g) if g > 0 \
+            else 1.0
+        return ts if math.isfinite(ts) and ts > 0 else 1.0
 
     # --- analytic oracles ------------------------------------------------------------------
     def reduced_mass(self) -> float:
@@ -197,7 +197,7 @@ class Dumbbell(LagrangianModel):
     def pole_distance(self) -> float:
         """Smallest angle between the rod and the vertical during the motion: n̂ turns in the
         plane ⟂ L, so it is 90° − (angle of L from z) folded into [0, 90°]."""
-        L = self.angular_momentum()
+        L = np.cross(*self.rod_state())  # the direction of L is all that matters
         if not np.any(L):  # not turning: the rod keeps its direction
             th = self.value("initial.theta")
             return min(th, math.pi - th)

@@ -117,11 +117,12 @@ class GasInBox(LagrangianModel):
         rng = np.random.default_rng(int(self.values["initial.seed"]))
         pos = (rng.random((n, 3)) - 0.5) * 0.98 * ell
         vel = rng.standard_normal((n, 3))
-        target = n * self.value("initial.rms_speed") ** 2  # Σ |v|²
+        # Σ|v|² = N v_rms² (a third on each axis if isotropic); v_rms outside the root
+        v_rms = self.value("initial.rms_speed")
         if bool(self.values["initial.isotropic"]):
-            vel *= np.sqrt(target / 3 / np.sum(vel**2, axis=0))
+            vel *= v_rms * np.sqrt(n / 3 / np.sum(vel**2, axis=0))
         else:
-            vel *= math.sqrt(target / float(np.sum(vel**2)))
+            vel *= v_rms * math.sqrt(n / float(np.sum(vel**2)))
         return pos.reshape(-1), vel.reshape(-1)
 
     def handle_event(self, index: int, t: float, y: np.ndarray) -> np.ndarray:

@@ -112,8 +112,12 @@ class SmallOscillations(LagrangianModel):
             raise ParameterError(unused[0], f"is beyond dimension = {n}: leave it at its "
                                  f"default ({defaults[unused[0]]:g}) or raise dimension")
         for name, m in zip(("mass_matrix", "stiffness_matrix"), self.matrices(), strict=True):
-            eig = np.linalg.eigvalsh(m)
-            if not eig[0] > 1e-12 * max(1.0, float(np.max(np.abs(m)))):
+            try:
+                eig = np.linalg.eigvalsh(m)
+            except np.linalg.LinAlgError:
+                raise ParameterError(name, "has no eigenvalues (entries too large?)") from None
+            if not (np.all(np.isfinite(eig))
+                    and eig[0] > 1e-12 * max(1.0, float(np.max(np.abs(m))))):
                 raise ParameterError(name, f"must be positive definite (smallest eigenvalue "
                                      f"{eig[0]:.3g}; dimension {n})")
 
@@ -176,7 +180,9 @@ class SmallOscillations(LagrangianModel):
                 for k, v in scales.items()}
 
     def time_scale(self) -> float:
-        return 2 * math.pi / float(self.frequencies()[-1])
+        """The shortest modal period (1 s if extreme entries leave it undefined)."""
+        ts = 2 * math.pi / float(self.frequencies()[-1])
+        return ts if math.isfinite(ts) and ts > 0 else 1.0
 
     def visuals(self) -> tuple[Visual, ...]:
         out = [Visual("sphere", f"q_{j + 1}", radius=0.08) for j in range(self.dimension)]

@@ -33,8 +33,6 @@ magnitude of L here.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import sympy as sp
 
@@ -44,6 +42,7 @@ from mechsim.systems._central import (
     declare_orbit_vectors,
     kepler_elements,
     orbit_quaternion,
+    pericentre_time,
     vector_law_scales,
 )
 from mechsim.systems.base import Visual
@@ -161,10 +160,9 @@ class TwoBodyField(LagrangianModel):
                                  mu * self.value("force_constant"))
 
     def time_scale(self) -> float:
-        """The pericentre passage, 2π √(r_p³ / (GM (1 + e))) with GM = k/μ (as for Kepler)."""
-        el = self.kepler_elements()
-        gm = self.value("force_constant") / self.reduced_mass()
-        return 2 * math.pi * math.sqrt(el["r_min"] ** 3 / (gm * (1 + el["eccentricity"])))
+        """The pericentre passage of the relative orbit (GM = k/μ)."""
+        _, _, r, v = self._state()
+        return pericentre_time(self.value("force_constant") / self.reduced_mass(), r, v)
 
     # --- analytic oracles (seed 001 §2.16–2.17) -----------------------------------------------
     def reduced_mass(self) -> float:
