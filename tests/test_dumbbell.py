@@ -114,10 +114,12 @@ def test_conserved_about_the_centre_of_mass() -> None:
                                0.5 * MU * D**2 * float(dn0 @ dn0), rtol=1e-12)
     np.testing.assert_allclose(run.observables["angular_speed"], np.linalg.norm(dn0),
                                rtol=1e-12)
-    # CM: horizontal momentum and the CM's own energy
+    # CM: horizontal momentum, and the vertical one in the freely falling frame M(Ż + gt)
     np.testing.assert_allclose(run.invariants["momentum_x"], (M1 + M2) * 1.0, rtol=1e-14)
-    np.testing.assert_allclose(run.invariants["cm_energy"], 0.5 * (M1 + M2) * 36.0,  # MgZ ≈ −1e4 J
-                               rtol=1e-10)
+    np.testing.assert_allclose(run.invariants["momentum_z_falling_frame"], (M1 + M2) * 6.0,
+                               rtol=1e-12)
+    np.testing.assert_allclose(run.observables["cm_height"], 6.0 * run.t - 0.5 * G * run.t**2,
+                               atol=1e-9)
 
 
 @pytest.mark.parametrize("form", ["reduced", "multiplier"])
