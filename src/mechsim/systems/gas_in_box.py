@@ -50,9 +50,10 @@ class GasInBox(LagrangianModel):
     title = "Gas in a container: point particles in a box with elastic walls"
     source = ("seed 001 §1.1: non-holonomic (inequality) constraints, gas molecules contained "
               "in a container (L159–167)")
-    oracles = ("kinetic energy, energy of each axis and every |vₐ| conserved through the wall "
-               "events; time-averaged impulse pressure on each wall → (1/V)Σmvₐ² within "
-               "2Σm|vₐ|/(tA), 2E/(3V) isotropic; free flight between hits")
+    oracles = ("kinetic energy, energy of each axis and every speed component conserved "
+               "through the wall events; positions, hit times and impulses of the folded free "
+               "flight; time-averaged impulse pressure on each wall → (1/V)Σmvₐ² within one hit "
+               "per particle, 2E/(3V) isotropic")
     parameters = (
         Parameter("count", 8, "", "number N of particles", minimum=1, maximum=MAX_COUNT),
         positive("mass", 1.0, "kg", "mass m of each particle"),

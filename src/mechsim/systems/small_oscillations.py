@@ -68,7 +68,7 @@ class SmallOscillations(LagrangianModel):
     id = "small_oscillations"
     title = "General small oscillations (normal modes of M q̈ = −A q)"
     source = ("seed 003 §8.3–8.4: General Small-Oscillation Theory, Normal Coordinates; seed 001 "
-              "§2.21 (small oscillations, |V − ω²T| = 0)")
+              "§2.21 (small oscillations, det(V − ω²T) = 0)")
     oracles = ("ω_r², a_r from the generalized eigenproblem (scipy eigh; sympy for 2×2; double "
                "pendulum (2 ± √2)g/l); M-orthonormal modes; mode energies conserved; exact modal "
                "solution = matrix exponential; a pure mode stays pure")
