@@ -422,7 +422,15 @@ class Model(ABC):
         self.kernels.invariants(0.0, self.initial_y(), self.parameter_vector(), inv)
         values = {q.name: float(inv[i]) for i, q in enumerate(self.invariants)}
         e = self.energy_scale()
-        return {law.key: law.scale(e, values) for law in self.laws()}
+        scales = {law.key: law.scale(e, values) for law in self.laws()}
+        for key in scales:  # parts of the energy (a mode's share may start at 0)
+            if key.startswith("invariant:") and key[10:].startswith(self.energy_parts):
+                scales[key] = e
+        return scales
+
+    #: Invariants (name prefixes) that are parts of the energy, such as mode energies: their
+    #: drift is measured against the energy scale, not their own initial value.
+    energy_parts: ClassVar[tuple[str, ...]] = ()
 
     def time_scale(self) -> float:
         """A characteristic time (e.g. small-oscillation period), for step-size choices."""

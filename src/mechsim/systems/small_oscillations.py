@@ -69,6 +69,7 @@ class SmallOscillations(LagrangianModel):
     title = "General small oscillations (normal modes of M q̈ = −A q)"
     source = ("seed 003 §8.3–8.4: General Small-Oscillation Theory, Normal Coordinates; seed 001 "
               "§2.21 (small oscillations, det(V − ω²T) = 0)")
+    energy_parts = ("mode_energy_",)
     oracles = ("ω_r², a_r from the generalized eigenproblem (scipy eigh; sympy for 2×2; double "
                "pendulum (2 ± √2)g/l); M-orthonormal modes; mode energies conserved; exact modal "
                "solution = matrix exponential; a pure mode stays pure")
@@ -170,14 +171,6 @@ class SmallOscillations(LagrangianModel):
             q += e[:, None] * a[:, r]
             v += de[:, None] * a[:, r]
         return state_rows(y0, [*q.T, *v.T])
-
-    def law_scales(self) -> dict[str, float]:
-        """Mode energies against the total energy: a mode not excited has E_r ≈ 0 (or
-        round-off), which would turn round-off into a large relative drift."""
-        scales = super().law_scales()
-        e = self.energy_scale()
-        return {k: (e if k.startswith("invariant:mode_energy_") else v)
-                for k, v in scales.items()}
 
     def time_scale(self) -> float:
         """The shortest modal period (1 s if extreme entries leave it undefined)."""
