@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mechsim.errors import ParameterError
-from mechsim.integrators import Stepper, make_stepper
+from mechsim.integrators import Stepper, loops, make_stepper
 from mechsim.systems.base import Model
 
 OUTPUTS = ("energy", "invariants", "observables", "frames")
@@ -35,9 +35,10 @@ def evaluate(model: Model, t: np.ndarray, Y: np.ndarray, p: np.ndarray,
     inv = np.zeros((m, max(len(model.invariants), 1)))
     obs = np.zeros((m, max(len(model.observables), 1)))
     fr = np.zeros((m, max(len(model.frames), 1), 7))
-    model.kernels.evaluate_outputs(np.ascontiguousarray(t), np.ascontiguousarray(Y), p,
-                                   "energy" in which, "invariants" in which,
-                                   "observables" in which, "frames" in which, E, inv, obs, fr)
+    loops().evaluate_outputs(model.kernels.kernel_set(*which), np.ascontiguousarray(t),
+                             np.ascontiguousarray(Y), p, "energy" in which,
+                             "invariants" in which, "observables" in which, "frames" in which,
+                             E, inv, obs, fr)
     out = Outputs()
     if "energy" in which:
         out.kinetic, out.potential, out.energy_function = E[:, 0], E[:, 1], E[:, 2]

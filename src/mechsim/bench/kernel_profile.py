@@ -150,7 +150,7 @@ def profile_system(system: str) -> dict[str, Any]:
             walls.append(time.perf_counter() - t0)
             setups.append(t1 - t0)
         wall = statistics.median(walls)
-        calls = int(st.st[7]) if method == "dop853" else int(st.st[2])  # type: ignore[attr-defined]
+        calls = st.n_evaluations
         per = r["ns"]["model rhs" if method == "dop853" else "model accel_q"]
         hand = r["ns"]["hand rhs" if method == "dop853" else "hand accel_q"]
         runs.append({"method": method, "tolerance": tol, "wall_ms": wall * 1e3,

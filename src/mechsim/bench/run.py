@@ -101,8 +101,7 @@ def _mechsim(method: str) -> Any:
         def run() -> tuple[np.ndarray, dict[str, Any]]:
             st = make_stepper(model, method, tol)
             Y = st.advance(t)
-            n_rhs = (int(st.st[7]) if st.method == "dop853"  # type: ignore[attr-defined]
-                     else 0 if st.method == "exact" else int(st.st[2]))  # type: ignore[attr-defined]
+            n_rhs = 0 if st.method == "exact" else st.n_evaluations
             return Y[:, :n].copy(), {"n_steps": st.n_steps, "n_rhs": n_rhs,
                                      "method": st.method}
         return run

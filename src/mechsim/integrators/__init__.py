@@ -2,7 +2,11 @@
 
 A stepper owns the integration state of one model and advances it to requested output times:
 ``advance(t_out) -> Y`` with one row ``[q, v, work_external, work_dissipated]`` per time. The
-loops are compiled into the model's kernel module; this module only holds their state.
+loops (``kernels.py``) are compiled once per machine and shared by every model: they call the
+model's compiled functions through its kernel set (``mechsim.codegen.contract``). This module
+holds their state (named records, ``state.py``) and reports what a run cost: ``n_steps``,
+``n_evaluations`` (right-hand-side or force calls), ``n_rejected`` and ``error_estimate`` (the
+sum of the local error estimates, relative to the state scale).
 
 Methods:
 - ``dop853``: adaptive explicit Runge-Kutta 8(5,3), dense output, constraint projection after
@@ -25,39 +29,44 @@ Stiffness (``dop853``): Hairer's stiffness test runs inside the loop (see ``kern
 it fires and the stability-limited step is also crawling — more than ``stiff_steps_per_output``
 (1000) steps per output interval — the stepper raises ``StiffnessError`` (an IntegrationError
 naming the system, with what to change) instead of crawling on. A stiff but cheap phase (a
-damped system settled at rest, big steps) goes on. Read-only otherwise: non-stiff runs are bit
-for bit unchanged.
+damped system settled at rest, big steps) goes on. The test only reads the state: it never
+changes a non-stiff run.
 
 Events (``dop853`` only). A model may declare state events (``Model.events``, each an
 ``Event(name, direction)``), computed by the kernel function ``event(t, y, p, out)``, and
 discrete modes (``Model.modes``), extra state entries after the work terms that stay constant
 between events. The kernel checks the event functions after every accepted step, locates the
 earliest sign change (in the event's direction) on the dense output to ~1e-14 relative in t,
-writes the outputs up to it and stops there with status EVENT. ``DOP853.advance`` then calls
-``model.handle_event(index, t, y) -> y_new`` (a velocity jump, a new mode, or y unchanged to
-record a time), restarts the integration at (t, y_new) (projection, new first stage and
-initial step; counters kept) and goes on, so ``advance(t_out)`` still returns every requested
-row (rows before an event come from the dense output of the step that crossed it, even when
-a later call asks for them; a row at exactly the event time holds the state after the
-handler). Events are handled when met, also past the last requested time. Each event is
-recorded in ``stepper.events`` as (t, name). Models without events compile the event code out
-and behave bit for bit as before.
+writes the outputs up to it and stops there with status ``Status.EVENT``. ``DOP853.advance``
+then calls ``model.handle_event(index, t, y) -> y_new`` (a velocity jump, a new mode, or y
+unchanged to record a time), restarts the integration at (t, y_new) (projection, new first
+stage and initial step; counters kept) and goes on, so ``advance(t_out)`` still returns every
+requested row (rows before an event come from the dense output of the step that crossed it,
+even when a later call asks for them; a row at exactly the event time holds the state after
+the handler). Events are handled when met, also past the last requested time. Each event is
+recorded in ``stepper.events`` as (t, name). Models without events skip the event code.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from abc import ABC, abstractmethod
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
+from mechsim import codegen
 from mechsim.errors import IntegrationError, ParameterError
+from mechsim.integrators import dop853_tableau, state
 from mechsim.integrators.model import SteppableModel as Model
-
-STATUS = {0: "ok", 1: "too many steps", 2: "step size underflow", 3: "non-finite state",
-          4: "event", 5: "stiff", 6: "stage equations did not converge"}
-EVENT = 4
-STIFF = 5
+from mechsim.integrators.state import (
+    DOP853_STATE,
+    FIXED_STATE,
+    Status,
+    new_state,
+)
 
 # Yoshida (1990), symmetric compositions of a 2nd-order symmetric method; each tuple lists
 # w_m ... w_1 and the central weight is 1 - 2 Σ w_i.
@@ -79,9 +88,22 @@ COMPOSITIONS: dict[str, tuple[np.ndarray, int]] = {
 METHODS = ("auto", "dop853", "gauss6", "exact", *COMPOSITIONS)
 
 
+@functools.cache
+def loops() -> ModuleType:
+    """The shared compiled loops (``kernels.py``), loaded under a name that hashes their
+    source and every module they read (see ``mechsim.codegen``); compiled on first use per
+    machine, then loaded from numba's cache."""
+    template = Path(__file__).with_name("kernels.py").read_text()
+    head, rest = template.split("# >>> stubs", 1)
+    tail = rest.split("# <<< stubs", 1)[1]
+    text = f"{head}{dop853_tableau.loop_source()}{tail}"
+    key = codegen.fingerprint(text, codegen.source_fingerprint([dop853_tableau, state]))
+    return codegen.load_module("loops", key, lambda: text)
+
+
 class StiffnessError(IntegrationError):
-    """DOP853's stiffness test fired (status STIFF): the state is kept at the last accepted
-    step, whose outputs were all written."""
+    """DOP853's stiffness test fired (``Status.STIFF``): the state is kept at the last
+    accepted step, whose outputs were all written."""
 
 
 def choose_method(model: Model, method: str, closed_form: bool = False) -> str:
@@ -114,6 +136,7 @@ class Stepper(ABC):
     """Integration state of one model; see the module docstring."""
 
     method: str
+    state: np.ndarray  # one record of a dtype of ``state.py`` (a closed form has none)
 
     def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float) -> None:
         if not (0.0 < tolerance < 1.0):
@@ -129,9 +152,26 @@ class Stepper(ABC):
     @abstractmethod
     def advance(self, t_out: np.ndarray) -> np.ndarray: ...
 
+    def _count(self, name: str) -> int:
+        return int(self.state[name][0])
+
     @property
-    @abstractmethod
-    def n_steps(self) -> int: ...
+    def n_steps(self) -> int:
+        return self._count("n_steps")
+
+    @property
+    def n_evaluations(self) -> int:
+        """Calls of the model's right-hand side (or force, for compositions)."""
+        return self._count("n_evaluations")
+
+    @property
+    def n_rejected(self) -> int:
+        return self._count("n_rejected")
+
+    @property
+    def error_estimate(self) -> float:
+        """Sum of the local error estimates so far, relative to the state scale."""
+        return float(self.state["error_estimate"][0])
 
     def set_parameters(self, p: np.ndarray) -> None:
         """New parameter values, same structure (runtime ROS parameter changes)."""
@@ -142,6 +182,10 @@ class Stepper(ABC):
         self.model = model
         self.set_parameters(model.parameter_vector())
 
+    def _fail(self, status: Status) -> IntegrationError:
+        return IntegrationError(f"{self.model.id}: {self.method} stopped at "
+                                f"t = {self.t:.6g}: {status.reason}")
+
 
 class ClosedForm(Stepper):
     """Exact propagation from an anchor state (t₀, y₀) with ``Model.propagate``."""
@@ -151,11 +195,7 @@ class ClosedForm(Stepper):
     def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float) -> None:
         super().__init__(model, y0, t0, tolerance)
         self.t0, self.y0 = self.t, self.y.copy()
-        self.calls = 0
-
-    @property
-    def n_steps(self) -> int:
-        return 0
+        self.state = new_state(FIXED_STATE, self.t)
 
     def set_model(self, model: Model) -> None:
         super().set_model(model)
@@ -170,8 +210,9 @@ class ClosedForm(Stepper):
             raise IntegrationError(f"{self.model.id}: no closed form for these parameters")
         if not np.all(np.isfinite(Y)):
             raise IntegrationError(f"{self.model.id}: exact: non-finite state")
-        self.calls += 1
+        self.state["n_evaluations"] += 1
         self.t, self.y = float(t_out[-1]), Y[-1].copy()
+        self.state["t"] = self.t
         return Y
 
 
@@ -187,11 +228,14 @@ class DOP853(Stepper):
         self.K = np.zeros((16, n))
         self.F = np.zeros((7, n))
         self.y_old = self.y.copy()
-        self.max_step = max_step
-        self.max_steps = max_steps
+        self.comp = np.zeros(n)
+        self.max_step = float(max_step)
+        self.max_steps = int(max_steps)
         self.atol = self.tolerance
         self.ev_dir = np.array([e.direction for e in model.events] or [0], dtype=np.int64)
         self.g_old = np.zeros(self.ev_dir.size)
+        self.state = new_state(DOP853_STATE, self.t)
+        self.ks = self.kernels.kernel_set("rhs", "project", "event")
         self._stalled = 0
         self._reset(self.t, self.y)
 
@@ -203,55 +247,55 @@ class DOP853(Stepper):
         self.y[:] = y
         k.project(t, self.y, self.p)
         k.rhs(t, self.y, self.p, self.K[12])
-        h0 = k.dop853_initial_step(t, self.y, self.p, self.K[12].copy(), self.tolerance,
-                                   self.atol)
-        counts = self.st[5:8] if hasattr(self, "st") else (0.0, 0.0, 2.0)
-        n_events = self.st[9] if hasattr(self, "st") else 0.0
-        last = self.st[2:5].copy() if keep_dense else (t, 0.0, 0.0)
-        # Last three: stiffness test counters (positive, negative in a row) and last h|λ|.
-        self.st = np.array([t, h0, *last, *counts, -1.0, n_events, 0.0, 0.0, 0.0])
+        h0 = loops().dop853_initial_step(self.ks, t, self.y, self.p, self.K[12].copy(),
+                                         self.tolerance, self.atol)
+        s = self.state
+        s["t"], s["h"] = t, h0
+        if not keep_dense:
+            s["t_old"], s["h_old"], s["dense_ready"] = t, 0.0, 0
+        s["last_event"], s["stiff_positive"], s["stiff_negative"], s["h_lambda"] = -1, 0, 0, 0.0
+        s["n_evaluations"] += 2
+        self.comp[:] = 0.0
         if self.model.events:
             k.event(t, self.y, self.p, self.g_old)
 
     def set_parameters(self, p: np.ndarray) -> None:
         super().set_parameters(p)
-        self._reset(float(self.st[0]), self.y)
-
-    @property
-    def n_steps(self) -> int:
-        return int(self.st[5])
+        self._reset(float(self.state["t"][0]), self.y)
 
     def advance(self, t_out: np.ndarray) -> np.ndarray:
         t_out = np.ascontiguousarray(t_out, dtype=np.float64)
         Y = np.empty((t_out.size, self.y.size))
         gap = (t_out[-1] - self.t) / t_out.size if t_out.size else 0.0
+        advance = loops().dop853_advance
+        s = self.state
         done = 0
         while True:
-            status, written = self.kernels.dop853_advance(
-                self.st, self.y, self.y_old, self.K, self.F, self.p, t_out[done:], Y[done:],
-                self.tolerance, self.atol, self.max_step, self.max_steps, self.g_old,
-                self.ev_dir)
+            status, written = advance(
+                self.ks, s, self.y, self.y_old, self.K, self.F, self.p,
+                t_out[done:], Y[done:], self.tolerance, self.atol, self.max_step,
+                self.max_steps, self.g_old, self.ev_dir, self.comp)
             done += written
-            self.t = float(self.st[0])
-            if status == STIFF and self.st[3] * self.stiff_steps_per_output >= gap:
-                self.st[10] = 0.0  # stiff but not crawling: go on, test again later
+            self.t = float(s["t"][0])
+            h_old = float(s["h_old"][0])
+            if status == Status.STIFF and h_old * self.stiff_steps_per_output >= gap:
+                s["stiff_positive"] = 0  # stiff but not crawling: go on, test again later
                 continue
-            if status != EVENT:
+            if status != Status.EVENT:
                 break
-            self._handle_event(int(self.st[8]))
-        if status == STIFF:
+            self._handle_event(int(s["last_event"][0]))
+        if status == Status.STIFF:
             raise StiffnessError(
-                f"{self.model.id}: dop853 stopped at t = {self.st[0]:.6g}: the problem is "
-                f"stiff (h·|λ| ≈ {self.st[12]:.3g} > 6.1 on 15 tests: the step, "
-                f"{self.st[3]:.3g} s, is limited by stability, not accuracy, "
-                f"{gap / self.st[3]:.3g} steps per output interval; {int(self.st[5])} steps so "
+                f"{self.model.id}: dop853 stopped at t = {self.t:.6g}: the problem is "
+                f"stiff (h·|λ| ≈ {float(s['h_lambda'][0]):.3g} > 6.1 on 15 tests: the step, "
+                f"{h_old:.3g} s, is limited by stability, not accuracy, "
+                f"{gap / h_old:.3g} steps per output interval; {self.n_steps} steps so "
                 "far); the system's time "
                 "scales are far apart (huge spring constant or damping?): soften those "
                 "parameters, use a looser tolerance or a lower publish rate, or integrate it "
                 "with a stiff (implicit) method such as scipy's Radau or BDF")
-        if status != 0:
-            raise IntegrationError(f"{self.model.id}: dop853 stopped at t = {self.st[0]:.6g}: "
-                                   f"{STATUS[status]}", ) from None
+        if status != Status.OK:
+            raise self._fail(status) from None
         return Y[:done]
 
     def _handle_event(self, index: int) -> None:
@@ -281,18 +325,15 @@ class FixedStep(Stepper):
 
     def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float) -> None:
         super().__init__(model, y0, t0, tolerance)
-        self.st = np.array([self.t, 0.0, 0.0])  # [t, n_steps, n_force_evaluations]
+        self.state = new_state(FIXED_STATE, self.t)
+        self.comp = np.zeros(self.y.size)
         self.refine = 1
 
-    @property
-    def n_steps(self) -> int:
-        return int(self.st[1])
-
     @abstractmethod
-    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[int, int]:
+    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[Status, int]:
         """Integrate len(Y) output intervals of n_sub steps of h; (status, rows written)."""
 
-    def _recover(self, status: int) -> bool:
+    def _recover(self, status: Status) -> bool:
         return False
 
     def advance(self, t_out: np.ndarray) -> np.ndarray:
@@ -315,14 +356,13 @@ class FixedStep(Stepper):
             if written:
                 # Snap the clock to the requested times so round-off does not accumulate in t.
                 self.t = float(t_out[k + written - 1])
-                self.st[0] = self.t
+                self.state["t"] = self.t
                 self.y = Y[k + written - 1].copy()
-            if status != 0:
+            if status != Status.OK:
                 if self._recover(status):
                     k += written
                     continue
-                raise IntegrationError(f"{self.model.id}: {self.method} stopped near "
-                                       f"t = {self.st[0]:.6g}: {STATUS[status]}")
+                raise self._fail(status)
             k = j
         return Y
 
@@ -338,17 +378,18 @@ class Composition(FixedStep):
         # Error per unit time ~ (h/τ)^order: pick h so that it is about the tolerance.
         self.h_max = step if step is not None else (
             model.time_scale() * 0.07 * self.tolerance ** (1.0 / order))
-        self.a = np.empty(len(model.coordinates))
+        self.a = np.empty(self.kernels.n_q)
+        self.ks = self.kernels.kernel_set("accel_q")
         self.kernels.accel_q(self.t, self.y[: self.a.size], self.p, self.a)
 
     def set_parameters(self, p: np.ndarray) -> None:
         super().set_parameters(p)
         self.kernels.accel_q(self.t, self.y[: self.a.size], self.p, self.a)
 
-    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[int, int]:
-        status, written = self.kernels.composition_advance(
-            self.st, self.y, self.p, len(Y), n_sub, h, self.weights, Y, self.a)
-        return int(status), int(written)
+    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[Status, int]:
+        return loops().composition_advance(  # type: ignore[no-any-return]
+            self.ks, self.state, self.y, self.p, len(Y), n_sub, h, self.weights, Y,
+            self.a, self.comp)
 
 
 class Gauss(FixedStep):
@@ -361,6 +402,7 @@ class Gauss(FixedStep):
         super().__init__(model, y0, t0, tolerance)
         self.h_max = step if step is not None else (
             model.time_scale() * 0.2 * self.tolerance ** (1.0 / 6.0))
+        self.ks = self.kernels.kernel_set("to_momenta", "from_momenta", "canonical_rhs")
         self._canonical()
 
     def _canonical(self) -> None:
@@ -369,26 +411,27 @@ class Gauss(FixedStep):
         self.kernels.to_momenta(self.t, self.y, self.p, self.z)
         f = np.empty_like(self.z)
         self.kernels.canonical_rhs(self.t, self.z, self.p, f)
-        self.K = np.repeat(f[None, :], 3, axis=0)
+        self.K = np.ascontiguousarray(np.repeat(f[None, :], 3, axis=0))
+        self.comp[:] = 0.0
 
     def set_parameters(self, p: np.ndarray) -> None:
         super().set_parameters(p)
         self._canonical()
 
-    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[int, int]:
-        status, written = self.kernels.gauss_advance(
-            self.st, self.z, self.p, len(Y), n_sub, h, Y, self.K)
-        return int(status), int(written)
+    def _block(self, Y: np.ndarray, n_sub: int, h: float) -> tuple[Status, int]:
+        return loops().gauss_advance(  # type: ignore[no-any-return]
+            self.ks, self.state, self.z, self.p, len(Y), n_sub, h, Y, self.K,
+            self.comp)
 
-    def _recover(self, status: int) -> bool:
+    def _recover(self, status: Status) -> bool:
         """Stage iteration did not converge: restart from the last written state with
         fresh stages and halved steps (up to 2¹⁰ times smaller)."""
-        if status != 6:
+        if status != Status.NOT_CONVERGED:
             return False
         if self.refine > 2**10:
             raise IntegrationError(f"{self.model.id}: gauss6 stage equations do not "
                                    f"converge near t = {self.t:.6g}: use dop853")
-        self.st[0] = self.t
+        self.state["t"] = self.t
         self._canonical()
         self.refine *= 2
         return True

@@ -12,11 +12,11 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from types import ModuleType
 from typing import Any, ClassVar
 
 import numpy as np
 
+from mechsim.codegen import Kernels
 from mechsim.params import Parameter, Value, resolve
 
 
@@ -197,8 +197,8 @@ class Model(ABC):
 
     @property
     @abstractmethod
-    def kernels(self) -> ModuleType:
-        """The compiled kernel module (built on first use, cached on disk)."""
+    def kernels(self) -> Kernels:
+        """The compiled kernel functions (built on first use, cached on disk)."""
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         """Generalized coordinates and rates at t = 0. Default: ``initial.<coordinate>`` and
