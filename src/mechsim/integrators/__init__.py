@@ -101,6 +101,30 @@ def loops() -> ModuleType:
     return codegen.load_module("loops", key, lambda: text)
 
 
+def precompile() -> None:
+    """Compile the shared loops for the argument types the steppers pass (once per machine;
+    ``tools/bootstrap.py`` calls this so that the first run of any system only compiles that
+    system's small kernels)."""
+    from numba import typeof
+
+    from mechsim.codegen.contract import KERNEL_SET
+
+    L = loops()
+    v, m2, m3 = np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2, 2))
+    dop, fixed = new_state(DOP853_STATE, 0.0), new_state(FIXED_STATE, 0.0)
+    iv = np.zeros(1, dtype=np.int64)
+    signatures = {
+        L.dop853_initial_step: (KERNEL_SET, 0.0, v, v, v, 0.0, 0.0),
+        L.dop853_advance: (KERNEL_SET, dop, v, v, m2, m2, v, v, m2, 0.0, 0.0, 0.0, 0, v, iv,
+                           v),
+        L.composition_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, v, m2, v, v),
+        L.gauss_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, m2, m2, v),
+        L.evaluate_outputs: (KERNEL_SET, v, m2, v, True, True, True, True, m2, m2, m2, m3),
+    }
+    for loop, args in signatures.items():
+        loop.compile(tuple(a if a is KERNEL_SET else typeof(a) for a in args))
+
+
 class StiffnessError(IntegrationError):
     """DOP853's stiffness test fired (``Status.STIFF``): the state is kept at the last
     accepted step, whose outputs were all written."""
