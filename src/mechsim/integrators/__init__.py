@@ -64,6 +64,7 @@ from mechsim.integrators.model import SteppableModel as Model
 from mechsim.integrators.state import (
     DOP853_STATE,
     FIXED_STATE,
+    RADAU_STATE,
     Status,
     new_state,
 )
@@ -85,7 +86,7 @@ COMPOSITIONS: dict[str, tuple[np.ndarray, int]] = {
     "yoshida6": (_symmetric(_YOSHIDA6), 6),
     "yoshida8": (_symmetric(_YOSHIDA8), 8),
 }
-METHODS = ("auto", "dop853", "gauss6", "exact", *COMPOSITIONS)
+METHODS = ("auto", "dop853", "radau15", "gauss6", "exact", *COMPOSITIONS)
 
 
 @functools.cache
@@ -120,6 +121,8 @@ def precompile() -> None:
         L.composition_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, v, m2, v, v),
         L.gauss_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, m2, m2, v),
         L.evaluate_outputs: (KERNEL_SET, v, m2, v, True, True, True, True, m2, m2, m2, m3),
+        L.radau15_advance: (KERNEL_SET, new_state(RADAU_STATE, 0.0), v, v, v, m2, 0.0, 0, v, m2,
+                            m2, m2, v, v),
     }
     for loop, args in signatures.items():
         loop.compile(tuple(a if a is KERNEL_SET else typeof(a) for a in args))
@@ -147,6 +150,9 @@ def choose_method(model: Model, method: str, closed_form: bool = False) -> str:
         raise ParameterError("method", f"gauss6 needs a conservative unconstrained system "
                              f"without events; {model.id} ({model.formulation}) is not: "
                              "use dop853 or auto")
+    if method == "radau15" and model.events:
+        raise ParameterError("method", f"radau15 does not handle events; {model.id} has "
+                             "events: use dop853 or auto")
     if method in COMPOSITIONS and model.events:
         raise ParameterError("method", f"{method} does not handle events; {model.id} has "
                              "events: use dop853 or auto")
@@ -340,6 +346,66 @@ class DOP853(Stepper):
         self._reset(t, y_new, keep_dense=True)
 
 
+class Radau15(Stepper):
+    """Adaptive 15th-order Gauss–Radau predictor–corrector (the IAS15 scheme) for
+    q̈ = f(t, q, q̇): machine precision over long runs (see ``kernels.radau15_advance``)."""
+
+    method = "radau15"
+    #: The controller keeps ε_b = max|b₆| / max|F| at ε = 0.01 √tolerance, within these bounds:
+    #: the global error of a 15th-order method falls as ε^(15/7), and below 1e-7 it is at
+    #: round-off for every system tested (Kepler e = 0.5: 62 steps an orbit, the end error after
+    #: 100 orbits at the double-precision floor, ~1e-12), so smaller steps would only add
+    #: round-off.
+    eps_range = (1e-7, 1e-4)
+
+    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float,
+                 max_steps: int = 10_000_000) -> None:
+        super().__init__(model, y0, t0, tolerance)
+        m = self.kernels.n_q + 2
+        self.ks = self.kernels.kernel_set("rhs", "project")
+        self.state = new_state(RADAU_STATE, self.t)
+        self.max_steps = int(max_steps)
+        self.eps = min(max(0.01 * math.sqrt(self.tolerance), self.eps_range[0]),
+                       self.eps_range[1])
+        self.b = np.zeros((7, m))
+        self.g = np.zeros((7, m))
+        self.e = np.zeros((7, m))
+        self.F0 = np.zeros(m)
+        self.dy = np.zeros(self.y.size)
+        self.comp = np.zeros(self.y.size)
+        self._restart()
+
+    def _restart(self) -> None:
+        """Fresh expansion and first step at the current state (after new parameters)."""
+        self.kernels.project(self.t, self.y, self.p)
+        self.kernels.rhs(self.t, self.y, self.p, self.dy)
+        h0 = loops().dop853_initial_step(self.ks, self.t, self.y, self.p, self.dy.copy(),
+                                         self.tolerance, self.tolerance)
+        self.state["h"], self.state["h_old"] = h0, 0.0
+        self.state["n_evaluations"] += 2
+        self.b[:] = 0.0
+        self.g[:] = 0.0
+        self.e[:] = 0.0
+        self.comp[:] = 0.0
+
+    def set_parameters(self, p: np.ndarray) -> None:
+        super().set_parameters(p)
+        self._restart()
+
+    def advance(self, t_out: np.ndarray) -> np.ndarray:
+        t_out = np.ascontiguousarray(t_out, dtype=np.float64)
+        if t_out.size and t_out[0] < self.t:
+            raise IntegrationError(f"{self.method}: output time {t_out[0]} is in the past")
+        Y = np.empty((t_out.size, self.y.size))
+        status, written = loops().radau15_advance(
+            self.ks, self.state, self.y, self.p, t_out, Y, self.eps, self.max_steps,
+            self.comp, self.b, self.g, self.e, self.F0, self.dy)
+        self.t = float(self.state["t"][0])
+        if status != Status.OK:
+            raise self._fail(status)
+        return Y[:written]
+
+
 class FixedStep(Stepper):
     """Fixed-step methods: the step is the largest ≤ ``h_max`` dividing each output gap; a
     run of equal gaps goes to the kernel in one call (``_block``). A subclass may recover
@@ -472,4 +538,6 @@ def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
         return Gauss(model, y, t0, tolerance, step=step)
     if chosen == "dop853":
         return DOP853(model, y, t0, tolerance)
+    if chosen == "radau15":
+        return Radau15(model, y, t0, tolerance)
     return Composition(model, y, t0, tolerance, method=chosen, step=step)

@@ -55,9 +55,10 @@ DOP853_STATE = np.dtype(_COMMON + [
 #: Fixed-step methods (compositions, Gauss–Legendre): the counters only.
 FIXED_STATE = np.dtype(_COMMON)
 
-#: Gauss–Radau (IAS15 scheme): next step h, last accepted step h_old (for the predictor), the
-#: predictor–corrector iterations spent.
-RADAU_STATE = np.dtype(_COMMON + [("h", _F), ("h_old", _F), ("n_iterations", _I)])
+#: Gauss–Radau (IAS15 scheme): next step h, last accepted step h_old, the predictor–corrector
+#: iterations spent, and the compensation of t.
+RADAU_STATE = np.dtype(_COMMON + [("h", _F), ("h_old", _F), ("n_iterations", _I),
+                                  ("t_comp", _F)])
 
 
 def new_state(dtype: np.dtype, t: float) -> np.ndarray:
