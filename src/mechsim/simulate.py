@@ -70,6 +70,11 @@ class SimulationResult:
     # Events met on the way, as (time, event name); the discrete mode entries at each sample.
     events: list[tuple[float, str]] = field(default_factory=list)
     modes: np.ndarray | None = None
+    # What the run cost and how good it is: right-hand-side (or force) evaluations, rejected
+    # steps, and the integrator's estimate of the error committed (relative to the state).
+    n_evaluations: int = 0
+    n_rejected: int = 0
+    error_estimate: float = 0.0
 
     @property
     def kinetic(self) -> np.ndarray:
@@ -137,8 +142,9 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
              step: float | None = None, closed_form: bool = False) -> SimulationResult:
     """Integrate ``model`` from its initial state to ``t_end``, sampling every ``output_dt``.
 
-    ``method``: "auto", "dop853", "exact", "yoshida8", "yoshida6" or "verlet" (see
-    mechsim.integrators); ``closed_form=True`` lets "auto" use the exact propagator.
+    ``method``: "auto", "dop853", "radau15", "gauss6", "exact", "yoshida8", "yoshida6" or
+    "verlet" (see mechsim.integrators; ``auto`` knows the horizon ``t_end``);
+    ``closed_form=True`` lets "auto" use the exact propagator.
     ``outputs``: which of energy, invariants, observables, frames to evaluate (energy always
     when asked by the balance). Wall time covers integration and output evaluation.
     """
@@ -148,7 +154,7 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
     stepper: Stepper = make_stepper(model, method, tolerance, step=step,
-                                       closed_form=closed_form)
+                                    closed_form=closed_form, horizon=t_end)
     Y = stepper.advance(t)
     out = evaluate(model, t, Y, stepper.p, outputs)
     wall = time.perf_counter() - start
@@ -158,4 +164,6 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
                             work_dissipated=Y[:, 2 * n + 1], outputs=out, wall_time=wall,
                             n_steps=stepper.n_steps,
                             events=[e for e in stepper.events if e[0] <= t[-1]],
-                            modes=Y[:, 2 * n + 2:])
+                            modes=Y[:, 2 * n + 2:], n_evaluations=stepper.n_evaluations,
+                            n_rejected=stepper.n_rejected,
+                            error_estimate=stepper.error_estimate)

@@ -155,10 +155,26 @@ def _crossed(g0, g1, direction):
     return direction <= 0 and g0 > 0.0 >= g1
 
 
+#: How a step's interior is evaluated for event location: DOP853's dense output (F = its
+#: coefficients) or the Gauss–Radau expansion of radau15 (F = b, with F0 and the compensation).
+DENSE_DOP853 = 0
+DENSE_RADAU = 1
+
+
 @njit(cache=True)
-def _event_at(ks, t, F, y_old, t_old, h, p, ytmp, g, i):
-    """Event function ``i`` on the dense output of the last step at time t (projected)."""
-    _dense_eval(F, y_old, (t - t_old) / h, ytmp)
+def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, out):
+    """The state at t inside the step that started at (t0, y0) with length h (unprojected)."""
+    if mode == DENSE_DOP853:
+        _dense_eval(F, y0, (t - t0) / h, out)
+    else:
+        out[:] = y0
+        _radau_state_at((t - t0) / h, ks.n_q, y0, F0, F, h, comp, out)
+
+
+@njit(cache=True)
+def _event_at(ks, mode, t, F, F0, y0, comp, t0, h, p, ytmp, g, i):
+    """Event function ``i`` at time t inside the last step (state projected)."""
+    _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, ytmp)
     if ks.n_c > 0:
         ks.project(t, ytmp, p)
     ks.event(t, ytmp, p, g)
@@ -166,11 +182,11 @@ def _event_at(ks, t, F, y_old, t_old, h, p, ytmp, g, i):
 
 
 @njit(cache=True)
-def _locate_event(ks, F, y_old, t_old, h, p, i, a, fa, b, fb):
+def _locate_event(ks, mode, F, F0, y0, comp, t0, h, p, i, a, fa, b, fb):
     """Root of event ``i`` bracketed by (a, fa) and (b, fb), fb on the far side of the sign
     change or zero: Illinois false position, bisecting when the bracket shrinks slowly.
     Returns the bracket end on the far side (so the event has happened there)."""
-    ytmp = np.empty(y_old.size)
+    ytmp = np.empty(y0.size)
     g = np.empty(ks.n_ev)
     side = 0
     slow = 0
@@ -186,7 +202,7 @@ def _locate_event(ks, F, y_old, t_old, h, p, i, a, fa, b, fb):
             c = b - fb * (b - a) / (fb - fa)
             if not (a < c < b):
                 c = 0.5 * (a + b)
-        fc = _event_at(ks, c, F, y_old, t_old, h, p, ytmp, g, i)
+        fc = _event_at(ks, mode, c, F, F0, y0, comp, t0, h, p, ytmp, g, i)
         if (fc > 0.0) == (fb > 0.0) or fc == 0.0:
             b = c
             fb = fc
@@ -335,8 +351,8 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
                     if _crossed(g_old[i], g_new[i], ev_dir[i]):
                         if s.dense_ready == 0:
                             _dense_prepare(ks, s, y, y_old, K, F, p)
-                        ti = _locate_event(ks, F, y_old, t, h, p, i, t, g_old[i], t_new,
-                                           g_new[i])
+                        ti = _locate_event(ks, DENSE_DOP853, F, inc, y_old, inc, t, h, p, i,
+                                           t, g_old[i], t_new, g_new[i])
                         if first < 0 or ti < t_ev:
                             first = i
                             t_ev = ti
@@ -622,17 +638,21 @@ def _group_ratio(num, den, lo, hi):
 
 
 @njit(cache=True)
-def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy):
+def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
+                    g_old, ev_dir):
     """Adaptive 15th-order Gauss–Radau predictor–corrector on q̈ = f(t, q, q̇) (the scheme of
     IAS15, Rein & Spiegel 2015, with velocity-dependent forces and the work terms integrated
     alongside as first-order components): within a step the second derivatives are a degree-7
     polynomial in s = (t − t₀)/dt, F(s) = F₀ + Σ_k b_k s^(k+1), collocated at the 7 non-zero
     Gauss–Radau nodes and corrected by fixed-point iteration until the change in b₆ is at
-    round-off; the step adapts so that max|b₆| / max|F| stays at ``eps``
+    round-off; the step adapts so that max|b₆| / max|q̈| stays at ``eps``
     (dt_new = dt (eps / ε_b)^(1/7), a step whose proposal shrinks below a quarter is redone).
     The state and the time are updated with compensated summation. Steps are shortened to
     land on every output time. ``b``, ``g`` (7, N_Q + 2) hold the expansion between calls and
-    ``e`` its prediction, ``F0``/``dy`` are scratch. Returns (status, outputs written)."""
+    ``e`` its prediction, ``F0``/``dy`` are scratch. Events as in ``dop853_advance``, located
+    on the step's expansion (``g_old``: event functions at the current state, ``ev_dir``
+    their directions); on EVENT the state is at the event. Returns (status, outputs
+    written)."""
     s_ = state[0]
     n = ks.n_q
     m = n + 2  # accelerations and the two work rates
@@ -644,6 +664,9 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     dyp = dy.ctypes
     b_start = np.empty((7, m))
     db6 = np.empty(m)
+    n_ev = ks.n_ev
+    y_start = np.empty(ny)
+    comp_start = np.empty(ny)
     n_out = t_out.size
     k = 0
     steps = 0
@@ -703,8 +726,9 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
             for j in range(m):
                 if not math.isfinite(b[6, j]):
                     return Status.NOT_FINITE, k
-            # step size control on the last coefficient, per group (accelerations, rates)
-            err = max(_group_ratio(b[6], dy[n:], 0, n), _group_ratio(b[6], dy[n:], n, m))
+            # step size control on the accelerations' last coefficient (the work rates do
+            # not act back on the motion, and may be round-off around zero)
+            err = _group_ratio(b[6], dy[n:], 0, n)
             if err > 0.0:
                 dt_new = dt * (eps / err) ** (1.0 / 7.0)
             else:
@@ -725,6 +749,9 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
                 continue
             break
         # accept: increments of q, v and the work terms over the step, added compensated
+        if n_ev > 0:
+            y_start[:] = y
+            comp_start[:] = comp
         local = 0.0
         scale = 1.0
         for j in range(m):
@@ -757,6 +784,32 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         if ks.n_c > 0:
             ks.project(s_.t, y, p)
             comp[:] = 0.0
+        if n_ev > 0:
+            g_new = np.empty(n_ev)
+            ks.event(s_.t, y, p, g_new)
+            first = -1
+            t_ev = s_.t
+            for i in range(n_ev):
+                if _crossed(g_old[i], g_new[i], ev_dir[i]):
+                    ti = _locate_event(ks, DENSE_RADAU, b, F0, y_start, comp_start, t0, dt, p,
+                                       i, t0, g_old[i], s_.t, g_new[i])
+                    if first < 0 or ti < t_ev:
+                        first = i
+                        t_ev = ti
+            if first >= 0:
+                if t_ev < s_.t:
+                    _state_in_step(ks, DENSE_RADAU, t_ev, b, F0, y_start, comp_start, t0, dt,
+                                   y)
+                    if ks.n_c > 0:
+                        ks.project(t_ev, y, p)
+                comp[:] = 0.0
+                s_.t = t_ev
+                s_.t_comp = 0.0
+                s_.n_steps += 1
+                s_.last_event = first
+                s_.n_events += 1
+                return Status.EVENT, k
+            g_old[:] = g_new
         s_.error_estimate += local / scale
         steps += 1
         s_.n_steps += 1

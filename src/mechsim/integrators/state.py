@@ -56,9 +56,9 @@ DOP853_STATE = np.dtype(_COMMON + [
 FIXED_STATE = np.dtype(_COMMON)
 
 #: Gauss–Radau (IAS15 scheme): next step h, last accepted step h_old, the predictor–corrector
-#: iterations spent, and the compensation of t.
+#: iterations spent, the compensation of t, event bookkeeping.
 RADAU_STATE = np.dtype(_COMMON + [("h", _F), ("h_old", _F), ("n_iterations", _I),
-                                  ("t_comp", _F)])
+                                  ("t_comp", _F), ("last_event", _I), ("n_events", _I)])
 
 
 def new_state(dtype: np.dtype, t: float) -> np.ndarray:
