@@ -13,6 +13,8 @@ from mechsim.integrators import Stepper, loops, make_stepper
 from mechsim.systems.base import Model
 
 OUTPUTS = ("energy", "invariants", "observables", "frames")
+_NONE2 = np.zeros((0, 1))
+_NONE3 = np.zeros((0, 1, 7))
 
 
 @dataclass
@@ -31,10 +33,11 @@ def evaluate(model: Model, t: np.ndarray, Y: np.ndarray, p: np.ndarray,
              which: tuple[str, ...] = OUTPUTS) -> Outputs:
     """Compute the requested outputs at the given states (nothing else is computed)."""
     m = t.size
-    E = np.zeros((m, 3))
-    inv = np.zeros((m, max(len(model.invariants), 1)))
-    obs = np.zeros((m, max(len(model.observables), 1)))
-    fr = np.zeros((m, max(len(model.frames), 1), 7))
+    # Outputs not asked for are neither allocated nor computed (empty stand-ins).
+    E = np.zeros((m, 3)) if "energy" in which else _NONE2
+    inv = np.zeros((m, max(len(model.invariants), 1))) if "invariants" in which else _NONE2
+    obs = np.zeros((m, max(len(model.observables), 1))) if "observables" in which else _NONE2
+    fr = np.zeros((m, max(len(model.frames), 1), 7)) if "frames" in which else _NONE3
     loops().evaluate_outputs(model.kernels.kernel_set(*which), np.ascontiguousarray(t),
                              np.ascontiguousarray(Y), p, "energy" in which,
                              "invariants" in which, "observables" in which, "frames" in which,

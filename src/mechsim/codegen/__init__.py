@@ -169,6 +169,7 @@ class Kernels:
             setattr(self, s.lower(), value)
         self._compiled: dict[str, Any] = {}
         self._sets: dict[frozenset[str], KernelSet] = {}
+        self._by_request: dict[tuple[str, ...], KernelSet] = {}
 
     def _compile(self, name: str) -> Any:
         """The loop-callable form of kernel function ``name`` (compiled now if need be)."""
@@ -185,6 +186,13 @@ class Kernels:
     def kernel_set(self, *needed: str) -> KernelSet:
         """A kernel set in which at least the functions ``needed`` are the model's own
         (compiled on first need; the others may be no-ops): what a loop gets."""
+        known = self._by_request.get(needed)
+        if known is not None:
+            return known
+        self._by_request[needed] = ks = self._kernel_set(needed)
+        return ks
+
+    def _kernel_set(self, needed: tuple[str, ...]) -> KernelSet:
         wanted = frozenset(n for n in needed if n in self._functions)
         for have, ks in self._sets.items():
             if wanted <= have:

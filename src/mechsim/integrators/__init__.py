@@ -117,13 +117,14 @@ def precompile() -> None:
     iv = np.zeros(1, dtype=np.int64)
     signatures = {
         L.dop853_initial_step: (KERNEL_SET, 0.0, v, v, v, 0.0, 0.0),
+        L.dop853_restart: (KERNEL_SET, dop, v, v, m2, 0.0, 0.0, v, False),
         L.dop853_advance: (KERNEL_SET, dop, v, v, m2, m2, v, v, m2, 0.0, 0.0, 0.0, 0, v, iv,
                            v),
         L.composition_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, v, m2, v, v),
         L.gauss_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, m2, m2, v),
         L.evaluate_outputs: (KERNEL_SET, v, m2, v, True, True, True, True, m2, m2, m2, m3),
         L.radau15_advance: (KERNEL_SET, new_state(RADAU_STATE, 0.0), v, v, v, m2, 0.0, 0, v, m2,
-                            m2, m2, v, v, v, iv),
+                            m2, m2, v, v, v, iv, 0.0),
     }
     for loop, args in signatures.items():
         loop.compile(tuple(a if a is KERNEL_SET else typeof(a) for a in args))
@@ -316,21 +317,11 @@ class DOP853(Stepper):
         """Start afresh at (t, y); step, rejection, evaluation and event counters are kept.
         ``keep_dense``: the last step's dense output still serves outputs before t (after an
         event at t, for output times a later ``advance`` asks for)."""
-        k = self.kernels
         self.y[:] = y
-        k.project(t, self.y, self.p)
-        k.rhs(t, self.y, self.p, self.K[12])
-        h0 = loops().dop853_initial_step(self.ks, t, self.y, self.p, self.K[12].copy(),
-                                         self.rtol, self.atol)
-        s = self.state
-        s["t"], s["h"] = t, h0
-        if not keep_dense:
-            s["t_old"], s["h_old"], s["dense_ready"] = t, 0.0, 0
-        s["last_event"], s["stiff_positive"], s["stiff_negative"], s["h_lambda"] = -1, 0, 0, 0.0
-        s["n_evaluations"] += 2
+        self.state["t"] = t
         self.comp[:] = 0.0
-        if self.model.events:
-            k.event(t, self.y, self.p, self.g_old)
+        loops().dop853_restart(self.ks, self.state, self.y, self.p, self.K, self.rtol,
+                               self.atol, self.g_old, keep_dense)
 
     def set_parameters(self, p: np.ndarray) -> None:
         super().set_parameters(p)
@@ -395,6 +386,7 @@ class Radau15(Stepper):
         self.state = new_state(RADAU_STATE, self.t)
         self.ev_dir = np.array([e.direction for e in model.events] or [0], dtype=np.int64)
         self.g_old = np.zeros(self.ev_dir.size)
+        self.tau = float(model.time_scale())
         self.max_steps = int(max_steps)
         self.eps = min(max(0.01 * math.sqrt(self.tolerance), self.eps_range[0]),
                        self.eps_range[1])
@@ -443,7 +435,7 @@ class Radau15(Stepper):
             status, written = advance(
                 self.ks, self.state, self.y, self.p, t_out[done:], Y[done:], self.eps,
                 self.max_steps, self.comp, self.b, self.g, self.e, self.F0, self.dy,
-                self.g_old, self.ev_dir)
+                self.g_old, self.ev_dir, self.tau)
             done += written
             self.t = float(self.state["t"][0])
             if status != Status.EVENT:

@@ -103,6 +103,31 @@ def dop853_initial_step(ks, t, y, p, f0, rtol, atol):
 
 
 @njit(cache=True)
+def dop853_restart(ks, state, y, p, K, rtol, atol, g_old, keep_dense):
+    """Start (or restart after an event) at the state's time and y: project y, f(t, y) into
+    K[12] (the next step's first stage), the first step, the event functions into g_old; the
+    step, rejection, evaluation and event counters are kept. ``keep_dense``: the last step's
+    dense output still serves outputs before t."""
+    s = state[0]
+    t = s.t
+    if ks.n_c > 0:
+        ks.project(t, y, p)
+    ks.rhs(t, y.ctypes, p.ctypes, K[12].ctypes)
+    s.h = dop853_initial_step(ks, t, y, p, K[12].copy(), rtol, atol)
+    if not keep_dense:
+        s.t_old = t
+        s.h_old = 0.0
+        s.dense_ready = 0
+    s.last_event = -1
+    s.stiff_positive = 0
+    s.stiff_negative = 0
+    s.h_lambda = 0.0
+    s.n_evaluations += 2
+    if ks.n_ev > 0:
+        ks.event(t, y, p, g_old)
+
+
+@njit(cache=True)
 def _dense_eval(F, y_old, x, out):
     n = y_old.size
     for i in range(n):
@@ -627,26 +652,18 @@ def _kahan(x, comp, i, inc):
 
 
 @njit(cache=True)
-def _group_ratio(num, den, lo, hi):
-    """max |num| / max |den| over components lo … hi−1 (0 where den is 0)."""
-    a = 0.0
-    d = 0.0
-    for j in range(lo, hi):
-        a = max(a, abs(num[j]))
-        d = max(d, abs(den[j]))
-    return a / d if d > 0.0 else 0.0
-
-
-@njit(cache=True)
 def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
-                    g_old, ev_dir):
+                    g_old, ev_dir, tau):
     """Adaptive 15th-order Gauss–Radau predictor–corrector on q̈ = f(t, q, q̇) (the scheme of
     IAS15, Rein & Spiegel 2015, with velocity-dependent forces and the work terms integrated
     alongside as first-order components): within a step the second derivatives are a degree-7
     polynomial in s = (t − t₀)/dt, F(s) = F₀ + Σ_k b_k s^(k+1), collocated at the 7 non-zero
     Gauss–Radau nodes and corrected by fixed-point iteration until the change in b₆ is at
     round-off; the step adapts so that max|b₆| / max|q̈| stays at ``eps``
-    (dt_new = dt (eps / ε_b)^(1/7), a step whose proposal shrinks below a quarter is redone).
+    (dt_new = dt (eps / ε_b)^(1/7), a step whose proposal shrinks below a quarter is redone;
+    so is one whose iteration does not converge). Near an equilibrium q̈ is round-off and so
+    is b₆: the acceleration scale is then the model's own, max|q|/τ² + max|q̇|/τ (τ: its time
+    scale ``tau``), so that noise does not drive the step to zero.
     The state and the time are updated with compensated summation. Steps are shortened to
     land on every output time. ``b``, ``g`` (7, N_Q + 2) hold the expansion between calls and
     ``e`` its prediction, ``F0``/``dy`` are scratch. Events as in ``dop853_advance``, located
@@ -692,9 +709,13 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         for j in range(m):
             F0[j] = dy[n + j]
         b_start[:, :] = b
+        natural = 0.0
+        for j in range(n):
+            natural = max(natural, abs(y[j]) / (tau * tau) + abs(y[n + j]) / tau)
         while True:
             # predictor–corrector iteration
             previous = math.inf
+            converged = False
             for it in range(12):
                 for i in range(ny):
                     ys[i] = y[i]
@@ -721,6 +742,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
                     scale = max(scale, abs(dy[n + j]))
                 pc = change / scale if scale > 0.0 else 0.0
                 if pc < 1e-16 or (it >= 2 and pc >= previous):
+                    converged = pc < 1e-13  # at round-off, or stagnating there
                     break
                 previous = pc
             for j in range(m):
@@ -728,12 +750,19 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
                     return Status.NOT_FINITE, k
             # step size control on the accelerations' last coefficient (the work rates do
             # not act back on the motion, and may be round-off around zero)
-            err = _group_ratio(b[6], dy[n:], 0, n)
+            big_b6 = 0.0
+            big_a = natural
+            for j in range(n):
+                big_b6 = max(big_b6, abs(b[6, j]))
+                big_a = max(big_a, abs(dy[n + j]))
+            err = big_b6 / big_a if big_a > 0.0 else 0.0
             if err > 0.0:
                 dt_new = dt * (eps / err) ** (1.0 / 7.0)
             else:
                 dt_new = 4.0 * dt
-            if dt_new < 0.25 * dt:
+            if not converged:
+                dt_new = min(dt_new, 0.25 * dt)
+            if dt_new < 0.25 * dt or not converged:
                 # rejected: the prediction the step started from, for the shorter step
                 s_.n_rejected += 1
                 q = dt_new / dt

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -259,7 +260,7 @@ class QuaternionRigidBody(DirectModel):
         return tuple(Quantity(f"quaternion_{c}", "", f"attitude quaternion {c} (world_R_body)")
                      for c in self.QUATERNION)
 
-    @property
+    @cached_property
     def structure(self) -> Structure:
         d = self.rigid_data()
         return Structure(separable=False, n_constraints=1, driven=any(d.torque))
@@ -268,14 +269,14 @@ class QuaternionRigidBody(DirectModel):
     def invariants(self) -> tuple[Quantity, ...]:
         return (Quantity("constraint_unit_norm", "", "|q| − 1"),)
 
-    def parameter_vector(self) -> np.ndarray:
+    def _make_parameter_vector(self) -> np.ndarray:
         d = self.rigid_data()
         if len(d.extra) > RB_N_EXTRA:
             raise ValueError(f"{type(self).__name__}: at most {RB_N_EXTRA} extra numbers")
         block = np.zeros(RB_SIZE)
         block[:RB_EXTRA] = [*d.moments, *d.torque, *d.center_of_mass, d.weight]
         block[RB_EXTRA:RB_EXTRA + len(d.extra)] = d.extra
-        return np.concatenate([block, super().parameter_vector()])
+        return np.concatenate([block, super()._make_parameter_vector()])
 
     def parameter_offset(self) -> int:
         return RB_SIZE

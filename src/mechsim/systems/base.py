@@ -274,16 +274,26 @@ class Model(ABC):
         """A characteristic time (e.g. small-oscillation period), for step-size choices."""
         return 1.0
 
+    # A model's parameters never change (``with_values`` makes a new model), so what follows
+    # from them is computed once per model; callers get copies they may modify.
     def parameter_vector(self) -> np.ndarray:
         """Numeric parameters in kernel order (all numeric parameters, in spec order)."""
+        if "_parameter_vector" not in self.__dict__:
+            self.__dict__["_parameter_vector"] = self._make_parameter_vector()
+        return self.__dict__["_parameter_vector"].copy()  # type: ignore[no-any-return]
+
+    def _make_parameter_vector(self) -> np.ndarray:
         return np.array([float(self.values[p.name]) for p in self.parameter_spec()  # type: ignore[arg-type]
                          if p.is_numeric], dtype=np.float64)
 
     def initial_y(self) -> np.ndarray:
-        q0, v0 = self.initial_state()
-        y0 = np.concatenate([q0, v0, [0.0, 0.0], self.initial_modes()]).astype(np.float64)
-        self.kernels.project(0.0, y0, self.parameter_vector())
-        return y0
+        """The initial state (projected onto the constraints)."""
+        if "_initial_y" not in self.__dict__:
+            q0, v0 = self.initial_state()
+            y0 = np.concatenate([q0, v0, [0.0, 0.0], self.initial_modes()]).astype(np.float64)
+            self.kernels.project(0.0, y0, self.parameter_vector())
+            self.__dict__["_initial_y"] = y0
+        return self.__dict__["_initial_y"].copy()  # type: ignore[no-any-return]
 
     def describe(self) -> dict[str, Any]:
         return {

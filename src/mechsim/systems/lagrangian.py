@@ -165,29 +165,29 @@ class LagrangianModel(Model):
         self.declare(b)
         return b
 
-    @property
+    @cached_property
     def coordinates(self) -> tuple[Quantity, ...]:
         return tuple(self.declaration.coords)
 
-    @property
+    @cached_property
     def invariants(self) -> tuple[Quantity, ...]:
         d = self.declaration
         return tuple(q for q, _ in d.invariants) + tuple(
             Quantity(f"constraint_{name}", "") for name, _ in d.constraints)
 
-    @property
+    @cached_property
     def observables(self) -> tuple[Quantity, ...]:
         return tuple(q for q, _ in self.declaration.observables)
 
-    @property
+    @cached_property
     def frames(self) -> tuple[FrameSpec, ...]:
         return tuple(f.spec for f in self.declaration.frames)
 
-    @property
+    @cached_property
     def events(self) -> tuple[Event, ...]:
         return tuple(e for e, _ in self.declaration.events)
 
-    @property
+    @cached_property
     def modes(self) -> tuple[Quantity, ...]:
         return tuple(self.declaration.modes)
 
