@@ -111,3 +111,17 @@ def test_brouwer_law() -> None:
     slope = np.polyfit(np.log(T), np.log(rms), 1)[0]
     assert 0.3 < slope < 0.75, (slope, rms[[0, -1]])
     assert rms[-1] < 5e-14  # a few ulps of E after ~10⁵ steps
+
+
+def test_events_located_on_the_expansion() -> None:
+    """A bead released at rest near the top of a sphere leaves it where cos θ = (2/3) cos θ₀
+    (energy conservation and N = 0); radau15 finds the event there and continues in flight."""
+    th0 = 0.3
+    m = mechsim.load_system("sphere_slide", formulation="polar",
+                            **{"initial.angle": th0, "initial_rate.angle": 0.0})
+    st = make_stepper(m, "radau15", 1e-12)
+    st.advance(np.array([3.0]))
+    assert [name for _, name in st.events] == ["departure"]
+    t_ev = st.events[0][0]
+    y = make_stepper(m, "radau15", 1e-12).advance(np.array([t_ev]))[0]
+    assert abs(math.cos(y[1]) - 2 * math.cos(th0) / 3) < 1e-10

@@ -8,9 +8,18 @@ holds their state (named records, ``state.py``) and reports what a run cost: ``n
 ``n_evaluations`` (right-hand-side or force calls), ``n_rejected`` and ``error_estimate`` (the
 sum of the local error estimates, relative to the state scale).
 
+The tolerance bounds the error at the end of a run of ten time scales, relative to the
+state's scale (tests/test_tolerance.py checks it for every system): every method sizes its
+steps from it — the adaptive ones step by step, the fixed-step ones from an error estimate at
+the start, checked along the run.
+
 Methods:
-- ``dop853``: adaptive explicit Runge-Kutta 8(5,3), dense output, constraint projection after
-  every step (keeps constraint residuals at round-off). Works for every model.
+- ``dop853``: adaptive explicit Runge-Kutta 8(5,3), dense output, events, constraint
+  projection after every step (keeps constraint residuals at round-off). Works for every
+  model; its local tolerance is a thousandth of the tolerance (errors add up over a run).
+- ``radau15``: adaptive 15th-order Gauss–Radau predictor–corrector (the IAS15 scheme,
+  generalised to velocity-dependent forces), events, projection: the end error stays at the
+  round-off floor over long runs (energy error growing like √N). Works for every model.
 - ``yoshida8`` / ``yoshida6`` / ``verlet``: symmetric compositions of velocity Verlet (orders
   8, 6, 2), symplectic and time-reversible, for separable Hamiltonians (bounded energy error).
 - ``gauss6``: three-stage Gauss–Legendre collocation (order 6), symplectic, on Hamilton's
@@ -21,9 +30,10 @@ Methods:
 - ``exact``: closed-form propagation (``Model.propagate``) where the model has one for its
   parameters (harmonic, damped and driven oscillators, planar and coupled oscillators, Kepler
   via Kepler's equation): exact to round-off at any output times, no steps.
-- ``auto``: ``yoshida8`` for separable models, ``gauss6`` for other conservative
-  unconstrained ones, else ``dop853`` (always for constraints, events, dissipation, drive or
-  explicit time dependence); with ``closed_form=True``, ``exact`` wherever the model has it.
+- ``auto`` (``choose_method``, ``make_stepper``): only methods that meet the tolerance, the
+  fastest first: ``dop853``; ``radau15`` (without dissipation) below 1e-10 or beyond 100 time
+  scales, and where a probe shows DOP853's error outgrowing the tolerance (chaotic motion); with
+  ``closed_form=True``, ``exact`` wherever the model has it.
 
 Stiffness (``dop853``): Hairer's stiffness test runs inside the loop (see ``kernels.py``); when
 it fires and the stability-limited step is also crawling — more than ``stiff_steps_per_output``
@@ -32,7 +42,7 @@ naming the system, with what to change) instead of crawling on. A stiff but chea
 damped system settled at rest, big steps) goes on. The test only reads the state: it never
 changes a non-stiff run.
 
-Events (``dop853`` only). A model may declare state events (``Model.events``, each an
+Events (``dop853``, ``radau15``). A model may declare state events (``Model.events``, each an
 ``Event(name, direction)``), computed by the kernel function ``event(t, y, p, out)``, and
 discrete modes (``Model.modes``), extra state entries after the work terms that stay constant
 between events. The kernel checks the event functions after every accepted step, locates the
@@ -146,8 +156,9 @@ def choose_method(model: Model, method: str, closed_form: bool = False,
                   tolerance: float = 1e-10, horizon: float | None = None) -> str:
     """The method a stepper will use. ``auto`` chooses only among methods that meet the
     tolerance over the horizon (the adaptive ones: their steps follow the tolerance), the
-    fastest first: ``exact`` with ``closed_form``, else DOP853, or radau15 at tolerances below
-    ``AUTO_RADAU_TOLERANCE`` or horizons beyond ``LONG_HORIZON`` time scales; ``make_stepper``
+    fastest first: ``exact`` with ``closed_form``, else DOP853, or (without dissipation)
+    radau15 at tolerances below ``AUTO_RADAU_TOLERANCE`` or horizons beyond ``LONG_HORIZON``
+    time scales; ``make_stepper``
     also takes radau15 where a probe shows DOP853's error outgrowing the tolerance (chaotic
     motion). The fixed-step symplectic methods are for whoever asks for their energy
     behaviour by name."""
@@ -160,6 +171,10 @@ def choose_method(model: Model, method: str, closed_form: bool = False,
             raise ParameterError("method", f"exact: {model.id} ({model.formulation}) has no "
                                  "closed form for these parameters: use auto or dop853")
     if method == "auto":
+        if model.structure.dissipative:
+            # Errors decay with the motion, and damping can make the equations stiff, where
+            # DOP853 notices and radau15's fixed-point iteration would crawl.
+            return "dop853"
         long = horizon is not None and horizon > LONG_HORIZON * model.time_scale()
         return "radau15" if tolerance < AUTO_RADAU_TOLERANCE or long else "dop853"
     if method == "gauss6" and not model.has_canonical_form():
@@ -720,8 +735,8 @@ def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
     of sizing it from the tolerance)."""
     chosen = choose_method(model, method, closed_form, tolerance, horizon)
     y = model.initial_y() if y0 is None else y0
-    if method == "auto" and chosen == "dop853" and not _dop853_meets(model, y, t0, tolerance,
-                                                                     horizon, y0 is None):
+    if (method == "auto" and chosen == "dop853" and not model.structure.dissipative
+            and not _dop853_meets(model, y, t0, tolerance, horizon, y0 is None)):
         # Errors amplified by the motion: radau15 at its finest (round-off) setting.
         stepper = Radau15(model, y, t0, tolerance)
         stepper.eps = Radau15.eps_range[0]
