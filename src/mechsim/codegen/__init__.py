@@ -5,8 +5,9 @@ stamp only: a change in anything else the compiled code depends on (a helper in 
 module, the code generator, numba itself) would not be noticed. So every compiled module
 is written here as a file whose name is a hash of *all* its inputs — for a model, what its
 kernel source is made from (the declaration, the parameter index map, the generator and its
-version; see ``build``), for the loops their source and every module they read — plus the
-runtime they run against (``support.py``, ``contract.py``, the numba version). A new input
+version; see ``build``), for the loops their source and every module they read — plus what
+writes them and what they run against (this package's sources, the numba and Python
+versions: ``RUNTIME``). A new input
 gives a new file and a fresh compilation; an unchanged one is imported and loaded from
 numba's cache without deriving or compiling anything.
 
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import importlib.metadata
 import importlib.util
 import os
 import sys
@@ -33,21 +35,17 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numba
-from numba import cfunc
+from mechsim.codegen.names import FUNCTIONS, HOT, SIZES
 
-from mechsim.codegen import contract, support
-from mechsim.codegen.contract import (
-    FUNCTIONS,
-    HOT,
-    POINTER_SIGNATURE,
-    SIGNATURES,
-    SIZES,
-    KernelSet,
-    make_kernel_set,
-)
+if TYPE_CHECKING:
+    from mechsim.codegen.contract import KernelSet
+
+__all__ = ["FUNCTIONS", "HOT", "SIZES", "Kernels", "KernelSource", "build", "cache_clear",
+           "cache_dir", "cache_info", "decorator", "fingerprint", "load_module",
+           "source_fingerprint", "write_atomic"]
+
 
 #: At most this many generated modules are kept; the least recently used go first.
 MAX_MODULES = 400
@@ -91,18 +89,20 @@ def fingerprint(*parts: object) -> str:
     return hashlib.sha256(repr(parts).encode()).hexdigest()[:16]
 
 
-def source_fingerprint(modules: Iterable[ModuleType]) -> str:
-    """Hash of the source text of ``modules``."""
+def source_fingerprint(modules: Iterable[ModuleType | Path]) -> str:
+    """Hash of the source text of ``modules`` (module objects or source paths)."""
     texts = []
     for m in modules:
-        path = getattr(m, "__file__", None)
-        texts.append(Path(path).read_text() if path else m.__name__)
+        path = m if isinstance(m, Path) else getattr(m, "__file__", None)
+        texts.append(Path(path).read_text() if path else getattr(m, "__name__", str(m)))
     return fingerprint(*texts)
 
 
-#: What every generated module runs against: a change here invalidates all of them.
-RUNTIME = fingerprint(source_fingerprint([contract, support]), numba.__version__,
-                      sys.version_info[:2])
+#: What every generated module is written by and runs against (this package's sources, read
+#: from the files so that importing it does not import numba, and the numba and Python
+#: versions): a change here invalidates all of them.
+RUNTIME = fingerprint(source_fingerprint(sorted(Path(__file__).parent.glob("*.py"))),
+                      importlib.metadata.version("numba"), sys.version_info[:2])
 
 
 def decorator(name: str) -> str:
@@ -159,6 +159,8 @@ class Kernels:
     compiled record of both that the shared integrator loops take."""
 
     def __init__(self, name: str, module: ModuleType) -> None:
+        from mechsim.codegen import contract
+
         self.name = name
         self.module = module
         self._functions: dict[str, Any] = dict(module.KERNELS)
@@ -173,6 +175,10 @@ class Kernels:
 
     def _compile(self, name: str) -> Any:
         """The loop-callable form of kernel function ``name`` (compiled now if need be)."""
+        from numba import cfunc
+
+        from mechsim.codegen.contract import POINTER_SIGNATURE, SIGNATURES
+
         if name not in self._compiled:
             if name in HOT:
                 wrapper = self.module.POINTER_KERNELS[name]
@@ -193,6 +199,8 @@ class Kernels:
         return ks
 
     def _kernel_set(self, needed: tuple[str, ...]) -> KernelSet:
+        from mechsim.codegen.contract import make_kernel_set
+
         wanted = frozenset(n for n in needed if n in self._functions)
         for have, ks in self._sets.items():
             if wanted <= have:

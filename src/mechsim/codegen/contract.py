@@ -44,6 +44,8 @@ from numba import cfunc, njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 
+from mechsim.codegen.names import FUNCTIONS, HOT, SIZES
+
 # First-class function values are what keeps the loops generic and compiled; numba labels the
 # feature experimental, which is not news to the user at every compilation.
 warnings.filterwarnings("ignore", category=NumbaExperimentalFeatureWarning)
@@ -66,10 +68,9 @@ SIGNATURES: dict[str, types.Signature] = {
     "from_momenta": types.none(F8, VEC, VEC, VEC),
     "canonical_rhs": types.none(F8, VEC, VEC, VEC),
 }
-FUNCTIONS = tuple(SIGNATURES)
-#: Called from the loops through raw pointers: (t, y, p, out) as (float64, double*, double*,
-#: double*), sizes fixed by the model (``codegen.KernelSource`` writes the wrappers).
-HOT = ("rhs", "canonical_rhs")
+assert tuple(SIGNATURES) == FUNCTIONS
+#: How the ``HOT`` functions are called from the loops: (t, y, p, out) as (float64, double*,
+#: double*, double*), sizes fixed by the model (``codegen.KernelSource`` writes the wrappers).
 POINTER_SIGNATURE = types.none(F8, types.CPointer(F8), types.CPointer(F8), types.CPointer(F8))
 #: Argument names of each kernel function (for generated source).
 ARGUMENTS: dict[str, str] = {
@@ -78,10 +79,6 @@ ARGUMENTS: dict[str, str] = {
     "frames": "t, y, p, out", "event": "t, y, p, out", "to_momenta": "t, y, p, z",
     "from_momenta": "t, z, p, y", "canonical_rhs": "t, z, p, dz",
 }
-#: The model's sizes, as module constants of a kernel module (upper case) and fields of the
-#: kernel set (lower case): coordinates, state entries (2 N_Q + 2 + N_MODE), constraints,
-#: invariants, observables, frames, events, discrete modes, parameters.
-SIZES = ("N_Q", "N_Y", "N_C", "N_INV", "N_OBS", "N_FRAMES", "N_EV", "N_MODE", "N_P")
 
 
 @njit(SIGNATURES["project"], cache=True)

@@ -12,12 +12,14 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from mechsim.codegen import Kernels
 from mechsim.params import Parameter, Value, resolve
+
+if TYPE_CHECKING:
+    from mechsim.codegen import Kernels
 
 
 @dataclass(frozen=True)

@@ -83,7 +83,7 @@ class DirectModel(Model):
             src = textwrap.dedent(inspect.getsource(f))
             parts.append(f"{codegen.decorator(f.__name__)}\n{src}")
         given = tuple(f.__name__ for f in self.kernel_functions
-                      if f.__name__ in codegen.contract.FUNCTIONS)
+                      if f.__name__ in codegen.FUNCTIONS)
         tag = self.formulation if len(self.formulations) > 1 else "direct"
         return codegen.KernelSource(name=f"{self.id}_{tag}", constants=constants,
                                     body="\n\n".join(parts), functions=given)

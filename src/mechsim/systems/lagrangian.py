@@ -30,7 +30,7 @@ import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
-from mechsim.codegen.contract import FUNCTIONS
+from mechsim.codegen import FUNCTIONS
 from mechsim.systems.base import Event, FrameSpec, Law, Model, Quantity, Structure
 
 Expr = sp.Expr
