@@ -61,10 +61,10 @@ def test_resumable_in_pieces_and_after_a_parameter_change() -> None:
 
 def test_auto_uses_closed_form_only_when_allowed() -> None:
     model = mechsim.load_system("harmonic_oscillator")
-    assert mechsim.simulate(model, 1.0, 0.1).method == "yoshida8"
+    assert mechsim.simulate(model, 1.0, 0.1).method == "dop853"
     assert mechsim.simulate(model, 1.0, 0.1, closed_form=True).method == "exact"
     pend = mechsim.load_system("pendulum")
-    assert mechsim.simulate(pend, 1.0, 0.1, closed_form=True).method == "yoshida8"
+    assert mechsim.simulate(pend, 1.0, 0.1, closed_form=True).method == "dop853"
     with pytest.raises(mechsim.ParameterError, match="exact: pendulum .* no closed form"):
         mechsim.simulate(pend, 1.0, 0.1, method="exact")
     polar = mechsim.load_system("planar_oscillator", formulation="polar")

@@ -1,6 +1,6 @@
 """Gauss–Legendre (order 6) on Hamilton's equations generated from the Lagrangian: order of
 convergence, bounded energy error where DOP853 drifts, step halving when the stage iteration
-does not converge, and which systems `auto` gives it to."""
+does not converge, and where it does not apply."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mechsim
-from mechsim.integrators import choose_method, make_stepper
+from mechsim.integrators import make_stepper
 
 
 def test_sixth_order_convergence() -> None:
@@ -58,18 +58,6 @@ def test_step_halving_when_stage_iteration_fails() -> None:
         energies.append(e[0] + e[1])
     # Convergence, not accuracy, drives the subdivision: a long step is still a long step.
     assert np.max(np.abs(np.array(energies) - energies[0])) < 0.1 * abs(energies[0])
-
-
-@pytest.mark.parametrize("system, params, expected", [
-    ("double_pendulum", {}, "gauss6"),
-    ("charged_particle", {}, "gauss6"),
-    ("pendulum", {}, "yoshida8"),
-    ("pendulum", {"formulation": "multiplier"}, "dop853"),
-    ("rotating_spring", {}, "dop853"),   # the motor works: E is not conserved
-    ("driven_oscillator", {}, "dop853"),
-])
-def test_auto_choice(system: str, params: dict, expected: str) -> None:
-    assert choose_method(mechsim.load_system(system, **params), "auto") == expected
 
 
 def test_refused_where_not_applicable() -> None:

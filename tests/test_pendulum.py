@@ -75,7 +75,8 @@ def test_formulations_agree() -> None:
 
 
 def test_long_run_energy_drift_default_settings() -> None:
-    """10⁴ periods at default settings: relative energy error ≤ 1e-10 (symplectic: bounded)."""
+    """10⁴ periods at default settings (auto: radau15 over so long a horizon): relative energy
+    error ≤ 1e-10, and no secular growth above round-off."""
     m = mechsim.load_system("pendulum")
     period = _period_mpmath(1.0) * math.sqrt(G / 9.81) * math.sqrt(1.0 / R)  # R = 1, g = 9.81
     run = mechsim.simulate(m, 1e4 * period, period / 3, outputs=("energy",))
@@ -84,7 +85,7 @@ def test_long_run_energy_drift_default_settings() -> None:
     assert drift.max() <= 1e-10
     # No secular growth: the last tenth is no worse than 3x the first tenth.
     n = len(E) // 10
-    assert drift[-n:].max() <= 3 * max(drift[:n].max(), 1e-14)
+    assert drift[-n:].max() <= 3 * max(drift[:n].max(), 1e-13)
 
 
 def test_rejects_bad_parameters() -> None:

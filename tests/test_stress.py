@@ -141,4 +141,4 @@ def test_non_stiff_runs_never_trip() -> None:
                     {"eccentricity": 0.9}), ("double_pendulum", {})]:
         st = make_stepper(mechsim.load_system(sid, **kw), "dop853")
         st.advance(np.linspace(0.01, 50.0, 5000))
-        assert st.st[10] < 15
+        assert st.state["stiff_positive"][0] < 15

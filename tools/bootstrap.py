@@ -9,7 +9,9 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
              .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
 4. project   pip install -e . --no-deps --no-build-isolation;
 5. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
-             src/mechsim_msgs into the venv (build trees under .cache/build/).
+             src/mechsim_msgs into the venv (build trees under .cache/build/);
+6. loops     compile mechsim's shared integrator loops (numba, once per machine, ~15 s of
+             CPU) so that the first run of a system only compiles that system's kernels.
 
 Usage: python3 tools/bootstrap.py [--force]. Logs go to .cache/bootstrap/<step>.log.
 """
@@ -194,6 +196,19 @@ def step_project() -> None:
                            "--no-build-isolation", "-e", str(ROOT)])
 
 
+def step_loops() -> None:
+    say("compiling the shared integrator loops (numba, ~15 s)")
+    run_logged("loops", [str(VENV_PY), "-c",
+                         "import mechsim.integrators as i; i.precompile()"])
+
+
+#: What the compiled loops are made from (their cache key inside mechsim covers the same).
+LOOP_SOURCES = ("src/mechsim/integrators/kernels.py", "src/mechsim/integrators/state.py",
+                "src/mechsim/integrators/dop853_tableau.py", "src/mechsim/integrators/__init__.py",
+                "src/mechsim/codegen/__init__.py", "src/mechsim/codegen/contract.py",
+                "src/mechsim/codegen/support.py")
+
+
 def step_interface(pkg: str) -> None:
     say(f"building {pkg} (cmake, ~10 s)")
     src = ROOT / "src" / pkg
@@ -263,6 +278,7 @@ def plan() -> list[tuple[str, str, Callable[[], None]]]:
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
+    steps.append(("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops))
     return steps
 
 

@@ -9,10 +9,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mechsim.errors import ParameterError
-from mechsim.integrators import Stepper, make_stepper
+from mechsim.integrators import Stepper, loops, make_stepper
 from mechsim.systems.base import Law, Model
 
 OUTPUTS = ("energy", "invariants", "observables", "frames")
+_NONE2 = np.zeros((0, 1))
+_NONE3 = np.zeros((0, 1, 7))
 
 
 @dataclass
@@ -31,13 +33,15 @@ def evaluate(model: Model, t: np.ndarray, Y: np.ndarray, p: np.ndarray,
              which: tuple[str, ...] = OUTPUTS) -> Outputs:
     """Compute the requested outputs at the given states (nothing else is computed)."""
     m = t.size
-    E = np.zeros((m, 3))
-    inv = np.zeros((m, max(len(model.invariants), 1)))
-    obs = np.zeros((m, max(len(model.observables), 1)))
-    fr = np.zeros((m, max(len(model.frames), 1), 7))
-    model.kernels.evaluate_outputs(np.ascontiguousarray(t), np.ascontiguousarray(Y), p,
-                                   "energy" in which, "invariants" in which,
-                                   "observables" in which, "frames" in which, E, inv, obs, fr)
+    # Outputs not asked for are neither allocated nor computed (empty stand-ins).
+    E = np.zeros((m, 3)) if "energy" in which else _NONE2
+    inv = np.zeros((m, max(len(model.invariants), 1))) if "invariants" in which else _NONE2
+    obs = np.zeros((m, max(len(model.observables), 1))) if "observables" in which else _NONE2
+    fr = np.zeros((m, max(len(model.frames), 1), 7)) if "frames" in which else _NONE3
+    loops().evaluate_outputs(model.kernels.kernel_set(*which), np.ascontiguousarray(t),
+                             np.ascontiguousarray(Y), p, "energy" in which,
+                             "invariants" in which, "observables" in which, "frames" in which,
+                             E, inv, obs, fr)
     out = Outputs()
     if "energy" in which:
         out.kinetic, out.potential, out.energy_function = E[:, 0], E[:, 1], E[:, 2]
@@ -69,6 +73,11 @@ class SimulationResult:
     # Events met on the way, as (time, event name); the discrete mode entries at each sample.
     events: list[tuple[float, str]] = field(default_factory=list)
     modes: np.ndarray | None = None
+    # What the run cost and how good it is: right-hand-side (or force) evaluations, rejected
+    # steps, and the integrator's estimate of the error committed (relative to the state).
+    n_evaluations: int = 0
+    n_rejected: int = 0
+    error_estimate: float = 0.0
 
     @property
     def kinetic(self) -> np.ndarray:
@@ -148,8 +157,9 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
              step: float | None = None, closed_form: bool = False) -> SimulationResult:
     """Integrate ``model`` from its initial state to ``t_end``, sampling every ``output_dt``.
 
-    ``method``: "auto", "dop853", "exact", "yoshida8", "yoshida6" or "verlet" (see
-    mechsim.integrators); ``closed_form=True`` lets "auto" use the exact propagator.
+    ``method``: "auto", "dop853", "radau15", "gauss6", "exact", "yoshida8", "yoshida6" or
+    "verlet" (see mechsim.integrators; ``auto`` knows the horizon ``t_end``);
+    ``closed_form=True`` lets "auto" use the exact propagator.
     ``outputs``: which of energy, invariants, observables, frames to evaluate (energy always
     when asked by the balance). Wall time covers integration and output evaluation.
     """
@@ -159,7 +169,7 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
     stepper: Stepper = make_stepper(model, method, tolerance, step=step,
-                                       closed_form=closed_form)
+                                    closed_form=closed_form, horizon=t_end)
     Y = stepper.advance(t)
     out = evaluate(model, t, Y, stepper.p, outputs)
     wall = time.perf_counter() - start
@@ -169,4 +179,6 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
                             work_dissipated=Y[:, at.work_dissipated], outputs=out,
                             wall_time=wall, n_steps=stepper.n_steps,
                             events=[e for e in stepper.events if e[0] <= t[-1]],
-                            modes=Y[:, at.modes])
+                            modes=Y[:, at.modes], n_evaluations=stepper.n_evaluations,
+                            n_rejected=stepper.n_rejected,
+                            error_estimate=stepper.error_estimate)

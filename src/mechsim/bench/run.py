@@ -100,16 +100,10 @@ def _model(pb: Problem) -> Any:
 
 def stepper_counts(st: Any) -> int | None:
     """Right-hand-side (or force) evaluations of a finished stepper, where it tells."""
-    for name in ("n_rhs", "n_evaluations", "nfev"):
-        v = getattr(st, name, None)
-        if v is not None:
-            return int(v)
     if st.method == "exact":
         return 0
-    try:  # the state vectors of the current steppers
-        return int(st.st[7]) if st.method == "dop853" else int(st.st[2])
-    except (AttributeError, IndexError, TypeError):
-        return None
+    v = getattr(st, "n_evaluations", None)
+    return None if v is None else int(v)
 
 
 def _mechsim(method: str) -> Any:

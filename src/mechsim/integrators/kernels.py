@@ -1,27 +1,36 @@
-"""Integrator loops, compiled by numba inside each model's generated kernel module.
+"""The integrator loops, compiled once per machine and shared by every model.
 
-Everything below the marker line is pasted into the generated module (see ``mechsim.codegen``),
-where ``rhs``, ``project``, ``accel_q`` and the output functions are the model's own. The loops
-are resumable: their whole state lives in arrays the caller keeps between calls, so a node can
-advance a run output by output with no restart cost and no forced short steps.
+Each loop takes the model's ``KernelSet`` (``mechsim.codegen.contract``): the model's compiled
+functions as first-class function values and its sizes, so one compiled loop serves every
+model and the calls into the model stay compiled. This file is not imported directly:
+``mechsim.integrators`` loads it through ``mechsim.codegen.load_module`` under a name that
+hashes its text and every module it reads (tableau, state records, contract), so numba's disk
+cache can never serve a loop compiled from older inputs.
 
-DOP853: Hairer's explicit Runge-Kutta 8(5,3) with the 7th-order dense output, the coefficients
-taken from scipy (``scipy.integrate._ivp.dop853_coefficients``), the same error norm and step
-control as scipy's ``DOP853`` so that tolerances mean the same thing in both.
-Events (models with N_EV > 0 only; the code is compiled out otherwise, so DOP853 is unchanged
-for every other model): after each accepted step the event functions are evaluated; a sign
-change in an event's declared direction is bracketed in (t_old, t] and its time found on the
-dense output (Illinois false position with bisection fallback, to ~1e-14 relative in t). The
-earliest event of the step wins: outputs before it are written, the state is left at the event
-time (on the side of the sign change the event reached) and ``dop853_advance`` returns EVENT.
+The loops are resumable: their whole state lives in arrays the caller keeps between calls (a
+state record of ``mechsim.integrators.state`` and work arrays), so a node can advance a run
+output by output with no restart cost and no forced short steps. Every loop updates the
+state with compensated (Kahan) summation: the low-order bits lost when a small increment is
+added to a large state are kept in ``comp`` and added back at the next step, so round-off
+does not accumulate in long runs.
+
+DOP853: Hairer's explicit Runge-Kutta 8(5,3) with the 7th-order dense output
+(``dop853_tableau``), the error norm and step control of ``dop853.f`` (and of scipy's
+``DOP853``, so tolerances mean the same thing in both).
+Events (models with events only): after each accepted step the event functions are evaluated;
+a sign change in an event's declared direction is bracketed in (t_old, t] and its time found
+on the dense output (Illinois false position with bisection fallback, to ~1e-14 relative in
+t). The earliest event of the step wins: outputs before it are written, the state is left at
+the event time (on the side of the sign change the event reached) and the loop returns EVENT.
 The step's dense output stays valid for (t_old, t_event], so outputs before the event that a
 later call asks for still come from it after the caller has restarted at the event.
-Stiffness (Hairer's test from dop853.f, read-only, so non-stiff runs are bit for bit as
-before): every 1000th accepted step, and every step while a test is positive, h·‖f(y_new) −
-f(stage 12)‖ / ‖y_new − stage 12‖ (both at t + h) estimates h|λ|; above 6.1 (the edge of the
-stability region) the step is limited by stability, not accuracy. 15 positive tests before 6
-negative ones in a row: the loop stops after the accepted step with status STIFF.
+Stiffness (Hairer's test from dop853.f, read-only): every 1000th accepted step, and every step
+while a test is positive, h·‖f(y_new) − f(stage 12)‖ / ‖y_new − stage 12‖ (both at t + h)
+estimates h|λ|; above 6.1 (the edge of the stability region) the step is limited by
+stability, not accuracy. 15 positive tests before 6 negative ones in a row: the loop stops
+after the accepted step with status STIFF.
 Composition: a symmetric composition of velocity Verlet (kick-drift-kick) with given weights.
+Gauss: three-stage Gauss–Legendre collocation on Hamilton's equations.
 """
 
 from __future__ import annotations
@@ -31,101 +40,33 @@ import math
 import numpy as np
 from numba import njit
 
-from mechsim.integrators.contract import (
-    N_C,
-    N_EV,
-    N_FRAMES,
-    N_INV,
-    N_OBS,
-    N_Q,
-    N_Y,
-    accel_q,
-    canonical_rhs,
-    energy,
-    event,
-    frames,
-    from_momenta,
-    invariants,
-    observables,
-    project,
-    rhs,
-)
+from mechsim.integrators.state import Status
 
-# === kernel body ===
-from scipy.integrate._ivp import dop853_coefficients as _dop  # noqa: E402
-
-# Status codes shared with mechsim.integrators.STATUS.
-OK = 0
-MAX_STEPS = 1
-STEP_UNDERFLOW = 2
-NOT_FINITE = 3
-EVENT = 4
-STIFF = 5
-
-_DOP_A = np.ascontiguousarray(_dop.A)
-_DOP_B = np.ascontiguousarray(_dop.B)
-_DOP_C = np.ascontiguousarray(_dop.C)
-_DOP_D = np.ascontiguousarray(_dop.D)
-_DOP_E3 = np.ascontiguousarray(_dop.E3)
-_DOP_E5 = np.ascontiguousarray(_dop.E5)
+# >>> stubs: ``mechsim.integrators.loops`` replaces this block with ``dop853_tableau``'s
+# ``loop_source()``, the DOP853 stage sums written out from the tableau.
 
 
-@njit(cache=True)
-def _solve(A, b):
-    """Solve A x = b (small dense system) by Gaussian elimination with partial pivoting."""
-    n = b.size
-    M = A.copy()
-    x = b.copy()
-    for k in range(n):
-        piv = k
-        big = abs(M[k, k])
-        for i in range(k + 1, n):
-            if abs(M[i, k]) > big:
-                big = abs(M[i, k])
-                piv = i
-        if piv != k:
-            for j in range(n):
-                tmp = M[k, j]
-                M[k, j] = M[piv, j]
-                M[piv, j] = tmp
-            tmp = x[k]
-            x[k] = x[piv]
-            x[piv] = tmp
-        d = M[k, k]
-        for i in range(k + 1, n):
-            f = M[i, k] / d
-            if f != 0.0:
-                for j in range(k, n):
-                    M[i, j] -= f * M[k, j]
-                x[i] -= f * x[k]
-    for k in range(n - 1, -1, -1):
-        s = x[k]
-        for j in range(k + 1, n):
-            s -= M[k, j] * x[j]
-        x[k] = s / M[k, k]
-    return x
+def _dop853_stages(ks, t0, y0, h, K, ytmp, p):
+    """Stages 2 … 12 from (t0, y0) into K[1 … 11]; ytmp ends as stage 12's y."""
+    raise NotImplementedError
 
 
-@njit(cache=True)
-def _project_onto(G, r, x):
-    """x -= Gᵀ (G Gᵀ)⁻¹ r: the least-norm correction that removes the residual r.
-    A zero row of G (a released constraint, with r = 0 there) is skipped."""
-    nc = r.size
-    GG = np.empty((nc, nc))
-    for i in range(nc):
-        for j in range(nc):
-            s = 0.0
-            for k in range(x.size):
-                s += G[i, k] * G[j, k]
-            GG[i, j] = s
-        if GG[i, i] == 0.0:
-            GG[i, i] = 1.0
-    mu = _solve(GG, r)
-    for k in range(x.size):
-        s = 0.0
-        for i in range(nc):
-            s += G[i, k] * mu[i]
-        x[k] -= s
+def _dop853_dense_stages(ks, t0, y0, h, K, ytmp, p):
+    """Stages 14 … 16 (dense output only) into K[13 … 15]."""
+    raise NotImplementedError
+
+
+def _dop853_increment(K, i):
+    """(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j) of component i."""
+    raise NotImplementedError
+
+
+def _dop853_dense_sums(K, i):
+    """Σ_j D[r][j] k_j of component i, r = 0 … 3."""
+    raise NotImplementedError
+
+
+# <<< stubs
 
 
 @njit(cache=True)
@@ -138,7 +79,8 @@ def _rms_norm(x, scale):
 
 
 @njit(cache=True)
-def dop853_initial_step(t, y, p, f0, rtol, atol):
+def dop853_initial_step(ks, t, y, p, f0, rtol, atol):
+    """First step size (Hairer's starting-step algorithm, as in ``dop853.f``)."""
     n = y.size
     scale = np.empty(n)
     for i in range(n):
@@ -151,7 +93,7 @@ def dop853_initial_step(t, y, p, f0, rtol, atol):
         h0 = 0.01 * d0 / d1
     y1 = y + h0 * f0
     f1 = np.zeros(n)
-    rhs(t + h0, y1, p, f1)
+    ks.rhs(t + h0, y1.ctypes, p.ctypes, f1.ctypes)
     d2 = _rms_norm(f1 - f0, scale) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
@@ -161,16 +103,28 @@ def dop853_initial_step(t, y, p, f0, rtol, atol):
 
 
 @njit(cache=True)
-def _rk_stages(t0, y0, h, K, first, last, ytmp, p):
-    """Stages ``first`` … ``last − 1`` of the DOP853 tableau from (t0, y0) into K."""
-    n = y0.size
-    for s in range(first, last):
-        for i in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += _DOP_A[s, j] * K[j, i]
-            ytmp[i] = y0[i] + h * acc
-        rhs(t0 + _DOP_C[s] * h, ytmp, p, K[s])
+def dop853_restart(ks, state, y, p, K, rtol, atol, g_old, keep_dense):
+    """Start (or restart after an event) at the state's time and y: project y, f(t, y) into
+    K[12] (the next step's first stage), the first step, the event functions into g_old; the
+    step, rejection, evaluation and event counters are kept. ``keep_dense``: the last step's
+    dense output still serves outputs before t."""
+    s = state[0]
+    t = s.t
+    if ks.n_c > 0:
+        ks.project(t, y, p)
+    ks.rhs(t, y.ctypes, p.ctypes, K[12].ctypes)
+    s.h = dop853_initial_step(ks, t, y, p, K[12].copy(), rtol, atol)
+    if not keep_dense:
+        s.t_old = t
+        s.h_old = 0.0
+        s.dense_ready = 0
+    s.last_event = -1
+    s.stiff_positive = 0
+    s.stiff_negative = 0
+    s.h_lambda = 0.0
+    s.n_evaluations += 2
+    if ks.n_ev > 0:
+        ks.event(t, y, p, g_old)
 
 
 @njit(cache=True)
@@ -188,23 +142,34 @@ def _dense_eval(F, y_old, x, out):
 
 
 @njit(cache=True)
-def _dense_prepare(st, y, y_old, K, F, p):
+def _dense_prepare(ks, s, y, y_old, K, F, p):
     """Extra stages and interpolation coefficients for the last accepted step (t_old, t]."""
     n = y.size
-    t_old = st[2]
-    h = st[3]
-    _rk_stages(t_old, y_old, h, K, 13, 16, np.empty(n), p)
+    h = s.h_old
+    _dop853_dense_stages(ks, s.t_old, y_old, h, K, np.empty(n), p)
+    s.n_evaluations += 3
     for i in range(n):
         dlt = y[i] - y_old[i]
         F[0, i] = dlt
         F[1, i] = h * K[0, i] - dlt
         F[2, i] = 2.0 * dlt - h * (K[12, i] + K[0, i])
-        for r in range(4):
-            acc = 0.0
-            for j in range(16):
-                acc += _DOP_D[r, j] * K[j, i]
-            F[3 + r, i] = h * acc
-    st[4] = 1.0
+        d0, d1, d2, d3 = _dop853_dense_sums(K, i)
+        F[3, i] = h * d0
+        F[4, i] = h * d1
+        F[5, i] = h * d2
+        F[6, i] = h * d3
+    s.dense_ready = 1
+
+
+@njit(cache=True)
+def _dense_output(ks, s, y, y_old, K, F, p, t, out):
+    """The state at t in the last accepted step (t_old, t_new] from its dense output,
+    projected onto the constraints."""
+    if s.dense_ready == 0:
+        _dense_prepare(ks, s, y, y_old, K, F, p)
+    _dense_eval(F, y_old, (t - s.t_old) / s.h_old, out)
+    if ks.n_c > 0:
+        ks.project(t, out, p)
 
 
 @njit(cache=True)
@@ -215,23 +180,39 @@ def _crossed(g0, g1, direction):
     return direction <= 0 and g0 > 0.0 >= g1
 
 
+#: How a step's interior is evaluated for event location: DOP853's dense output (F = its
+#: coefficients) or the Gauss–Radau expansion of radau15 (F = b, with F0 and the compensation).
+DENSE_DOP853 = 0
+DENSE_RADAU = 1
+
+
 @njit(cache=True)
-def _event_at(t, F, y_old, t_old, h, p, ytmp, g, i):
-    """Event function ``i`` on the dense output of the last step at time t (projected)."""
-    _dense_eval(F, y_old, (t - t_old) / h, ytmp)
-    if N_C > 0:
-        project(t, ytmp, p)
-    event(t, ytmp, p, g)
+def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, out):
+    """The state at t inside the step that started at (t0, y0) with length h (unprojected)."""
+    if mode == DENSE_DOP853:
+        _dense_eval(F, y0, (t - t0) / h, out)
+    else:
+        out[:] = y0
+        _radau_state_at((t - t0) / h, ks.n_q, y0, F0, F, h, comp, out)
+
+
+@njit(cache=True)
+def _event_at(ks, mode, t, F, F0, y0, comp, t0, h, p, ytmp, g, i):
+    """Event function ``i`` at time t inside the last step (state projected)."""
+    _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, ytmp)
+    if ks.n_c > 0:
+        ks.project(t, ytmp, p)
+    ks.event(t, ytmp, p, g)
     return g[i]
 
 
 @njit(cache=True)
-def _locate_event(F, y_old, t_old, h, p, i, a, fa, b, fb):
+def _locate_event(ks, mode, F, F0, y0, comp, t0, h, p, i, a, fa, b, fb):
     """Root of event ``i`` bracketed by (a, fa) and (b, fb), fb on the far side of the sign
     change or zero: Illinois false position, bisecting when the bracket shrinks slowly.
     Returns the bracket end on the far side (so the event has happened there)."""
-    ytmp = np.empty(y_old.size)
-    g = np.empty(N_EV)
+    ytmp = np.empty(y0.size)
+    g = np.empty(ks.n_ev)
     side = 0
     slow = 0
     for _ in range(200):
@@ -246,7 +227,7 @@ def _locate_event(F, y_old, t_old, h, p, i, a, fa, b, fb):
             c = b - fb * (b - a) / (fb - fa)
             if not (a < c < b):
                 c = 0.5 * (a + b)
-        fc = _event_at(c, F, y_old, t_old, h, p, ytmp, g, i)
+        fc = _event_at(ks, mode, c, F, F0, y0, comp, t0, h, p, ytmp, g, i)
         if (fc > 0.0) == (fb > 0.0) or fc == 0.0:
             b = c
             fb = fc
@@ -267,18 +248,23 @@ def _locate_event(F, y_old, t_old, h, p, i, a, fa, b, fb):
 
 
 @njit(cache=True)
-def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
-                   g_old, ev_dir):
-    """Advance until every time in ``t_out`` (increasing, >= st[0] of the last step start) is
-    written to ``Y_out``. State ``st`` = [t, h_next, t_old, h_old, dense_ready, n_steps,
-    n_rejected, n_rhs, last_event, n_events, stiff_positive, stiff_negative, h_lambda];
-    ``y`` current state, ``y_old``/``K``/``F`` the last step's data, with K[12] = f(t, y) on
-    entry; ``g_old`` the event functions at (t, y), ``ev_dir`` their directions. Returns
-    (status, number of outputs written); on EVENT the state is at the event time st[0]
-    (outputs before it written) and st[8] is its index; on STIFF the state is at the end of
-    the last accepted step (outputs up to it written)."""
+def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
+                   g_old, ev_dir, comp):
+    """Advance until every time in ``t_out`` (increasing, >= the start of the last step) is
+    written to ``Y_out``. ``state``: a ``DOP853_STATE`` record; ``y`` the current state with
+    its compensation ``comp``; ``y_old``/``K``/``F`` the last step's data, with K[12] =
+    f(t, y) on entry; ``g_old`` the event functions at (t, y), ``ev_dir`` their directions.
+    Returns (status, number of outputs written); on EVENT the state is at the event time
+    (outputs before it written) and ``last_event`` is its index; on STIFF the state is at the
+    end of the last accepted step (outputs up to it written)."""
+    s = state[0]
+    rhs = ks.rhs
+    pp = p.ctypes
     n = y.size
+    n_c = ks.n_c
+    n_ev = ks.n_ev
     y_new = np.empty(n)
+    inc = np.empty(n)
     ytmp = np.empty(n)
     scale = np.empty(n)
     err5 = np.empty(n)
@@ -287,49 +273,42 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
     k = 0
     steps = 0
     # Outputs that fall in the last accepted step (t_old, t].
-    while k < n_out and st[3] > 0.0 and t_out[k] <= st[0]:
-        if t_out[k] == st[0]:
+    while k < n_out and s.h_old > 0.0 and t_out[k] <= s.t:
+        if t_out[k] == s.t:
             Y_out[k, :] = y
         else:
-            if st[4] == 0.0:
-                _dense_prepare(st, y, y_old, K, F, p)
-            _dense_eval(F, y_old, (t_out[k] - st[2]) / st[3], Y_out[k])
-            if N_C > 0:
-                project(t_out[k], Y_out[k], p)
+            _dense_output(ks, s, y, y_old, K, F, p, t_out[k], Y_out[k])
         k += 1
-    while k < n_out and t_out[k] == st[0]:
+    while k < n_out and t_out[k] == s.t:
         Y_out[k, :] = y
         k += 1
     rejected = False
     while k < n_out:
         if steps >= max_steps:
-            return MAX_STEPS, k
-        t = st[0]
-        h = min(st[1], h_max)
+            return Status.MAX_STEPS, k
+        t = s.t
+        h = min(s.h, h_max)
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
         if h < min_step:
-            return STEP_UNDERFLOW, k
+            return Status.STEP_UNDERFLOW, k
         if not rejected:
             # FSAL: f(t, y) of the last accepted step end becomes this step's first stage.
             for i in range(n):
                 K[0, i] = K[12, i]
-        _rk_stages(t, y, h, K, 1, 12, ytmp, p)
+        _dop853_stages(ks, t, y, h, K, ytmp, p)
         for i in range(n):
-            acc = 0.0
-            for j in range(12):
-                acc += _DOP_B[j] * K[j, i]
-            y_new[i] = y[i] + h * acc
-        rhs(t + h, y_new, p, K[12])
-        st[7] += 12.0
+            b, a5, a3 = _dop853_increment(K, i)
+            d = h * b + comp[i]
+            y_new[i] = y[i] + d
+            inc[i] = d
+            err5[i] = a5
+            err3[i] = a3
+        rhs(t + h, y_new.ctypes, pp, K[12].ctypes)
+        s.n_evaluations += 12
         for i in range(n):
             scale[i] = atol + max(abs(y[i]), abs(y_new[i])) * rtol
-            a5 = 0.0
-            a3 = 0.0
-            for j in range(13):
-                a5 += _DOP_E5[j] * K[j, i]
-                a3 += _DOP_E3[j] * K[j, i]
-            err5[i] = a5 / scale[i]
-            err3[i] = a3 / scale[i]
+            err5[i] /= scale[i]
+            err3[i] /= scale[i]
         e5 = 0.0
         e3 = 0.0
         for i in range(n):
@@ -343,7 +322,7 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
             err = 1e10
         if err < 1.0:
             stiff = False
-            if st[5] % 1000.0 == 0.0 or st[10] > 0.0:
+            if s.n_steps % 1000 == 0 or s.stiff_positive > 0:
                 # Stage 12 (ytmp, K[11]) and y_new (K[12]) are both at t + h.
                 stnum = 0.0
                 stden = 0.0
@@ -351,15 +330,15 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
                     stnum += (K[12, i] - K[11, i]) ** 2
                     stden += (y_new[i] - ytmp[i]) ** 2
                 if stden > 0.0:
-                    st[12] = h * math.sqrt(stnum / stden)
-                    if st[12] > 6.1:
-                        st[11] = 0.0
-                        st[10] += 1.0
-                        stiff = st[10] >= 15.0
+                    s.h_lambda = h * math.sqrt(stnum / stden)
+                    if s.h_lambda > 6.1:
+                        s.stiff_negative = 0
+                        s.stiff_positive += 1
+                        stiff = s.stiff_positive >= 15
                     else:
-                        st[11] += 1.0
-                        if st[11] >= 6.0:
-                            st[10] = 0.0
+                        s.stiff_negative += 1
+                        if s.stiff_negative >= 6:
+                            s.stiff_positive = 0
             if err == 0.0:
                 factor = 10.0
             else:
@@ -369,104 +348,145 @@ def dop853_advance(st, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_s
             rejected = False
             for i in range(n):
                 if not math.isfinite(y_new[i]):
-                    return NOT_FINITE, k
+                    return Status.NOT_FINITE, k
             y_old[:] = y
             t_new = t + h
-            if N_C > 0:
-                project(t_new, y_new, p)
-                rhs(t_new, y_new, p, K[12])
-                st[7] += 1.0
+            for i in range(n):
+                comp[i] = inc[i] - (y_new[i] - y[i])
+            if n_c > 0:
+                ks.project(t_new, y_new, p)
+                rhs(t_new, y_new.ctypes, pp, K[12].ctypes)
+                s.n_evaluations += 1
+                comp[:] = 0.0  # the projection moved the state: nothing left to carry
             y[:] = y_new
-            st[2] = t
-            st[3] = h
-            st[0] = t_new
-            st[4] = 0.0
-            st[1] = h * factor
+            s.t_old = t
+            s.h_old = h
+            s.t = t_new
+            s.dense_ready = 0
+            s.h = h * factor
+            s.error_estimate += err * rtol
             steps += 1
-            st[5] += 1.0
-            if N_EV > 0:
-                g_new = np.empty(N_EV)
-                event(t_new, y, p, g_new)
+            s.n_steps += 1
+            if n_ev > 0:
+                g_new = np.empty(n_ev)
+                ks.event(t_new, y, p, g_new)
                 first = -1
                 t_ev = t_new
-                for i in range(N_EV):
+                for i in range(n_ev):
                     if _crossed(g_old[i], g_new[i], ev_dir[i]):
-                        if st[4] == 0.0:
-                            _dense_prepare(st, y, y_old, K, F, p)
-                        ti = _locate_event(F, y_old, t, h, p, i, t, g_old[i], t_new, g_new[i])
+                        if s.dense_ready == 0:
+                            _dense_prepare(ks, s, y, y_old, K, F, p)
+                        ti = _locate_event(ks, DENSE_DOP853, F, inc, y_old, inc, t, h, p, i,
+                                           t, g_old[i], t_new, g_new[i])
                         if first < 0 or ti < t_ev:
                             first = i
                             t_ev = ti
                 if first >= 0:
                     while k < n_out and t_out[k] < t_ev:
-                        _dense_eval(F, y_old, (t_out[k] - t) / h, Y_out[k])
-                        if N_C > 0:
-                            project(t_out[k], Y_out[k], p)
+                        _dense_output(ks, s, y, y_old, K, F, p, t_out[k], Y_out[k])
                         k += 1
                     if t_ev < t_new:
-                        _dense_eval(F, y_old, (t_ev - t) / h, y)
-                        if N_C > 0:
-                            project(t_ev, y, p)
-                    st[0] = t_ev
-                    st[8] = first
-                    st[9] += 1.0
-                    return EVENT, k
+                        _dense_output(ks, s, y, y_old, K, F, p, t_ev, y)
+                    comp[:] = 0.0
+                    s.t = t_ev
+                    s.last_event = first
+                    s.n_events += 1
+                    return Status.EVENT, k
                 g_old[:] = g_new
             while k < n_out and t_out[k] <= t_new:
                 if t_out[k] == t_new:
                     Y_out[k, :] = y
                 else:
-                    if st[4] == 0.0:
-                        _dense_prepare(st, y, y_old, K, F, p)
-                    _dense_eval(F, y_old, (t_out[k] - t) / h, Y_out[k])
-                    if N_C > 0:
-                        project(t_out[k], Y_out[k], p)
+                    _dense_output(ks, s, y, y_old, K, F, p, t_out[k], Y_out[k])
                 k += 1
             if stiff:
-                return STIFF, k
+                return Status.STIFF, k
         else:
-            st[1] = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
-            st[6] += 1.0
+            s.h = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
+            s.n_rejected += 1
             rejected = True
-    return OK, k
+    return Status.OK, k
 
 
 @njit(cache=True)
-def composition_advance(st, y, p, n_out, n_sub, h, weights, Y_out, a):
+def _add_compensated(x, inc, comp, lo, hi):
+    """x[lo:hi] += inc[lo:hi] with Kahan compensation carried in comp[lo:hi]."""
+    for i in range(lo, hi):
+        d = inc[i] + comp[i]
+        xn = x[i] + d
+        comp[i] = d - (xn - x[i])
+        x[i] = xn
+
+
+@njit(inline="always")
+def _composition_step(nq, accel, t, y, p, a, kick, drift, q, d, comp):
+    """One step of the composition (see ``composition_advance``); ``nq`` is a constant where
+    the caller knows it, so the short loops over coordinates unroll."""
+    nw = drift.size
+    for i in range(2 * nq):
+        d[i] = 0.0
+    for j in range(nw):
+        c = kick[j]
+        w = drift[j]
+        for i in range(nq):
+            dv = d[nq + i] + c * a[i]
+            d[nq + i] = dv
+            # dq += w (v₀ + dv), with the part known before the force returned kept off
+            # the path from the force to the next position
+            partial = d[i] + w * y[nq + i]
+            q[i] = (y[i] + partial) + w * dv
+            d[i] = partial + w * dv
+        accel(t, q, p, a)
+    c = kick[nw]
+    for i in range(nq):
+        d[nq + i] += c * a[i]
+    _add_compensated(y, d, comp, 0, 2 * nq)
+
+
+@njit(cache=True)
+def composition_advance(ks, state, y, p, n_out, n_sub, h, weights, Y_out, a, comp):
     """Fixed-step symmetric composition of velocity Verlet for separable systems.
-    ``st`` = [t, n_steps, n_force]; ``a`` holds accel_q(q) on entry and on exit. Writes the
-    state after each block of ``n_sub`` steps to Y_out[0..n_out). Returns (status, written)."""
-    nq = N_Q
-    q = y[:nq]
-    v = y[nq:2 * nq]
+    ``state``: a ``FIXED_STATE`` record; ``a`` holds accel_q(q) on entry and on exit;
+    ``comp`` the compensation of y. Writes the state after each block of ``n_sub`` steps to
+    Y_out[0..n_out). Returns (status, written).
+
+    Kick-drift-kick stages, each closing half-kick merged into the next opening one: kick
+    coefficients (w_s + w_{s+1}) h / 2 inside a step, w h / 2 at its ends. Within a step the
+    stages move q and v by increments dq, dv that start at zero (small numbers, added to
+    without loss; the force is evaluated at q₀ + dq); the step's total increments are added
+    to the state once, compensated."""
+    s = state[0]
+    nq = ks.n_q
+    accel = ks.accel_q
     nw = weights.size
-    # Kick-drift-kick stages with each closing half-kick merged into the next opening one:
-    # kick coefficients (w_s + w_{s+1}) h / 2 inside a step, w h / 2 at its ends.
     kick = np.empty(nw + 1)
+    drift = np.empty(nw)
     kick[0] = 0.5 * weights[0] * h
-    for s in range(1, nw):
-        kick[s] = 0.5 * (weights[s - 1] + weights[s]) * h
+    for j in range(1, nw):
+        kick[j] = 0.5 * (weights[j - 1] + weights[j]) * h
     kick[nw] = 0.5 * weights[nw - 1] * h
+    for j in range(nw):
+        drift[j] = weights[j] * h
+    q = np.empty(nq)
+    d = np.empty(2 * nq)  # [dq, dv]
     for k in range(n_out):
         for _ in range(n_sub):
-            for i in range(nq):
-                v[i] += kick[0] * a[i]
-            for s in range(nw):
-                hw = weights[s] * h
-                for i in range(nq):
-                    q[i] += hw * v[i]
-                accel_q(st[0], q, p, a)
-                c = kick[s + 1]
-                for i in range(nq):
-                    v[i] += c * a[i]
-            st[0] += h
-            st[1] += 1.0
-        st[2] += n_sub * nw
-        for i in range(nq):
-            if not (math.isfinite(q[i]) and math.isfinite(v[i])):
-                return NOT_FINITE, k
+            if nq == 1:
+                _composition_step(1, accel, s.t, y, p, a, kick, drift, q, d, comp)
+            elif nq == 2:
+                _composition_step(2, accel, s.t, y, p, a, kick, drift, q, d, comp)
+            elif nq == 3:
+                _composition_step(3, accel, s.t, y, p, a, kick, drift, q, d, comp)
+            else:
+                _composition_step(nq, accel, s.t, y, p, a, kick, drift, q, d, comp)
+            s.t += h
+            s.n_steps += 1
+        s.n_evaluations += n_sub * nw
+        for i in range(2 * nq):
+            if not math.isfinite(y[i]):
+                return Status.NOT_FINITE, k
         Y_out[k, :] = y
-    return OK, n_out
+    return Status.OK, n_out
 
 
 _S15 = math.sqrt(15.0)
@@ -475,22 +495,26 @@ _GL_A = np.array([[5.0 / 36.0, 2.0 / 9.0 - _S15 / 15.0, 5.0 / 36.0 - _S15 / 30.0
                   [5.0 / 36.0 + _S15 / 24.0, 2.0 / 9.0, 5.0 / 36.0 - _S15 / 24.0],
                   [5.0 / 36.0 + _S15 / 30.0, 2.0 / 9.0 + _S15 / 15.0, 5.0 / 36.0]])
 _GL_B = np.array([5.0 / 18.0, 4.0 / 9.0, 5.0 / 18.0])
-NOT_CONVERGED = 6
 
 
 @njit(cache=True)
-def gauss_advance(st, z, p, n_out, n_sub, h, Y_out, K):
+def gauss_advance(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp):
     """Three-stage Gauss–Legendre collocation (order 6, symplectic) on the canonical
     variables z = [q, p, work terms] of a conservative system, fixed step ``h``, stage
     equations solved by fixed-point iteration started from the last step's stages (``K``,
-    shape (3, N_Y), kept between calls). Writes y = [q, q̇, ...] after each block of ``n_sub``
-    steps. ``st`` = [t, n_steps, n_rhs]. Returns (status, written)."""
+    shape (3, N_Y), kept between calls), z updated with compensation ``comp``. Writes
+    y = [q, q̇, ...] after each block of ``n_sub`` steps. Returns (status, written)."""
+    s = state[0]
+    f = ks.canonical_rhs
+    zs = np.empty(z.size)
+    pp = p.ctypes
+    zp = zs.ctypes
     n = z.size
-    zs = np.empty(n)
+    inc = np.empty(n)
     Knew = np.empty((3, n))
     for k in range(n_out):
         for _ in range(n_sub):
-            t = st[0]
+            t = s.t
             converged = False
             previous = math.inf
             for _it in range(60):
@@ -500,7 +524,7 @@ def gauss_advance(st, z, p, n_out, n_sub, h, Y_out, K):
                         for j in range(3):
                             acc += _GL_A[i, j] * K[j, m]
                         zs[m] = z[m] + h * acc
-                    canonical_rhs(t + _GL_C[i] * h, zs, p, Knew[i])
+                    f(t + _GL_C[i] * h, zp, pp, Knew[i].ctypes)
                 change = 0.0
                 size = 0.0
                 finite = True
@@ -511,7 +535,7 @@ def gauss_advance(st, z, p, n_out, n_sub, h, Y_out, K):
                         change = max(change, abs(Knew[i, m] - K[i, m]))
                         size = max(size, abs(Knew[i, m]))
                         K[i, m] = Knew[i, m]
-                st[2] += 3.0
+                s.n_evaluations += 3
                 if not finite:
                     break  # the iteration diverged: not converged
                 delta = change / (size + 1e-300)
@@ -521,28 +545,332 @@ def gauss_advance(st, z, p, n_out, n_sub, h, Y_out, K):
                     break
                 previous = delta
             if not converged:
-                return NOT_CONVERGED, k
+                return Status.NOT_CONVERGED, k
             for m in range(n):
-                z[m] += h * (_GL_B[0] * K[0, m] + _GL_B[1] * K[1, m] + _GL_B[2] * K[2, m])
-            st[0] = t + h
-            st[1] += 1.0
+                inc[m] = h * (_GL_B[0] * K[0, m] + _GL_B[1] * K[1, m] + _GL_B[2] * K[2, m])
+            _add_compensated(z, inc, comp, 0, n)
+            s.t = t + h
+            s.n_steps += 1
         for m in range(n):
             if not math.isfinite(z[m]):
-                return NOT_FINITE, k
-        from_momenta(st[0], z, p, Y_out[k])
-    return OK, n_out
+                return Status.NOT_FINITE, k
+        ks.from_momenta(s.t, z, p, Y_out[k])
+    return Status.OK, n_out
+
+
+# --- Gauss–Radau (IAS15 scheme) ------------------------------------------------------------
+# The 8 nodes of Gauss–Radau quadrature on [0, 1] with the left end fixed: 0 and the roots of
+# P₇(2s − 1) + P₈(2s − 1) (Legendre polynomials), the spacings of IAS15 (Rein & Spiegel 2015,
+# MNRAS 446, 1424, §2). Computed to 30 digits; ``tests/test_radau15.py`` checks them.
+_RADAU_NODES = np.array([
+    0.0, 0.0562625605369221464656521910323, 0.180240691736892364987579942809,
+    0.352624717113169637373907770171, 0.547153626330555383001448557652,
+    0.734210177215410531523210608307, 0.885320946839095768090359762932,
+    0.977520613561287501891174500429])
+
+
+def _newton_to_monomial(nodes):
+    """c[j, k]: s Π_{m=1…j} (s − h_m) = Σ_k c[j, k] s^(k+1), j = 0 … 6."""
+    c = np.zeros((7, 7))
+    poly = np.array([1.0])  # Π (s − h_m), lowest power first
+    for j in range(7):
+        if j > 0:
+            poly = np.convolve(poly, np.array([-nodes[j], 1.0]))
+        c[j, : poly.size] = poly
+    return c
+
+
+_RADAU_C = _newton_to_monomial(_RADAU_NODES)
+# b = Cᵀ g and back: g = (Cᵀ)⁻¹ b (both triangular).
+_RADAU_D = np.ascontiguousarray(np.linalg.inv(_RADAU_C.T))
+# Factors of the single and double integrals of s^(k+1): 1/(k+2) and 1/((k+2)(k+3)).
+_RADAU_V = np.array([1.0 / (k + 2) for k in range(7)])
+_RADAU_X = np.array([1.0 / ((k + 2) * (k + 3)) for k in range(7)])
+# Binomial coefficients C(j+1, k+1) for moving the expansion to the next step.
+_RADAU_SHIFT = np.array([[math.comb(j + 1, k + 1) for k in range(7)] for j in range(7)],
+                        dtype=np.float64)
 
 
 @njit(cache=True)
-def evaluate_outputs(ts, Y, p, want_energy, want_inv, want_obs, want_frames,
+def _radau_state_at(s, n, y0, F0, b, dt, comp, ys):
+    """y at t₀ + s·dt from the expansion F(s) = F₀ + Σ_k b_k s^(k+1) of the second derivatives
+    of q and the first derivatives of the work terms (compensation of y₀ included)."""
+    m = F0.size
+    for j in range(m):
+        iv = 0.0
+        ix = 0.0
+        for k in range(6, -1, -1):
+            iv = iv * s + b[k, j] * _RADAU_V[k]
+            ix = ix * s + b[k, j] * _RADAU_X[k]
+        # first integral (v or W): y[n + j]; second (q) only for the accelerations
+        ys[n + j] = y0[n + j] + (comp[n + j] + s * dt * (F0[j] + s * iv))
+        if j < n:
+            ys[j] = y0[j] + (comp[j] + s * dt * (y0[n + j] + s * dt * (0.5 * F0[j] + s * ix)))
+
+
+@njit(cache=True)
+def _radau_g_from_b(b, g):
+    """The divided differences g of the expansion b (g = (Cᵀ)⁻¹ b, upper triangular)."""
+    m = b.shape[1]
+    for j in range(m):
+        for k in range(7):
+            acc = 0.0
+            for i in range(k, 7):
+                acc += _RADAU_D[k, i] * b[i, j]
+            g[k, j] = acc
+
+
+@njit(cache=True)
+def _radau_predict(b, g, e, q):
+    """Move the expansion of the step just taken to the next one, of q times its length:
+    F(1 + q s') − F(1) = Σ_k q^(k+1) Σ_{i≥k} C(i+1, k+1) b_i s'^(k+1), plus the correction the
+    corrector made to the last prediction (``e``, which becomes the new prediction): the
+    start of the next predictor–corrector iteration (as in IAS15, Rein & Spiegel 2015)."""
+    m = b.shape[1]
+    for j in range(m):
+        for k in range(7):
+            acc = 0.0
+            for i in range(k, 7):
+                acc += _RADAU_SHIFT[i, k] * b[i, j]
+            g[k, j] = acc  # scratch: the shifted coefficients
+        qk = q
+        for k in range(7):
+            shifted = g[k, j] * qk
+            b[k, j] = shifted + (b[k, j] - e[k, j])
+            e[k, j] = shifted
+            qk *= q
+    _radau_g_from_b(b, g)
+
+
+@njit(cache=True)
+def _kahan(x, comp, i, inc):
+    """x[i] += inc, with the low-order bits lost kept in comp[i] and added next time."""
+    d = inc + comp[i]
+    xn = x[i] + d
+    comp[i] = d - (xn - x[i])
+    x[i] = xn
+
+
+@njit(cache=True)
+def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
+                    g_old, ev_dir, tau):
+    """Adaptive 15th-order Gauss–Radau predictor–corrector on q̈ = f(t, q, q̇) (the scheme of
+    IAS15, Rein & Spiegel 2015, with velocity-dependent forces and the work terms integrated
+    alongside as first-order components): within a step the second derivatives are a degree-7
+    polynomial in s = (t − t₀)/dt, F(s) = F₀ + Σ_k b_k s^(k+1), collocated at the 7 non-zero
+    Gauss–Radau nodes and corrected by fixed-point iteration until the change in b₆ is at
+    round-off; the step adapts so that max|b₆| / max|q̈| stays at ``eps``
+    (dt_new = dt (eps / ε_b)^(1/7), a step whose proposal shrinks below a quarter is redone;
+    so is one whose iteration does not converge). Near an equilibrium q̈ is round-off and so
+    is b₆: the acceleration scale is then the model's own, max|q|/τ² + max|q̇|/τ (τ: its time
+    scale ``tau``), so that noise does not drive the step to zero.
+    The state and the time are updated with compensated summation. Steps are shortened to
+    land on every output time. ``b``, ``g`` (7, N_Q + 2) hold the expansion between calls and
+    ``e`` its prediction, ``F0``/``dy`` are scratch. Events as in ``dop853_advance``, located
+    on the step's expansion (``g_old``: event functions at the current state, ``ev_dir``
+    their directions); on EVENT the state is at the event. Returns (status, outputs
+    written)."""
+    s_ = state[0]
+    n = ks.n_q
+    m = n + 2  # accelerations and the two work rates
+    ny = y.size
+    rhs = ks.rhs
+    pp = p.ctypes
+    ys = np.empty(ny)
+    yp = ys.ctypes
+    dyp = dy.ctypes
+    b_start = np.empty((7, m))
+    db6 = np.empty(m)
+    n_ev = ks.n_ev
+    y_start = np.empty(ny)
+    comp_start = np.empty(ny)
+    n_out = t_out.size
+    k = 0
+    steps = 0
+    while k < n_out and t_out[k] == s_.t:
+        Y_out[k, :] = y
+        k += 1
+    while k < n_out:
+        if steps >= max_steps:
+            return Status.MAX_STEPS, k
+        t0 = s_.t
+        dt = s_.h
+        landing = False
+        if t0 + dt >= t_out[k]:
+            dt = t_out[k] - t0
+            landing = True
+        if dt <= 10.0 * abs(np.nextafter(t0, np.inf) - t0):
+            return Status.STEP_UNDERFLOW, k
+        # F₀ at the start of the step
+        for i in range(ny):
+            ys[i] = y[i]
+        rhs(t0, yp, pp, dyp)
+        s_.n_evaluations += 1
+        for j in range(m):
+            F0[j] = dy[n + j]
+        b_start[:, :] = b
+        natural = 0.0
+        for j in range(n):
+            natural = max(natural, abs(y[j]) / (tau * tau) + abs(y[n + j]) / tau)
+        while True:
+            # predictor–corrector iteration
+            previous = math.inf
+            converged = False
+            for it in range(12):
+                for i in range(ny):
+                    ys[i] = y[i]
+                for node in range(1, 8):
+                    h = _RADAU_NODES[node]
+                    _radau_state_at(h, n, y, F0, b, dt, comp, ys)
+                    rhs(t0 + h * dt, yp, pp, dyp)
+                    for j in range(m):
+                        r = (dy[n + j] - F0[j]) / h
+                        for jj in range(1, node):
+                            r = (r - g[jj - 1, j]) / (h - _RADAU_NODES[jj])
+                        delta = r - g[node - 1, j]
+                        g[node - 1, j] = r
+                        for kk in range(node):
+                            b[kk, j] += _RADAU_C[node - 1, kk] * delta
+                        if node == 7:
+                            db6[j] = _RADAU_C[6, 6] * delta
+                s_.n_evaluations += 7
+                s_.n_iterations += 1
+                change = 0.0
+                scale = 0.0
+                for j in range(m):
+                    change = max(change, abs(db6[j]))
+                    scale = max(scale, abs(dy[n + j]))
+                pc = change / scale if scale > 0.0 else 0.0
+                if pc < 1e-16 or (it >= 2 and pc >= previous):
+                    converged = pc < 1e-13  # at round-off, or stagnating there
+                    break
+                previous = pc
+            for j in range(m):
+                if not math.isfinite(b[6, j]):
+                    return Status.NOT_FINITE, k
+            # step size control on the accelerations' last coefficient (the work rates do
+            # not act back on the motion, and may be round-off around zero)
+            big_b6 = 0.0
+            big_a = natural
+            for j in range(n):
+                big_b6 = max(big_b6, abs(b[6, j]))
+                big_a = max(big_a, abs(dy[n + j]))
+            err = big_b6 / big_a if big_a > 0.0 else 0.0
+            if err > 0.0:
+                dt_new = dt * (eps / err) ** (1.0 / 7.0)
+            else:
+                dt_new = 4.0 * dt
+            if not converged:
+                dt_new = min(dt_new, 0.25 * dt)
+            if dt_new < 0.25 * dt or not converged:
+                # rejected: the prediction the step started from, for the shorter step
+                s_.n_rejected += 1
+                q = dt_new / dt
+                qk = q
+                for kk in range(7):
+                    for j in range(m):
+                        b[kk, j] = b_start[kk, j] * qk
+                        e[kk, j] = b[kk, j]
+                    qk *= q
+                _radau_g_from_b(b, g)
+                dt = dt_new
+                landing = False
+                continue
+            break
+        # accept: increments of q, v and the work terms over the step, added compensated
+        if n_ev > 0:
+            y_start[:] = y
+            comp_start[:] = comp
+        local = 0.0
+        scale = 1.0
+        for j in range(m):
+            iv = 0.0
+            ix = 0.0
+            for kk in range(6, -1, -1):
+                iv = iv + b[kk, j] * _RADAU_V[kk]
+                ix = ix + b[kk, j] * _RADAU_X[kk]
+            db6[j] = dt * (F0[j] + iv)  # increment of y[n + j]
+            if j < n:
+                ys[j] = dt * (y[n + j] + dt * (0.5 * F0[j] + ix))  # increment of q_j
+                local = max(local, abs(b[6, j]) * _RADAU_X[6] * dt * dt)
+        for j in range(m):
+            if j < n:
+                _kahan(y, comp, j, ys[j])
+            _kahan(y, comp, n + j, db6[j])
+        for i in range(2 * n):
+            if not math.isfinite(y[i]):
+                return Status.NOT_FINITE, k
+            scale = max(scale, abs(y[i]))
+        # the time, compensated too (or exactly the output time landed on)
+        if landing:
+            s_.t = t_out[k]
+            s_.t_comp = 0.0
+        else:
+            dtc = dt + s_.t_comp
+            tn = t0 + dtc
+            s_.t_comp = dtc - (tn - t0)
+            s_.t = tn
+        if ks.n_c > 0:
+            ks.project(s_.t, y, p)
+            comp[:] = 0.0
+        if n_ev > 0:
+            g_new = np.empty(n_ev)
+            ks.event(s_.t, y, p, g_new)
+            first = -1
+            t_ev = s_.t
+            for i in range(n_ev):
+                if _crossed(g_old[i], g_new[i], ev_dir[i]):
+                    ti = _locate_event(ks, DENSE_RADAU, b, F0, y_start, comp_start, t0, dt, p,
+                                       i, t0, g_old[i], s_.t, g_new[i])
+                    if first < 0 or ti < t_ev:
+                        first = i
+                        t_ev = ti
+            if first >= 0:
+                if t_ev < s_.t:
+                    _state_in_step(ks, DENSE_RADAU, t_ev, b, F0, y_start, comp_start, t0, dt,
+                                   y)
+                    if ks.n_c > 0:
+                        ks.project(t_ev, y, p)
+                comp[:] = 0.0
+                s_.t = t_ev
+                s_.t_comp = 0.0
+                s_.n_steps += 1
+                s_.last_event = first
+                s_.n_events += 1
+                return Status.EVENT, k
+            g_old[:] = g_new
+        s_.error_estimate += local / scale
+        steps += 1
+        s_.n_steps += 1
+        s_.h_old = dt
+        planned = s_.h
+        dt_new = min(dt_new, 4.0 * dt)
+        if landing:  # a step shortened to land keeps the controller's plan
+            dt_new = max(dt_new, planned)
+        q = dt_new / dt
+        if q <= 4.0:
+            _radau_predict(b, g, e, q)
+        else:  # too far to extrapolate: start the corrector from F = F₀
+            b[:, :] = 0.0
+            g[:, :] = 0.0
+            e[:, :] = 0.0
+        s_.h = dt_new
+        while k < n_out and t_out[k] <= s_.t:
+            Y_out[k, :] = y
+            k += 1
+    return Status.OK, k
+
+
+@njit(cache=True)
+def evaluate_outputs(ks, ts, Y, p, want_energy, want_inv, want_obs, want_frames,
                      E_out, I_out, O_out, F_out):
     """Energy terms, invariants, observables and frames at each sample, only those wanted."""
     for k in range(ts.size):
         if want_energy:
-            energy(ts[k], Y[k], p, E_out[k])
-        if want_inv and N_INV > 0:
-            invariants(ts[k], Y[k], p, I_out[k])
-        if want_obs and N_OBS > 0:
-            observables(ts[k], Y[k], p, O_out[k])
-        if want_frames and N_FRAMES > 0:
-            frames(ts[k], Y[k], p, F_out[k])
+            ks.energy(ts[k], Y[k], p, E_out[k])
+        if want_inv and ks.n_inv > 0:
+            ks.invariants(ts[k], Y[k], p, I_out[k])
+        if want_obs and ks.n_obs > 0:
+            ks.observables(ts[k], Y[k], p, O_out[k])
+        if want_frames and ks.n_frames > 0:
+            ks.frames(ts[k], Y[k], p, F_out[k])

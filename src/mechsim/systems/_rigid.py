@@ -20,14 +20,17 @@ Two parts:
    Torque: a constant body-frame torque N₀ (its work ∫ω·N₀ dt is W_ext) plus uniform gravity
    acting at the centre of mass c (body components, relative to the fixed point), which enters
    through V = M g (R c)·ẑ. The inertia and torque data are not parameters but derived from
-   them: subclasses return them from ``rigid_data`` and they ride at the end of the parameter
-   vector (indices RB_*), so the kernel is compiled once for every body.
+   them: subclasses return them from ``rigid_data`` and they ride at the start of the
+   parameter vector (fixed indices RB_*, then up to RB_N_EXTRA numbers of the subclass's own;
+   its numeric parameters follow from RB_SIZE on), so the kernel is compiled once for every
+   body and the same constants hold in Python and in the kernel module.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -124,11 +127,13 @@ def principal_axes(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --- quaternion rigid-body kernel (pasted into kernel modules) --------------------------------
-# Index constants of the derived block; the kernel module defines the real values (these are
-# for linters and Python calls).
-RB_I1 = RB_I2 = RB_I3 = RB_N1 = RB_N2 = RB_N3 = RB_C1 = RB_C2 = RB_C3 = RB_MG = RB_EXTRA = 0
+# Where the derived data sit in p: principal moments, constant body torque, centre of mass,
+# M g, then RB_N_EXTRA slots for a subclass's own numbers; numeric parameters from RB_SIZE on.
 RIGID_BLOCK = ("RB_I1", "RB_I2", "RB_I3", "RB_N1", "RB_N2", "RB_N3",
                "RB_C1", "RB_C2", "RB_C3", "RB_MG", "RB_EXTRA")
+RB_I1, RB_I2, RB_I3, RB_N1, RB_N2, RB_N3, RB_C1, RB_C2, RB_C3, RB_MG, RB_EXTRA = range(11)
+RB_N_EXTRA = 10
+RB_SIZE = RB_EXTRA + RB_N_EXTRA
 
 
 def rb_omega(y, w):
@@ -255,7 +260,7 @@ class QuaternionRigidBody(DirectModel):
         return tuple(Quantity(f"quaternion_{c}", "", f"attitude quaternion {c} (world_R_body)")
                      for c in self.QUATERNION)
 
-    @property
+    @cached_property
     def structure(self) -> Structure:
         d = self.rigid_data()
         return Structure(separable=False, n_constraints=1, driven=any(d.torque))
@@ -264,16 +269,20 @@ class QuaternionRigidBody(DirectModel):
     def invariants(self) -> tuple[Quantity, ...]:
         return (Quantity("constraint_unit_norm", "", "|q| − 1"),)
 
-    def parameter_vector(self) -> np.ndarray:
+    def _make_parameter_vector(self) -> np.ndarray:
         d = self.rigid_data()
-        block = [*d.moments, *d.torque, *d.center_of_mass, d.weight, *d.extra]
-        return np.concatenate([super().parameter_vector(), np.array(block, dtype=np.float64)])
+        if len(d.extra) > RB_N_EXTRA:
+            raise ValueError(f"{type(self).__name__}: at most {RB_N_EXTRA} extra numbers")
+        block = np.zeros(RB_SIZE)
+        block[:RB_EXTRA] = [*d.moments, *d.torque, *d.center_of_mass, d.weight]
+        block[RB_EXTRA:RB_EXTRA + len(d.extra)] = d.extra
+        return np.concatenate([block, super()._make_parameter_vector()])
 
-    def kernel_source(self):  # type: ignore[no-untyped-def]
-        src = super().kernel_source()
-        n = sum(1 for p in self.parameter_spec() if p.is_numeric)
-        src.constants.update({name: n + i for i, name in enumerate(RIGID_BLOCK)})
-        return src
+    def parameter_offset(self) -> int:
+        return RB_SIZE
+
+    def kernel_constants(self) -> dict[str, int | float]:
+        return {name: i for i, name in enumerate(RIGID_BLOCK)}
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         q, w = self.initial_attitude()

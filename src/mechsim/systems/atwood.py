@@ -66,7 +66,7 @@ class Atwood(LagrangianModel):
         if self.formulation == "reduced":
             z1, z2 = -h - R1 * phi, -h + R2 * phi
             dz1, dz2 = -R1 * dphi, R2 * dphi
-            acc = sp.Symbol("a_0", real=True)
+            acc = b.acceleration(phi)
             T1, T2 = m1 * (g - R1 * acc), m2 * (g + R2 * acc)
         else:
             z1, dz1 = b.coordinate("z_1", "m")

@@ -15,12 +15,14 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
-from types import ModuleType
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
 from mechsim.params import Parameter, Value, resolve
+
+if TYPE_CHECKING:
+    from mechsim.codegen import Kernels
 
 
 @dataclass(frozen=True)
@@ -358,8 +360,8 @@ class Model(ABC):
 
     @property
     @abstractmethod
-    def kernels(self) -> ModuleType:
-        """The compiled kernel module (built on first use, cached on disk)."""
+    def kernels(self) -> Kernels:
+        """The compiled kernel functions (built on first use, cached on disk)."""
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         """Generalized coordinates and rates at t = 0. Default: ``initial.<coordinate>`` and
@@ -436,8 +438,15 @@ class Model(ABC):
         """A characteristic time (e.g. small-oscillation period), for step-size choices."""
         return 1.0
 
+    # A model's parameters never change (``with_values`` makes a new model), so what follows
+    # from them is computed once per model; callers get copies they may modify.
     def parameter_vector(self) -> np.ndarray:
         """Numeric parameters in kernel order (all numeric parameters, in spec order)."""
+        if "_parameter_vector" not in self.__dict__:
+            self.__dict__["_parameter_vector"] = self._make_parameter_vector()
+        return self.__dict__["_parameter_vector"].copy()  # type: ignore[no-any-return]
+
+    def _make_parameter_vector(self) -> np.ndarray:
         return np.array([float(self.values[p.name]) for p in self.parameter_spec()  # type: ignore[arg-type]
                          if p.is_numeric], dtype=np.float64)
 
@@ -447,10 +456,13 @@ class Model(ABC):
         return StateLayout(len(self.coordinates), len(self.modes))
 
     def initial_y(self) -> np.ndarray:
-        q0, v0 = self.initial_state()
-        y0 = self.layout.compose(q0, v0, modes=self.initial_modes())
-        self.kernels.project(0.0, y0, self.parameter_vector())
-        return y0
+        """The initial state (projected onto the constraints)."""
+        if "_initial_y" not in self.__dict__:
+            q0, v0 = self.initial_state()
+            y0 = self.layout.compose(q0, v0, modes=self.initial_modes())
+            self.kernels.project(0.0, y0, self.parameter_vector())
+            self.__dict__["_initial_y"] = y0
+        return self.__dict__["_initial_y"].copy()  # type: ignore[no-any-return]
 
     def describe(self) -> dict[str, Any]:
         return {

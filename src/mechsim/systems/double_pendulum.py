@@ -79,7 +79,7 @@ class DoublePendulum(LagrangianModel):
                                                         * l2 * d1 * d2 * sp.cos(t1 - t2)) / 2)
             b.potential = (m1 * g * (l1 + l2 - l1 * sp.cos(t1))
                            + m2 * g * (l1 + l2 - (l1 * sp.cos(t1) + l2 * sp.cos(t2))))
-            a = [sp.Symbol("a_0", real=True), sp.Symbol("a_1", real=True)]
+            a = [b.acceleration(t1), b.acceleration(t2)]
             a1 = _accel(p1, [t1, t2], [d1, d2], a)
             a2 = _accel(p2, [t1, t2], [d1, d2], a)
             u1, u2 = -p1 / l1, (p2 - p1) / l2

@@ -21,22 +21,24 @@ No equation of motion is typed by hand, so no typo of the source documents can r
 
 from __future__ import annotations
 
-import hashlib
+import sys
 from dataclasses import dataclass, field
 from functools import cached_property
-from types import ModuleType
 from typing import ClassVar
 
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
+from mechsim.codegen import FUNCTIONS
 from mechsim.systems.base import Event, FrameSpec, Law, Model, Quantity, Structure
 
 Expr = sp.Expr
 
-#: Bumped whenever the generated code changes, so cached derivations are not reused.
-GENERATOR_VERSION = 3
+#: Part of every derivation's cache key, with this module's source text: any change to the
+#: generator gives new kernel modules (see ``mechsim.codegen``).
+GENERATOR_VERSION = 4
+_GENERATOR_SOURCE = codegen.source_fingerprint([sys.modules[__name__]])
 
 
 @dataclass
@@ -55,6 +57,7 @@ class LagrangianBuilder:
     coords: list[Quantity] = field(default_factory=list)
     q: list[sp.Symbol] = field(default_factory=list)
     v: list[sp.Symbol] = field(default_factory=list)
+    qdd: list[sp.Symbol] = field(default_factory=list)  # accelerations (``acceleration``)
     kinetic: Expr = sp.Integer(0)
     potential: Expr = sp.Integer(0)
     rayleigh: Expr = sp.Integer(0)
@@ -79,7 +82,16 @@ class LagrangianBuilder:
         self.coords.append(Quantity(name, unit))
         self.q.append(q)
         self.v.append(v)
+        self.qdd.append(sp.Symbol(f"qdd_{name}", real=True))
         return q, v
+
+    def acceleration(self, coordinate: sp.Symbol) -> sp.Symbol:
+        """q̈ of a declared coordinate (given by its symbol q), for observables and events that
+        depend on the accelerations (e.g. a string tension m (g − R φ̈)): the generated kernel
+        solves the equations of motion for it where such an expression is evaluated."""
+        if coordinate not in self.q:
+            raise KeyError(f"{coordinate} is not a declared coordinate")
+        return self.qdd[self.q.index(coordinate)]
 
     def param(self, name: str) -> sp.Symbol:
         """The symbol of a numeric parameter (its value is read from the parameter vector)."""
@@ -153,29 +165,29 @@ class LagrangianModel(Model):
         self.declare(b)
         return b
 
-    @property
+    @cached_property
     def coordinates(self) -> tuple[Quantity, ...]:
         return tuple(self.declaration.coords)
 
-    @property
+    @cached_property
     def invariants(self) -> tuple[Quantity, ...]:
         d = self.declaration
         return tuple(q for q, _ in d.invariants) + tuple(
             Quantity(f"constraint_{name}", "") for name, _ in d.constraints)
 
-    @property
+    @cached_property
     def observables(self) -> tuple[Quantity, ...]:
         return tuple(q for q, _ in self.declaration.observables)
 
-    @property
+    @cached_property
     def frames(self) -> tuple[FrameSpec, ...]:
         return tuple(f.spec for f in self.declaration.frames)
 
-    @property
+    @cached_property
     def events(self) -> tuple[Event, ...]:
         return tuple(e for e, _ in self.declaration.events)
 
-    @property
+    @cached_property
     def modes(self) -> tuple[Quantity, ...]:
         return tuple(self.declaration.modes)
 
@@ -199,42 +211,46 @@ class LagrangianModel(Model):
                          dissipative=dissipative, driven=driven, time_dependent=time_dep)
 
     @cached_property
-    def kernels(self) -> ModuleType:
-        return codegen.build(self.kernel_source())
+    def kernels(self) -> codegen.Kernels:
+        """Built once per declaration: derived and compiled on the first use on a machine,
+        imported from the cache afterwards (see ``derivation_key``)."""
+        return codegen.build(f"{self.id}_{self.formulation}", self.derivation_key(),
+                             self.kernel_source)
 
     def _param_index(self) -> dict[str, int]:
         numeric = [p.name for p in self.parameter_spec() if p.is_numeric]
         return {name: i for i, name in enumerate(numeric)}
 
-    def kernel_source(self) -> codegen.KernelSource:
+    def derivation_key(self) -> str:
+        """Every input of the derivation: the declaration (expressions with their symbols'
+        assumptions, names, events, modes), where each parameter sits in ``p`` (the index map
+        the generated code bakes in), and the generator (its version and source text)."""
         d = self.declaration
-        key = hashlib.sha256(repr((GENERATOR_VERSION, type(self).__qualname__,
-                                   self.declaration_version,
-                                   self.formulation, sp.srepr(d.kinetic), sp.srepr(d.potential),
-                                   sp.srepr(d.rayleigh), [sp.srepr(f) for f in d.forces],
-                                   [(n, sp.srepr(g)) for n, g in d.constraints],
-                                   [(q.name, sp.srepr(e)) for q, e in d.invariants],
-                                   [(q.name, sp.srepr(e)) for q, e in d.observables],
-                                   [(f.spec, [sp.srepr(e) for e in f.translation + f.rotation])
-                                    for f in d.frames], "events",
-                                   [(e, sp.srepr(x)) for e, x in d.events],
-                                   [(k, sp.srepr(a)) for k, a in sorted(d.active.items())],
-                                   [q.name for q in d.modes])
-                                  + ((sp.srepr(d.linear),) if d.linear != 0 else ())
-                                  ).encode()).hexdigest()[:12]
-        name = f"{self.id}_{self.formulation}_{key}"
-        cached = codegen.cache_dir() / "derived" / f"{name}.py"
-        if cached.exists():
-            body = cached.read_text()
-        else:
-            body = _derive(d, self._param_index(), self.structure)
-            codegen.write_atomic(cached, body)
+        return codegen.fingerprint(
+            GENERATOR_VERSION, _GENERATOR_SOURCE, type(self).__qualname__,
+            self.declaration_version, self.formulation, sorted(self._param_index().items()),
+            [(c.name, c.unit) for c in d.coords],
+            sp.srepr(d.kinetic), sp.srepr(d.potential), sp.srepr(d.rayleigh),
+            sp.srepr(d.linear), [sp.srepr(f) for f in d.forces],
+            [(n, sp.srepr(g)) for n, g in d.constraints],
+            [(q.name, sp.srepr(e)) for q, e in d.invariants],
+            [(q.name, sp.srepr(e)) for q, e in d.observables],
+            [(f.spec, [sp.srepr(e) for e in f.translation + f.rotation]) for f in d.frames],
+            [(e, sp.srepr(x)) for e, x in d.events],
+            [(k, sp.srepr(a)) for k, a in sorted(d.active.items())],
+            [q.name for q in d.modes], sorted((k, sp.srepr(v)) for k, v in d.params.items()))
+
+    def kernel_source(self) -> codegen.KernelSource:
+        """Derive the kernel functions (sympy; about a second for most systems)."""
+        d = self.declaration
+        body, functions = _derive(d, self._param_index(), self.structure)
         n = len(d.q)
-        return codegen.KernelSource(name=name, constants={
-            "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
-            "N_INV": len(self.invariants), "N_OBS": len(self.observables),
-            "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes)},
-            body=body)
+        return codegen.KernelSource(
+            name=f"{self.id}_{self.formulation}", functions=functions, body=body, constants={
+                "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
+                "N_INV": len(self.invariants), "N_OBS": len(self.observables),
+                "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes),
+                "N_P": len(self._param_index())})
 
     @cached_property
     def _canonical(self) -> bool:
@@ -312,7 +328,7 @@ def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
 
 
 def _func(name: str, args: str, body: list[str]) -> str:
-    return "\n".join(["@njit(cache=True)", f"def {name}({args}):", *body, "    return", ""])
+    return "\n".join([codegen.decorator(name), f"def {name}({args}):", *body, "    return", ""])
 
 
 def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
@@ -327,7 +343,10 @@ def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
     return sp.expand(d.kinetic - (v.T * M * v)[0, 0] / 2) == 0
 
 
-def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
+def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
+            ) -> tuple[str, tuple[str, ...]]:
+    """The kernel module body and the contract functions it defines (those it leaves out are
+    no-ops: no constraints, not separable, no canonical form, no events, nothing to output)."""
     n, nc = len(d.q), len(d.constraints)
     t, q, v = d.t, sp.Matrix(d.q), sp.Matrix(d.v)
     T, V, D = d.kinetic, d.potential, d.rayleigh
@@ -346,7 +365,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     E = T + V
     h = (v.T * dL_dv)[0, 0] - L
     P_diss = sum(d.v[i] * sp.diff(D, d.v[i]) for i in range(n)) if D != 0 else sp.Integer(0)
-    a_syms = [sp.Symbol(f"a_{i}", real=True) for i in range(n)]
+    a_syms = d.qdd
+    a_names = [a.name for a in a_syms]
     dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * a_syms[i]
                              for i in range(n))
     lam = [d.multiplier(k) for k in range(nc)]
@@ -393,16 +413,16 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     # inline (no array allocation per call); otherwise through accel's linear solve.
     if diagonal:
         dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
-        body = list(pre) + _emit([(f"a_{i}", accel_exprs[i]) for i in range(n)]
+        body = list(pre) + _emit([(a_names[i], accel_exprs[i]) for i in range(n)]
                                  + [("P_diss", P_diss), ("dE", dE_inline)])
     else:
         body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
                 "    accel(t, y, p, acc, lam)"]
         body += pre
-        body += [f"    a_{i} = acc[{i}]" for i in range(n)]
+        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
         body += _emit([("P_diss", P_diss), ("dE", dE)])
     body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
-    body += [f"    dy[{n + i}] = a_{i}" for i in range(n)]
+    body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
     body += [f"    dy[{2 * n}] = dE + P_diss", f"    dy[{2 * n + 1}] = P_diss"]
     out.append(_func("rhs", "t, y, p, dy", body))
 
@@ -426,9 +446,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
                       + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
                          for j in range(n)])
         body += ["    _project_onto(G, r, vv)"]
-    else:
-        body = ["    pass"]
-    out.append(_func("project", "t, y, p", body))
+        out.append(_func("project", "t, y, p", body))
 
     # accel_q for separable systems
     if st.separable:
@@ -437,9 +455,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         acc = Minv * (-gradV)
         body = _prelude(d, pindex, with_v=False, q_name="q")
         body += _emit([(f"a[{i}]", sp.simplify(acc[i])) for i in range(n)])
-    else:
-        body = ["    pass"]
-    out.append(_func("accel_q", "t, q, p, a", body))
+        out.append(_func("accel_q", "t, q, p, a", body))
 
     # canonical form (conservative, unconstrained, no events): z = [q, p = ∂L/∂q̇, ...]
     if _canonical_ok(d, st):
@@ -471,10 +487,6 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         body += [f"    dz[{i}] = {vs.name}" for i, vs in enumerate(d.v)]
         body += [f"    for k in range({2 * n}, z.size):", "        dz[k] = 0.0"]
         out.append(_func("canonical_rhs", "t, z, p, dz", body))
-    else:
-        for name, args in (("to_momenta", "t, y, p, z"), ("from_momenta", "t, z, p, y"),
-                           ("canonical_rhs", "t, z, p, dz")):
-            out.append(_func(name, args, ["    pass"]))
 
     # energy
     body = list(pre) + _emit([("out[0]", T), ("out[1]", V), ("out[2]", h)])
@@ -483,8 +495,9 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
     # invariants (declared ones, then constraint residuals)
     inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(act, d.constraints,
                                                                       strict=True)]
-    body = list(pre) + (_emit([(f"out[{i}]", e) for i, e in enumerate(inv)]) or ["    pass"])
-    out.append(_func("invariants", "t, y, p, out", body))
+    if inv:
+        body = list(pre) + _emit([(f"out[{i}]", e) for i, e in enumerate(inv)])
+        out.append(_func("invariants", "t, y, p, out", body))
 
     # observables (may use the multipliers)
     obs = [e for _, e in d.observables]
@@ -494,9 +507,10 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
                  "    accel(t, y, p, acc, lam)"]
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
-        body += [f"    a_{i} = acc[{i}]" for i in range(n)]
-    body += _emit([(f"out[{i}]", e) for i, e in enumerate(obs)]) or ["    pass"]
-    out.append(_func("observables", "t, y, p, out", body))
+        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+    if obs:
+        body += _emit([(f"out[{i}]", e) for i, e in enumerate(obs)])
+        out.append(_func("observables", "t, y, p, out", body))
 
     # events (may use the multipliers, like observables)
     evx = [e for _, e in d.events]
@@ -505,16 +519,20 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure) -> str:
         body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
                  "    accel(t, y, p, acc, lam)"]
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
-        body += [f"    a_{i} = acc[{i}]" for i in range(n)]
-    body += _emit([(f"out[{i}]", e) for i, e in enumerate(evx)]) or ["    pass"]
-    out.append(_func("event", "t, y, p, out", body))
+        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+    if evx:
+        body += _emit([(f"out[{i}]", e) for i, e in enumerate(evx)])
+        out.append(_func("event", "t, y, p, out", body))
 
     # frames
     assign = []
     for k, fr in enumerate(d.frames):
         for c, e in enumerate(fr.translation + fr.rotation):
             assign.append((f"out[{k}, {c}]", e))
-    body = list(pre) + (_emit(assign) or ["    pass"])
-    out.append(_func("frames", "t, y, p, out", body))
-    return "\n\n".join(out)
+    if assign:
+        out.append(_func("frames", "t, y, p, out", list(pre) + _emit(assign)))
+    functions = tuple(name for name in FUNCTIONS
+                      if any(text.startswith(f"{codegen.decorator(name)}\ndef {name}(")
+                             for text in out))
+    return "\n\n".join(out), functions
 

@@ -44,8 +44,8 @@ from mechsim.systems.base import FrameSpec, Quantity, Structure, Visual
 from mechsim.systems.direct import DirectModel
 
 # --- kernel functions (pasted into the kernel module; see mechsim.systems.direct) -----------
-# The kernel module defines the parameter-index constants; this copy is for linters and for
-# calling the functions from Python (mass is the first numeric parameter).
+# Index of mass in p (the first numeric parameter); the kernel module generates the same
+# value, which ``DirectModel`` checks.
 P_MASS = 0
 
 

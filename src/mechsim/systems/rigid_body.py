@@ -57,9 +57,10 @@ from mechsim.systems.base import FrameSpec, Quantity, Visual
 
 
 def invariants(t, y, p, out):
+    """[L_world (3), L·ω/|L|, |q| − 1] without a torque, [|q| − 1] with one (``out.size``)."""
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
-    out[N_INV - 1] = n - 1.0
-    if N_INV > 1:
+    out[out.size - 1] = n - 1.0
+    if out.size > 1:
         body = np.empty(3)
         world = np.empty(3)
         rb_momentum(y, p, body, world)
@@ -107,8 +108,6 @@ def frames(t, y, p, out):
     out[2, 5] = 0.0
     out[2, 6] = 1.0
 
-
-N_INV = 5  # the kernel module defines the real value (1 with a torque, 5 without)
 
 # --- the model --------------------------------------------------------------------------------
 

@@ -47,6 +47,7 @@ import sympy as sp
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
 from mechsim.systems._rigid import (
+    RB_SIZE,
     RIGID_KERNELS,
     QuaternionRigidBody,
     RigidData,
@@ -59,7 +60,9 @@ from mechsim.systems.base import FrameSpec, Model, Quantity, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 # --- quaternion-formulation kernels -----------------------------------------------------------
-P_CM_DISTANCE = 2  # index of cm_distance in p; the kernel module defines the real constant
+# Index of cm_distance in p (the third numeric parameter, after the rigid-body block); the
+# kernel module generates the same value, which ``DirectModel`` checks.
+P_CM_DISTANCE = RB_SIZE + 2
 
 
 def invariants(t, y, p, out):

@@ -1,0 +1,94 @@
+"""The cache of generated kernel modules: keyed on every input of the derivation (a system
+whose parameters are reordered, with the old kernels still cached, computes with the new
+order), bounded (least recently used modules go first), and shown and emptied by
+``mechsim cache info|clear`` without touching anything else in the directory."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import pytest
+
+from mechsim import codegen
+from mechsim.cli import main
+from mechsim.params import number, positive
+from mechsim.simulate import simulate
+from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+
+class _Spring(LagrangianModel):
+    """m ẍ = −k x: x = x₀ cos(√(k/m) t)."""
+
+    id = "cache_test_spring"
+    title = "spring"
+    source = "tests"
+    parameters = (positive("spring_constant", 9.0, "N/m", "k"), positive("mass", 1.0, "kg", "m"),
+                  number("initial.x", 1.0, "m", "x₀"))
+
+    def declare(self, b: LagrangianBuilder) -> None:
+        x, v = b.coordinate("x", "m")
+        k, m = b.param("spring_constant"), b.param("mass")
+        b.kinetic = m * v**2 / 2
+        b.potential = k * x**2 / 2
+        b.observable("force", "N", -k * x)
+
+
+@pytest.fixture
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def _end_x(model: LagrangianModel) -> float:
+    run = simulate(model, 2.0, 1.0, method="dop853", tolerance=1e-12, outputs=())
+    return float(run.q[-1, 0])
+
+
+def test_reordered_parameters_with_a_warm_cache(cache: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """k = 9, m = 1: x(2) = cos 6. The generated code reads k and m by index; after the two
+    parameters swap places in the spec, the cached kernels (k at 0, m at 1) must not serve."""
+    first = _Spring()
+    assert _end_x(first) == pytest.approx(math.cos(6.0), abs=1e-9)
+    assert codegen.cache_info()["modules"] >= 1  # the cache is warm
+    spec = _Spring.parameters
+    monkeypatch.setattr(_Spring, "parameters", (spec[1], spec[0], spec[2]))
+    swapped = _Spring()
+    assert list(swapped.parameter_vector()[:2]) == [1.0, 9.0]
+    assert _end_x(swapped) == pytest.approx(math.cos(6.0), abs=1e-9)
+    assert swapped.kernels is not first.kernels
+
+
+def test_least_recently_used_modules_are_evicted(cache: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(codegen, "MAX_MODULES", 3)
+    monkeypatch.setattr(codegen, "_EVICT_GRACE", -1.0)
+    folder = cache / "kernels"
+    for i in range(3):
+        codegen.load_module(f"evict{i}", f"key{i}", lambda i=i: f"VALUE = {i}\n")
+    used = sorted(folder.glob("*.used"))
+    for k, marker in enumerate(sorted(used, key=lambda p: p.name)):
+        os.utime(marker, (1000.0 + k, 1000.0 + k))  # evict0 … evict2, oldest first
+    oldest = min(used, key=lambda p: p.stat().st_mtime).with_suffix(".py")
+    codegen.load_module("evict3", "key3", lambda: "VALUE = 3\n")
+    names = {p.name for p in folder.glob("*.py")}
+    assert len(names) == 3 and oldest.name not in names
+
+
+def test_cache_info_and_clear(cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    codegen.load_module("clear_me", "k", lambda: "VALUE = 1\n")
+    cache.mkdir(parents=True, exist_ok=True)
+    foreign = cache / "notes.txt"
+    foreign.write_text("not ours")
+    assert main(["cache", "info", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["path"] == str(cache) and info["modules"] == 1 and info["bytes"] > 0
+    assert main(["cache", "clear"]) == 0
+    assert "removed 1 generated module" in capsys.readouterr().out
+    assert not list((cache / "kernels").glob("mechsim_*"))
+    assert foreign.read_text() == "not ours"
+    assert main(["cache", "info"]) == 0
+    assert "modules: 0" in capsys.readouterr().out
