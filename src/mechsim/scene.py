@@ -49,9 +49,9 @@ from mechsim.systems import system_class
 
 #: Instance names: ROS namespaces, short enough for every topic name built on them.
 MAX_NAME = 64
-_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,%d}" % (MAX_NAME - 1))
+_NAME = re.compile(rf"[A-Za-z][A-Za-z0-9_]{{0,{MAX_NAME - 1}}}")
 #: Scene names: part of the default bag path (``runs/<scene>_<time>``), so never a path.
-_SCENE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,%d}" % (MAX_NAME - 1))
+_SCENE_NAME = re.compile(rf"[A-Za-z0-9_][A-Za-z0-9_.-]{{0,{MAX_NAME - 1}}}")
 #: Largest scene file (bytes) and ``--set`` value (characters) read.
 MAX_SCENE_BYTES = 1 << 20
 MAX_SET_CHARS = 10_000
