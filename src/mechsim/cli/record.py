@@ -18,7 +18,7 @@ def cmd_record(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
     from mechsim.cli.common import check_duration, check_rate
     from mechsim.errors import ParameterError
-    from mechsim.ros.record import run_with_outputs
+    from mechsim.ros.record import bag_path, run_with_outputs
     from mechsim.scene import scene_from_target
 
     scene = scene_from_target(a.target, a.set, a.name)
@@ -30,6 +30,7 @@ def cmd_record(a: argparse.Namespace) -> int:
                              "recording runs as fast as possible)")
     duration = check_duration(d)
     bag = a.bag or scene.bag or DEFAULT_BAG
+    bag_path(bag, scene)  # a bad path is refused before anything starts
     show = progress_bar(sys.stderr.isatty())
     say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {duration:g} s "
         f"simulated, as fast as possible)")

@@ -437,13 +437,13 @@ class SimulatorNode(Node):
                          settings["constraint_limit"])
         model = self.model
         if values != self.values:
+            model = self.cls(**values)  # every check of the model (cheap: no derivation yet)
             if any(self.spec[k].kind is not float and values[k] != self.values[k]
                    for k in values):
                 # New equations of motion, possibly: derived and compiled in a child process
                 # with a time limit, never unbounded in this executor.
                 prepare_model(self.instance.system, values, method, change.tolerance,
                               self.prepare_timeout)
-            model = self.cls(**values)
             change.model = model
             change.structural = (model.kernels is not self.model.kernels
                                   or model.initial_y().size != self.stepper.y.size)
