@@ -82,7 +82,11 @@ def stop_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, _interrupt)
 
 
+_stopping = threading.Event()
+
+
 def _interrupt(signum: int, frame: Any) -> None:
+    _stopping.set()
     raise KeyboardInterrupt
 
 
@@ -128,22 +132,29 @@ def _alive(node: Any, executor: Any, full_name: str, timeout: float) -> bool:
         node.destroy_client(client)
 
 
-def check_graph(context: Any, names: list[str], clock: bool, started: float,
-                wait: float = GRAPH_WAIT) -> None:
-    """Refuse (MechsimError, one line) to start simulator nodes for ``names`` when a live node
-    of the same name already runs on the domain, or, with ``clock``, when another live node
-    publishes /clock. Waits until ``wait`` seconds after ``started`` (discovery) first."""
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
+class GraphCheck:
+    """Refuse (MechsimError, one line) to start simulator nodes whose names a live node of
+    the domain already uses, or a second /clock. Made before the models are built, so that
+    discovery (which starts with this probe's participant) runs meanwhile; :meth:`check` waits
+    for the rest of ``GRAPH_WAIT``, then looks."""
 
-    probe = Node(f"graph_check_{os.getpid()}", namespace="/mechsim", context=context,
-                 start_parameter_services=False)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(probe)
-    domain = context.get_domain_id()
-    try:
-        while time.monotonic() < started + wait:
-            executor.spin_once(timeout_sec=min(0.05, max(0.0, started + wait - time.monotonic())))
+    def __init__(self, context: Any) -> None:
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        self.context = context
+        self.started = time.monotonic()
+        self.probe = Node(f"graph_check_{os.getpid()}", namespace="/mechsim", context=context,
+                          start_parameter_services=False)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.probe)
+
+    def check(self, names: list[str], clock: bool, wait: float = GRAPH_WAIT) -> None:
+        probe, executor = self.probe, self.executor
+        domain = self.context.get_domain_id()
+        while time.monotonic() < self.started + wait:
+            executor.spin_once(timeout_sec=min(0.05, max(0.0, self.started + wait
+                                                         - time.monotonic())))
         present = {(ns, n) for n, ns in probe.get_node_names_and_namespaces()}
         for name in names:
             full = f"/{name}/simulator"
@@ -161,9 +172,10 @@ def check_graph(context: Any, names: list[str], clock: bool, started: float,
                                        f"by {full}: one clock per graph (stop that scene, run "
                                        "the systems in one scene, or use another "
                                        "ROS_DOMAIN_ID)")
-    finally:
-        executor.shutdown()
-        probe.destroy_node()
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.probe.destroy_node()
 
 
 def _warm(scene: Scene) -> None:
@@ -196,7 +208,6 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     if own_context:
         context = rclpy.context.Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    started = time.monotonic()
     fast = (scene.pacing == "fast" or scene.real_time_factor == 0) if fast is None else fast
     duration = duration if duration is not None else scene.duration
     sinks = list(sinks or [])
@@ -219,9 +230,14 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     try:
         if main_thread:
             signal.signal(signal.SIGTERM, on_term)
-        _warm(scene)
-        if graph_wait > 0:
-            check_graph(context, [i.name for i in scene.systems], True, started, graph_wait)
+        graph = GraphCheck(context) if graph_wait > 0 else None
+        try:
+            _warm(scene)
+            if graph is not None:
+                graph.check([i.name for i in scene.systems], True, graph_wait)
+        finally:
+            if graph is not None:
+                graph.close()
         for i, inst in enumerate(scene.systems):
             # Stepped by this loop (real_time_factor 0: read-only, the node never paces
             # itself) and never past the duration.
@@ -359,7 +375,6 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
 
     context = rclpy.context.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    started = time.monotonic()
     node: Any = None
     executor = SingleThreadedExecutor(context=context)
     try:
@@ -373,8 +388,12 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
             if which not in names:
                 raise ParameterError("--node", f"no instance {which!r} in the scene")
             idx = names.index(which)
-            _warm(scene)
-            check_graph(context, [which], idx == 0, started)
+            graph = GraphCheck(context)
+            try:
+                _warm(scene)
+                graph.check([which], idx == 0)
+            finally:
+                graph.close()
             rtf = 0.0 if fast or scene.pacing == "fast" else scene.real_time_factor
             node = SimulatorNode(scene.systems[idx], context=context,
                                  publish_rate=scene.publish_rate, real_time_factor=rtf,
@@ -435,6 +454,8 @@ def _main(argv: list[str]) -> int:
     except KeyboardInterrupt:  # stopped (SIGINT/SIGTERM) while still starting up
         return 130
     except RuntimeError as e:  # RosEnvironmentError and rclpy start-up failures
+        if _stopping.is_set():  # the stop landed inside rclpy and came out converted
+            return 130
         print(f"mechsim: error: {(str(e).splitlines() or [type(e).__name__])[0]}",
               file=sys.stderr)
         return 2
