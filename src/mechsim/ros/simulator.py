@@ -260,16 +260,20 @@ class SimulatorNode(Node):
         """Check the rows of ``Y`` against the guards and publish them, in order, up to the
         first bad one (which stops the system). Returns the number of rows published."""
         n = len(self.model.coordinates)
-        finite = np.all(np.isfinite(Y), axis=1)
-        good = int(finite.size if finite.all() else np.argmin(finite))
+        good = times.size
+        if not np.isfinite(Y).all():
+            good = int(np.argmin(np.all(np.isfinite(Y), axis=1)))
         reason = None if good == times.size else f"non-finite state at t = {times[good]:.6g}"
         want = self._wanted()
         which = want + (("invariants",) if self._constraints and "invariants" not in want
                         else ())
         out = evaluate(self.model, times[:good], Y[:good], self.p, which) \
             if good and which else Outputs()
-        inv = np.column_stack([out.invariants[q.name] for q in self.model.invariants]) \
-            if out.invariants else None
+        inv = None
+        if out.invariants:
+            names = [q.name for q in self.model.invariants]
+            inv = out.invariants[names[0]][:, None] if len(names) == 1 else np.column_stack(
+                [out.invariants[name] for name in names])
         if self._constraints and good and inv is not None:
             r = inv[:, self._constraints]
             limit = self.constraint_limit * np.maximum(1.0, np.max(np.abs(Y[:good, :n]),
