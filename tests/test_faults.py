@@ -433,3 +433,31 @@ def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Pa
                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert bad.returncode == 1, bad.stderr
     assert "integration stopped" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def _loaded(pid: int, needle: str) -> bool:
+    try:
+        return needle in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return True  # gone: nothing more to wait for
+
+
+@pytest.mark.parametrize("stage", ["at once", "numpy", "librcl", "running"])
+def test_node_process_stopped_while_starting_is_quiet(ros_env: dict[str, str],
+                                                     tmp_path: Path, stage: str) -> None:
+    """A node process (``run --processes`` child) stopped at any point of its start-up, during
+    its imports included, or once running, exits without a traceback."""
+    from mechsim.ros.graph import node_names
+
+    proc = subprocess.Popen([PY, "-m", "mechsim.ros.launch", "pendulum", "--node", "quiet",
+                             "--name", "quiet"], env=ros_env, cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    needle = {"numpy": "numpy", "librcl": "librcl"}.get(stage)
+    if needle is not None:
+        assert _wait(lambda: _loaded(proc.pid, needle), 300)
+    if stage == "running":
+        assert _wait(lambda: "/quiet/simulator" in node_names(), 300)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert "Traceback" not in err and "error" not in err, err
+    assert proc.returncode in (0, 130, -signal.SIGTERM), (proc.returncode, err)

@@ -7,7 +7,7 @@ import sys
 from typing import Any
 
 from mechsim.cli.common import print_summary, progress_bar, say
-from mechsim.ros.launch import stop_on_sigterm
+from mechsim.ros.process import stop_on_sigterm
 from mechsim.ros.record import DEFAULT_BAG
 
 #: Exit status of a recording stopped by Ctrl-C / SIGTERM (128 + SIGINT, as shells report).

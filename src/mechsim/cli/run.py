@@ -7,7 +7,7 @@ import sys
 from typing import Any
 
 from mechsim.cli.common import print_summary, progress_bar, say
-from mechsim.ros.launch import stop_on_sigterm
+from mechsim.ros.process import stop_on_sigterm
 
 
 def cmd_run(a: argparse.Namespace) -> int:

@@ -21,7 +21,6 @@ so a child stopped while starting exits quietly).
 from __future__ import annotations
 
 import argparse
-import ctypes
 import os
 import signal
 import subprocess
@@ -33,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from mechsim.errors import MechsimError, ParameterError
+from mechsim.ros.process import die_with_parent, stop_on_sigterm, stopping
 
 if TYPE_CHECKING:
     from mechsim.scene import Scene
@@ -41,7 +41,6 @@ if TYPE_CHECKING:
 GRAPH_WAIT = 1.0
 #: Seconds a node found in the graph has to answer before it counts as gone (killed).
 LIVENESS_TIMEOUT = 2.0
-_PR_SET_PDEATHSIG = 1
 
 
 @dataclass
@@ -61,33 +60,6 @@ class SceneRun:
 
 class _Stop(Exception):
     pass
-
-
-def die_with_parent(parent_pid: int) -> None:
-    """Make this process receive SIGTERM when its parent dies (Linux ``PR_SET_PDEATHSIG``, also
-    after a SIGKILL of the parent); if the parent is already gone, SIGTERM now."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
-    except (OSError, AttributeError):  # not Linux: the parent's own handler still stops us
-        pass
-    if os.getppid() != parent_pid:
-        os.kill(os.getpid(), signal.SIGTERM)
-
-
-def stop_on_sigterm() -> None:
-    """SIGTERM raises KeyboardInterrupt from now on (main thread only), so every stop takes the
-    same clean path as Ctrl-C: outputs completed, nodes destroyed."""
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _interrupt)
-
-
-_stopping = threading.Event()
-
-
-def _interrupt(signum: int, frame: Any) -> None:
-    _stopping.set()
-    raise KeyboardInterrupt
 
 
 class DiagnosticsFeed:
@@ -454,7 +426,7 @@ def _main(argv: list[str]) -> int:
     except KeyboardInterrupt:  # stopped (SIGINT/SIGTERM) while still starting up
         return 130
     except RuntimeError as e:  # RosEnvironmentError and rclpy start-up failures
-        if _stopping.is_set():  # the stop landed inside rclpy and came out converted
+        if stopping.is_set():  # the stop landed inside rclpy and came out converted
             return 130
         print(f"mechsim: error: {(str(e).splitlines() or [type(e).__name__])[0]}",
               file=sys.stderr)

@@ -63,7 +63,7 @@ def _build(request: dict[str, Any]) -> None:
 
 
 def _main() -> int:
-    from mechsim.ros.launch import die_with_parent
+    from mechsim.ros.process import die_with_parent
 
     try:
         request = json.loads(sys.stdin.read())

@@ -19,40 +19,18 @@ flushed chunks.
 from __future__ import annotations
 
 import importlib.util
-import signal
 import sys
-import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 from mechsim.errors import MechsimError, one_line
+from mechsim.ros.process import held_signals
 
 DEFAULT_BAG = "runs/{scene}_%Y%m%d-%H%M%S"
 
 
 def _msg(text: str) -> None:
     print(f"mechsim: {text}", file=sys.stderr)
-
-
-@contextmanager
-def held_signals() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM for the block (files being created or completed) and raise
-    KeyboardInterrupt after it if one came. Main thread only (elsewhere: no effect)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    got: list[int] = []
-    previous = {s: signal.signal(s, lambda n, f: got.append(n))
-                for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-    if got:
-        raise KeyboardInterrupt
 
 
 def rerun_sink(path: str) -> Any | None:

@@ -77,7 +77,7 @@ from mechsim.ros.outlet import (
 )
 from mechsim.ros.parameters import descriptor
 from mechsim.ros.prepare import PREPARE_TIMEOUT, prepare_model
-from mechsim.scene import Instance
+from mechsim.scene import Instance, instance_name
 from mechsim.simulate import Outputs, evaluate
 from mechsim.systems import system_class
 from mechsim.systems.base import Model
@@ -136,6 +136,7 @@ class SimulatorNode(Node):
         real_time_factor = float(REAL_TIME_FACTOR.check(real_time_factor, "real_time_factor"))
         constraint_limit = float(CONSTRAINT_LIMIT.check(constraint_limit, "constraint_limit"))
         tolerance = float(TOLERANCE.check(instance.tolerance, "tolerance"))
+        instance_name("instance", instance.name)
         super().__init__("simulator", namespace=instance.name, context=context)
         self.instance = instance
         self.cls: type[Model] = system_class(instance.system)
@@ -161,7 +162,9 @@ class SimulatorNode(Node):
         self.declare_parameter("system", instance.system, ParameterDescriptor(
             description="system id (see `mechsim systems`)", read_only=True))
         for name, p in self.spec.items():
-            self.declare_parameter(name, self.values[name], descriptor(p))
+            later = " (takes effect at the next reset)" if name.startswith("initial") else ""
+            self.declare_parameter(name, self.values[name],
+                                   descriptor(p, description=p.description + later))
         self.declare_parameter("method", self.method, ParameterDescriptor(
             description=f"integrator ({', '.join(METHODS)})"))
         for name, p in SETTINGS.items():
