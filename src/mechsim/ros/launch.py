@@ -37,8 +37,10 @@ from mechsim.ros.process import die_with_parent, stop_on_sigterm, stopping
 if TYPE_CHECKING:
     from mechsim.scene import Scene
 
-#: Seconds of discovery before the graph is checked for duplicate names and /clock.
-GRAPH_WAIT = 1.0
+#: Seconds of discovery before the graph is checked for duplicate names and /clock. A new
+#: participant learns of the running ones from their periodic announcements, every 3 s with
+#: Fast DDS's default (its initial burst is often missed): measured on loopback, 0.1-3.0 s.
+GRAPH_WAIT = 3.5
 #: Seconds a node found in the graph has to answer before it counts as gone (killed).
 LIVENESS_TIMEOUT = 2.0
 
@@ -163,10 +165,12 @@ def _warm(scene: Scene) -> None:
 def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None = None,
               sinks: list[Any] | None = None, context: Any = None,
               progress: Callable[[float, float], None] | None = None,
-              diagnostics_period: float = 1.0, graph_wait: float = GRAPH_WAIT) -> SceneRun:
+              diagnostics_period: float = 1.0, graph_wait: float | None = None) -> SceneRun:
     """Run every system of ``scene`` in this process until ``duration`` (simulated seconds)
     or Ctrl-C / SIGTERM. ``fast``: as fast as possible instead of the scene's pacing.
-    ``graph_wait``: discovery seconds before the graph check (0: no check)."""
+    ``graph_wait``: discovery seconds before the graph check (0: no check); by default
+    ``GRAPH_WAIT`` when this call makes its own context (a command), none with a caller's
+    context (the caller, e.g. a test or a host application, owns its graph)."""
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
@@ -180,6 +184,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     if own_context:
         context = rclpy.context.Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    if graph_wait is None:
+        graph_wait = GRAPH_WAIT if own_context else 0.0
     fast = (scene.pacing == "fast" or scene.real_time_factor == 0) if fast is None else fast
     duration = duration if duration is not None else scene.duration
     sinks = list(sinks or [])
