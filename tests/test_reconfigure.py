@@ -240,6 +240,9 @@ def test_self_paced_node_one_timer_and_end_time(ros_context: Any) -> None:
                             ("real_time_factor", 50.0)):
             assert node.set_parameters([Parameter(name, value=value)])[0].successful
             assert len(list(node.timers)) == 1
+        _one_line_rejection(node.set_parameters([Parameter("real_time_factor",
+                                                           value=0.0)])[0], "must be > 0")
+        assert len(list(node.timers)) == 1
         _spin_until(ex, lambda: node.finished)
         published = node.samples_published
         for _ in range(20):  # the timer keeps firing: nothing more is integrated

@@ -55,7 +55,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
 from mechsim.errors import IntegrationError, MechsimError, ParameterError, one_line
-from mechsim.integrators import METHODS, Stepper, choose_method, make_stepper
+from mechsim.integrators import METHODS, Stepper, make_stepper
 from mechsim.outputs import messages
 from mechsim.outputs.messages import MessageFactory, Sample
 from mechsim.outputs.sink import Sink
@@ -439,6 +439,9 @@ class SimulatorNode(Node):
                 method = value
             elif name in SETTINGS:
                 settings[name] = float(SETTINGS[name].validate(value))
+                if name == "real_time_factor" and settings[name] == 0:
+                    raise ParameterError(name, "must be > 0 for a node that paces itself "
+                                         "(0 means stepped by a runner; ~/pause stops it)")
         change = _Change(_key(params), values, method, settings["tolerance"],
                          settings["publish_rate"], settings["real_time_factor"],
                          settings["constraint_limit"])
@@ -454,7 +457,6 @@ class SimulatorNode(Node):
             change.model = model
             change.structural = (model.kernels is not self.model.kernels
                                   or model.initial_y().size != self.stepper.y.size)
-        choose_method(model, method)
         try:
             if change.structural:
                 change.stepper = make_stepper(model, method, change.tolerance)
