@@ -17,7 +17,7 @@ PACKAGE = SRC / "mechsim"
 
 #: Rank of each room, lowest first. A module may import its own room and rooms below it.
 LAYERS: dict[str, int] = {
-    "errors": 0, "params": 0, "codegen": 0, "environment": 0, "data": 0,
+    "errors": 0, "params": 0, "codegen": 0, "environment": 0, "data": 0, "files": 0,
     "systems": 1,
     "integrators": 2,
     "simulate": 3, "scene": 3, "mechsim": 3,  # "mechsim": the package's public API

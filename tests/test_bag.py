@@ -281,6 +281,8 @@ def test_sigint_mid_record_gives_a_complete_bag(tmp_path: Path,
 
 
 def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
+    from mechsim.outputs.bag import LOCK_FILE
+
     bag = tmp_path / "killed"
     f = bag / "killed_0.mcap"
     proc = subprocess.Popen([*MECHSIM, "record", "pendulum", "--duration", "1000", "--bag",
@@ -293,12 +295,13 @@ def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
     finally:
         proc.kill()
     assert not (bag / "metadata.yaml").exists()
+    assert (bag / LOCK_FILE).exists()  # the killed recorder's lock: stale (its PID is gone)
     info = _cli("bag", "info", str(bag), env=ros_env)
     assert info.returncode == 2 and info.stderr.count("\n") == 1
     assert "mechsim bag repair" in info.stderr
     rep = _cli("bag", "repair", str(bag), env=ros_env)
     assert rep.returncode == 0, rep.stderr
-    assert "truncated" in rep.stdout
+    assert "truncated" in rep.stdout and not (bag / LOCK_FILE).exists()
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     counts = _counts_from_file(bag)
     assert meta["message_count"] == sum(counts.values()) > 100
@@ -329,27 +332,33 @@ class _FullDisk:
         return getattr(self.real, name)
 
 
-def test_disk_full_removes_the_partial_bag(tmp_path: Path,
+def test_disk_full_keeps_what_was_recorded(tmp_path: Path,
                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """ENOSPC in the middle of a recording: a one-line error naming the bag and the cause; the
+    chunks written before stay (no lock left), and repair completes them into a bag that an
+    independent reader decodes without a gap."""
     from mechsim.errors import MechsimError
-    from mechsim.ros import bag as bag_module
+    from mechsim.outputs.bag import LOCK_FILE, repair_bag
+    from mechsim.outputs.bag import writer as writer_module
     from mechsim.ros import record
     from mechsim.scene import single_system_scene
 
-    real_open = open
-
-    def full_open(path: Any, mode: str = "r", *a: Any, **kw: Any) -> Any:
-        f = real_open(path, mode, *a, **kw)
-        return _FullDisk(f, 30_000) if "w" in mode and str(path).endswith(".mcap") else f
-
-    monkeypatch.setattr(bag_module, "open", full_open, raising=False)
+    real_open = writer_module.open_exclusive
+    monkeypatch.setattr(writer_module, "open_exclusive",
+                        lambda path: _FullDisk(real_open(path), 60_000))
     target = tmp_path / "full"
     with pytest.raises(MechsimError) as e:
-        record.run_with_outputs(single_system_scene("pendulum"), fast=True, duration=20.0,
+        record.run_with_outputs(single_system_scene("pendulum"), fast=True, duration=60.0,
                                 bag=str(target))
-    assert str(target) in str(e.value) and "No space left on device" in str(e.value)
-    assert "\n" not in str(e.value)
-    assert not target.exists()
+    msg = str(e.value)
+    assert str(target) in msg and "No space left on device" in msg and "\n" not in msg
+    assert "mechsim bag repair" in msg
+    assert sorted(p.name for p in target.iterdir()) == ["full_0.mcap"]  # no metadata, no lock
+    assert not (target / LOCK_FILE).exists()
+    r = repair_bag(target)
+    stamps = [ts for t, _, ts, _ in _rosbags_messages(target) if t == "/pendulum/state"]
+    assert r.messages == sum(_counts_from_file(target).values()) and len(stamps) > 10
+    assert stamps == [1_000_000_000 + 10_000_000 * k for k in range(len(stamps))]
 
 
 @pytest.mark.parametrize("case", ["nonempty", "file_parent", "unwritable"])

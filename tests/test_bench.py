@@ -1,18 +1,31 @@
-"""``mechsim bench``: sanity of the harness (schema, errors shrink with tolerance, missing peers
-reported). No wall-clock thresholds: timings are not asserted, only present."""
+"""``mechsim bench``: the harness (schema, errors shrink with tolerance, missing peers reported,
+targets judged from the figures), the problems (each reference against independent solutions,
+each problem against the mechsim system it names) and the peers (each converges at its order).
+No wall-clock thresholds: timings are not asserted, only present."""
 
 from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from mechsim.bench import peers, problems
-from mechsim.bench.run import error_at, pareto, time_at
+from mechsim.bench import peers, problems, report
+from mechsim.bench.run import (
+    SKIP_METHODS,
+    _level_target,
+    _machine_precision_target,
+    error_at,
+    matched,
+    mechsim_methods,
+    pareto,
+    time_at,
+)
 from mechsim.cli import main
 
 TOP_KEYS = {"schema", "created", "quick", "host", "settings", "peers", "systems", "targets"}
@@ -20,6 +33,7 @@ SYSTEM_KEYS = {"problem", "compile", "runs", "matched"}
 RUN_KEYS = {"contestant", "family", "knob", "setting", "status", "time_s", "times_s",
             "warmup_s", "repeats", "end_error", "max_error", "invariant_error", "n_steps",
             "n_rhs"}
+ALL = list(problems.BUILDERS)
 
 
 @pytest.fixture(scope="module")
@@ -60,9 +74,17 @@ def test_schema(quick_run: tuple[dict, Path, str]) -> None:
             if r["status"] == "ok":
                 assert r["repeats"] >= 1 and len(r["times_s"]) == r["repeats"]
                 assert r["time_s"] > 0 and r["end_error"] is not None
-        assert {r["family"] for r in s["runs"]} == {"mechsim", "scipy"}  # --quick: scipy only
+        # --quick: the local peers only (REBOUND, MuJoCo, Drake are skipped)
+        assert {r["family"] for r in s["runs"]} == {"mechsim", "scipy", "handwritten"}
     md = (out / "results.md").read_text()
-    assert "## Summary" in md and "## pendulum" in md
+    assert "## Summary" in md and "## pendulum" in md and "## Targets" in md
+
+
+def test_mechsim_methods_follow_the_integrators() -> None:
+    from mechsim.integrators import METHODS
+
+    ms = mechsim_methods()
+    assert set(ms) == set(METHODS) - set(SKIP_METHODS) and ms[-1] == "auto"
 
 
 def test_dop853_error_decreases_with_tolerance(quick_run: tuple[dict, Path, str]) -> None:
@@ -74,6 +96,29 @@ def test_dop853_error_decreases_with_tolerance(quick_run: tuple[dict, Path, str]
         assert len(errs) == 3, sid
         assert errs[0] > errs[1] > errs[2], (sid, errs)
         assert errs[-1] < 1e-7, (sid, errs)
+
+
+def test_handwritten_errors_decrease_with_steps(quick_run: tuple[dict, Path, str]) -> None:
+    res, _, _ = quick_run
+    for sid, s in res["systems"].items():
+        runs = [r for r in s["runs"] if r["contestant"] == "handwritten:RK4"]
+        errs = [r["end_error"] for r in sorted(runs, key=lambda r: r["setting"])]
+        assert len(errs) == 3 and errs[0] > errs[1] > errs[2], (sid, errs)
+        assert all(r["n_rhs"] == 4 * r["n_steps"] for r in runs)
+
+
+def test_auto_not_timed_twice(quick_run: tuple[dict, Path, str]) -> None:
+    """auto's rows copy the run of the method it picked only where the states are identical
+    (pendulum: yoshida8), and the fastest-method choice never names the copy."""
+    res, _, _ = quick_run
+    runs = res["systems"]["pendulum"]["runs"]
+    for r in (r for r in runs if r["contestant"] == "mechsim:auto"):
+        assert r["same_as"] == f"mechsim:{r['method']}"
+        twin = next(x for x in runs if x["contestant"] == r["same_as"]
+                    and x["setting"] == r["setting"])
+        assert (r["time_s"], r["end_error"]) == (twin["time_s"], twin["end_error"])
+    for m in res["systems"]["pendulum"]["matched"].values():
+        assert m["mechsim"] is None or m["mechsim"]["contestant"] != "mechsim:auto"
 
 
 def test_compositions_not_applicable_to_driven(quick_run: tuple[dict, Path, str]) -> None:
@@ -89,19 +134,151 @@ def test_missing_peer_reported(quick_run: tuple[dict, Path, str]) -> None:
     assert stdout.count("peer mujoco missing") == 1
 
 
-@pytest.mark.parametrize("system", ["pendulum", "kepler", "driven_oscillator",
-                                    "harmonic_oscillator", "double_pendulum"])
-def test_reference_matches_tight_scipy(system: str) -> None:
-    """The closed-form references (Radau at 1e-14 for the double pendulum) agree with a tight
-    DOP853 run of the bench's numpy RHS."""
-    pb = problems.problem(system, quick=True)
+def test_plot_legends_match_their_panels(quick_run: tuple[dict, Path, str]) -> None:
+    """Each panel's legend lists exactly the lines drawn in it, in their colours; no two
+    contestants share a colour; both axes are named, with units."""
+    import matplotlib.pyplot as plt
+
+    res, _, _ = quick_run
+    fig = report.figure(res, "pendulum")
+    colours: dict[str, tuple] = {}
+    try:
+        for ax in fig.axes:
+            legend = ax.get_legend()
+            labels = [t.get_text() for t in legend.get_texts()]
+            assert labels == [ln.get_label() for ln in ax.lines]
+            for ln, handle in zip(ax.lines, legend.legend_handles, strict=True):
+                assert handle.get_color() == ln.get_color()
+                name = ln.get_label().split(" (")[0]
+                assert colours.setdefault(name, ln.get_color()) == ln.get_color()
+            assert "[ms]" in ax.get_ylabel() and "dimensionless" in ax.get_xlabel()
+        assert len(set(map(str, colours.values()))) == len(colours)
+        assert {"mechsim:dop853", "scipy:LSODA", "handwritten:RK4"} <= set(colours)
+    finally:
+        plt.close(fig)
+
+
+# --- problems -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ALL)
+def test_reference_matches_tight_scipy(name: str) -> None:
+    """Every reference (closed form, or extended precision by another formulation) agrees
+    with a tight DOP853 run of the problem's own right-hand side."""
+    pb = problems.problem(name, quick=True)
     t = pb.times()
-    sol = solve_ivp(pb.rhs, (0, pb.t_end), pb.y0, method="DOP853", t_eval=t, rtol=1e-13,
-                    atol=1e-13)
-    assert np.allclose(pb.reference_states()[0], pb.y0, rtol=0, atol=1e-14)
-    assert pb.errors(sol.y.T)["max_error"] < 1e-10
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sol = solve_ivp(pb.rhs, (0, pb.t_end), pb.y0, method="DOP853", t_eval=t, rtol=1e-13,
+                        atol=1e-13)
+    assert np.allclose(pb.reference(t[:1])[0], pb.y0, rtol=0,
+                       atol=1e-13 * float(np.max(np.abs(pb.y0))))
+    err = pb.errors(sol.y.T)
+    assert err["max_error"] < 1e-10, err
+    if pb.conserved is not None:
+        assert err["invariant_error"] < 1e-10, err
 
 
+@pytest.mark.parametrize("name", ALL)
+def test_problem_is_the_mechsim_system(name: str) -> None:
+    """mechsim's trajectory at a tight tolerance matches the problem's reference: the problem
+    is set up as the system, parameters and coordinates it names. (The bound leaves room for
+    the attitude form near the rigid body's intermediate axis, ≈2e-8 at 1e-12; a wrong
+    parameter, sign or convention gives 1e-3 or more.)"""
+    from mechsim.integrators import make_stepper
+    from mechsim.systems import load_system
+
+    pb = problems.problem(name, quick=True)
+    model = load_system(pb.system, **pb.params)
+    rows = make_stepper(model, "dop853", 1e-12).advance(pb.times())
+    err = pb.compared_errors(pb.mechsim_compared(model, pb.times(), rows))
+    assert err["max_error"] < 1e-7, err
+
+
+@pytest.mark.parametrize("name", ["rigid_body_intermediate", "rigid_body_generic",
+                                  "heavy_top"])
+def test_attitude_references_vs_extended_precision(name: str,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """The elliptic-function references agree with a long-double DOP853 run of the problem's
+    own equations (another method, round-off 1e-19) to near double round-off."""
+    if not problems.EXTENDED:
+        pytest.skip("long double is plain double on this platform")
+    pb = problems.problem(name, quick=True)
+    p = pb.p.astype(np.longdouble)
+    # The kernels are scalar code over ``math``: with numpy's sin, cos, sqrt they keep long
+    # double.
+    shim = SimpleNamespace(**{k: getattr(math, k) for k in dir(math) if not k.startswith("_")})
+    shim.sin, shim.cos, shim.sqrt = np.sin, np.cos, np.sqrt
+    monkeypatch.setattr(problems, "math", shim)
+
+    def rhs(y: np.ndarray) -> np.ndarray:
+        dy = np.empty_like(y)
+        pb.deriv(0.0, y, p, dy)
+        return dy
+
+    Y = problems._fixed_dop853_longdouble(rhs, pb.y0, pb.times(), 0.005).astype(float)
+    monkeypatch.undo()
+    assert pb.errors(Y)["max_error"] < 2e-13
+
+
+@pytest.mark.parametrize("name", ["cr3bp", "spring_pendulum"])
+def test_extended_precision_reference_converged(name: str,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Halving the step of an extended-precision reference changes it by round-off only."""
+    if not problems.EXTENDED:
+        pytest.skip("long double is plain double on this platform")
+    ref = problems.problem(name, quick=True).reference_states()
+    fixed = problems._fixed_dop853_longdouble
+
+    def finer(rhs, y0, t, h_max):  # type: ignore[no-untyped-def]
+        return fixed(rhs, y0, t, h_max / 2)
+
+    monkeypatch.setattr(problems, "_fixed_dop853_longdouble", finer)
+    pb = problems.problem(name, quick=True)
+    assert np.max(np.abs(pb.reference_states() - ref)) / pb.state_scale() < 1e-15
+
+
+def test_jacobi_agm_vs_mpmath() -> None:
+    """sn, cn, dn by the long-double AGM match mpmath's, close to the separatrix too."""
+    import mpmath
+
+    u = (0.3, 7.5, 40.0)
+    for m1 in (1e-5, 0.4):
+        got = problems.jacobi_elliptic_longdouble(np.array(u), m1)
+        with mpmath.workdps(40):
+            m = 1 - mpmath.mpf(m1)
+            want = [[float(mpmath.ellipfun(f, x, m)) for x in u] for f in ("sn", "cn", "dn")]
+        for k in range(3):
+            assert np.max(np.abs(got[k].astype(float) - want[k])) < 1e-15, (m1, k)
+
+
+# --- peers --------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("name", "method", "order"), [
+    ("pendulum", "rk4", 4), ("pendulum", "yoshida4", 4), ("charged_particle_exb", "boris", 2)])
+def test_handwritten_order(name: str, method: str, order: int) -> None:
+    """Each hand-written loop converges at its order (doubling the steps divides the error
+    by about 2^order): a wrong stage or weight would not."""
+    pb = problems.problem(name, quick=True)
+    prep = peers._handwritten(method)
+    e1 = pb.errors(prep(pb, 256)()[0])["end_error"]
+    e2 = pb.errors(prep(pb, 512)()[0])["end_error"]
+    assert e1 is not None and e2 is not None
+    assert 0.6 * 2**order < e1 / e2 < 1.5 * 2**order, (e1, e2)
+
+
+def test_expm_propagator() -> None:
+    pb = problems.problem("coupled_oscillators_12", quick=True)
+    Y, _ = peers._expm(pb, 0.0)()
+    assert pb.errors(Y)["max_error"] < 1e-12
+
+
+def test_boris_keeps_the_speed_in_b() -> None:
+    """In B alone the Boris rotation keeps |v| exactly (to round-off), at any step."""
+    pb = problems.problem("charged_particle_b", quick=True)
+    Y, _ = peers._handwritten("boris")(pb, 4)()
+    speed = np.linalg.norm(Y[:, 3:], axis=1)
+    assert np.max(np.abs(speed - speed[0])) < 1e-14
+
+
+# --- matched errors and targets -----------------------------------------------------------------
 def test_pareto_interpolation() -> None:
     rows = [{"status": "ok", "time_s": t, "end_error": e}
             for t, e in [(1.0, 1e-4), (10.0, 1e-8), (5.0, 1e-3), (100.0, 1e-12)]]
@@ -116,23 +293,32 @@ def test_pareto_interpolation() -> None:
     assert error_at(front, 0.5) is None
 
 
-def test_double_pendulum_rhs_matches_mechsim() -> None:
-    """The bench's hand-written RHS and mechsim's generated kernels describe the same system."""
-    from mechsim.integrators import make_stepper
-    from mechsim.systems import load_system
+def _row(contestant: str, family: str, t: float, e: float, **kw: object) -> dict:
+    return {"contestant": contestant, "family": family, "status": "ok", "time_s": t,
+            "end_error": e, "setting": 0.0, **kw}
 
-    pb = problems.problem("double_pendulum", quick=True)
-    model = load_system(pb.system, **pb.params)
-    q0, v0 = model.initial_state()
-    assert np.allclose(np.concatenate([q0, v0]), pb.y0)
-    Y = make_stepper(model, "dop853", 1e-12).advance(pb.times())[:, :4]
-    assert pb.errors(Y)["max_error"] < 1e-9
+
+def test_targets_from_figures() -> None:
+    rows = [_row("mechsim:a", "mechsim", 1.0, 1e-4), _row("mechsim:a", "mechsim", 2.0, 1e-12),
+            _row("scipy:X", "scipy", 30.0, 1e-4), _row("scipy:X", "scipy", 100.0, 1e-8),
+            _row("handwritten:RK4", "handwritten", 0.5, 1e-4),
+            _row("handwritten:RK4", "handwritten", 0.6, 1e-6)]
+    m = matched(rows)
+    peer = _level_target("p", m, "peer", 1.0)
+    assert peer["passed"] is False and "1e-04: 0.50×" in peer["detail"]
+    sc = _level_target("p", m, "scipy", 20.0)
+    assert sc["passed"] is True  # 30×, 46×, 71× at 1e-4, 1e-6, 1e-8
+    ias = [_row("rebound:IAS15", "rebound", 3.0, 1e-13)]
+    assert _machine_precision_target("k", rows + ias)["passed"] is True
+    slow_ias = [_row("rebound:IAS15", "rebound", 1.5, 1e-13)]
+    assert _machine_precision_target("k", rows + slow_ias)["passed"] is False
+    exact_only = [_row("mechsim:exact", "mechsim", 0.1, 0.0, method="exact")] + rows[2:] + ias
+    assert _machine_precision_target("k", exact_only)["passed"] is False  # exact: not numerical
+    assert _machine_precision_target("k", rows)["passed"] is None  # IAS15 not run
 
 
 def test_double_pendulum_reference_vs_double_precision() -> None:
     """The extended-precision reference agrees with scipy Radau and DOP853 at 1e-14."""
-    import warnings
-
     pb = problems.problem("double_pendulum", quick=True)
     for method in ("Radau", "DOP853"):
         with warnings.catch_warnings():

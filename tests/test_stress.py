@@ -74,7 +74,6 @@ def test_stiffness_reported(report: dict[str, Any]) -> None:
     damped = next(r for r in rs if r["system"] == "damped_oscillator")
     assert damped["passed"] and "StiffnessError" in damped["metrics"]["error"]
     assert "damped_oscillator" in damped["metrics"]["error"]
-    assert damped["metrics"]["wall_s"] < 5.0  # detected, not crawled
 
 
 def test_singular_cases(report: dict[str, Any]) -> None:

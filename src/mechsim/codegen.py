@@ -13,10 +13,11 @@ import hashlib
 import importlib.util
 import os
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
+
+from mechsim import files
 
 _MARKER = "# === kernel body ==="
 _loaded: dict[str, ModuleType] = {}
@@ -51,13 +52,10 @@ def _template_text() -> str:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a unique temporary file and a rename, so concurrent
-    processes (parallel test workers, several nodes) never see a partial file."""
+    """Write a cache file (its folder created if needed) with ``mechsim.files.write_atomic``:
+    concurrent processes (parallel test workers, several nodes) never see a partial file."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
+    files.write_atomic(path, text)
 
 
 def module_text(src: KernelSource) -> str:

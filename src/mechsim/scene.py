@@ -46,6 +46,7 @@ from mechsim.params import (
     shown,
 )
 from mechsim.systems import system_class
+from mechsim.systems.base import Law
 
 #: Instance names: ROS namespaces, short enough for every topic name built on them.
 MAX_NAME = 64
@@ -75,8 +76,8 @@ class Scene:
     real_time_factor: float = 1.0
     duration: float | None = None
     publish_rate: float = 100.0
-    warn_drift: float = 1e-6
-    error_drift: float = 1e-3
+    warn_drift: float = Law.WARN_DRIFT
+    error_drift: float = Law.ERROR_DRIFT
     bag: str | None = None
     rrd: str | None = None
     source: Path | None = None
@@ -226,9 +227,9 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
         raise ParameterError("diagnostics", "must be a mapping")
     _keys("diagnostics", diag, {"warn_drift", "error_drift"})
     scene.warn_drift = setting(WARN_DRIFT, "diagnostics.warn_drift",
-                               diag.get("warn_drift", WARN_DRIFT.default))
+                               diag.get("warn_drift", Law.WARN_DRIFT))
     scene.error_drift = setting(ERROR_DRIFT, "diagnostics.error_drift",
-                                diag.get("error_drift", ERROR_DRIFT.default))
+                                diag.get("error_drift", Law.ERROR_DRIFT))
     if scene.warn_drift >= scene.error_drift:
         raise ParameterError("diagnostics.warn_drift", "must be smaller than error_drift")
     outputs = data.get("outputs") or {}

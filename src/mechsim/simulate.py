@@ -10,7 +10,7 @@ import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.integrators import Stepper, make_stepper
-from mechsim.systems.base import Model
+from mechsim.systems.base import Law, Model
 
 OUTPUTS = ("energy", "invariants", "observables", "frames")
 
@@ -100,7 +100,19 @@ class SimulationResult:
     @property
     def balance_residual(self) -> np.ndarray:
         """(total − total₀) − (W_ext − W_diss): zero up to integration error."""
-        return (self.total - self.total[0]) - (self.work_external - self.work_dissipated)
+        law = Law("work_balance")
+        value = self.law_value(law)
+        return law.deviation(value, value[0])  # type: ignore[no-any-return]
+
+    def law_value(self, law: Law) -> np.ndarray:
+        """The quantity ``law`` keeps, at every sample (energy terms or invariants must have
+        been evaluated)."""
+        return law.value(self, self.invariants)  # type: ignore[no-any-return]
+
+    def law_drift(self, law: Law, scale: float | np.ndarray) -> np.ndarray:
+        """Relative drift of ``law`` at every sample against its first sample."""
+        value = self.law_value(law)
+        return law.drift(value, value[0], scale)  # type: ignore[no-any-return]
 
     def event_times(self, name: str | None = None) -> np.ndarray:
         """Times of the events met (of one event name, if given)."""
@@ -151,10 +163,10 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
     Y = stepper.advance(t)
     out = evaluate(model, t, Y, stepper.p, outputs)
     wall = time.perf_counter() - start
-    n = len(model.coordinates)
+    at = model.layout
     return SimulationResult(model=model, method=stepper.method, tolerance=tolerance, t=t,
-                            q=Y[:, :n], v=Y[:, n:2 * n], work_external=Y[:, 2 * n],
-                            work_dissipated=Y[:, 2 * n + 1], outputs=out, wall_time=wall,
-                            n_steps=stepper.n_steps,
+                            q=Y[:, at.q], v=Y[:, at.v], work_external=Y[:, at.work_external],
+                            work_dissipated=Y[:, at.work_dissipated], outputs=out,
+                            wall_time=wall, n_steps=stepper.n_steps,
                             events=[e for e in stepper.events if e[0] <= t[-1]],
-                            modes=Y[:, 2 * n + 2:])
+                            modes=Y[:, at.modes])

@@ -1,9 +1,10 @@
 """Where mechsim's integration time goes: per-call cost of a model's generated kernels against
 hand-written numba equivalents, and the share of a run spent outside the compiled loop.
 
-``python -m mechsim.bench.kernel_profile [SYSTEM ...] [--out FILE.md]`` (kepler, pendulum).
+``python -m mechsim.bench.kernel_profile [PROBLEM ...] [--out FILE.md]`` (benchmark problems
+of :mod:`mechsim.bench.problems`; default kepler, pendulum).
 
-Measured, per system:
+Measured, per problem:
 - ns per call of the model's ``rhs`` and ``accel_q`` (called N times from a compiled loop,
   so no Python dispatch), and of a hand-written kernel with the same physics;
 - the cost of the two heap allocations the generated ``rhs`` makes (``np.empty`` for the
@@ -37,43 +38,6 @@ def _loop4(f, t, y, p, out, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=False)
-def _kepler_rhs(t, y, p, dy):  # type: ignore[no-untyped-def]
-    x = y[0]
-    z = y[1]
-    r2 = x * x + z * z
-    c = p[0] / (r2 * math.sqrt(r2))
-    dy[0] = y[2]
-    dy[1] = y[3]
-    dy[2] = -c * x
-    dy[3] = -c * z
-    dy[4] = 0.0
-    dy[5] = 0.0
-
-
-@njit(cache=False)
-def _kepler_accel(t, q, p, a):  # type: ignore[no-untyped-def]
-    x = q[0]
-    z = q[1]
-    r2 = x * x + z * z
-    c = p[0] / (r2 * math.sqrt(r2))
-    a[0] = -c * x
-    a[1] = -c * z
-
-
-@njit(cache=False)
-def _pendulum_rhs(t, y, p, dy):  # type: ignore[no-untyped-def]
-    dy[0] = y[1]
-    dy[1] = -(p[2] / p[1]) * math.sin(y[0])
-    dy[2] = 0.0
-    dy[3] = 0.0
-
-
-@njit(cache=False)
-def _pendulum_accel(t, q, p, a):  # type: ignore[no-untyped-def]
-    a[0] = -(p[2] / p[1]) * math.sin(q[0])
-
-
-@njit(cache=False)
 def _alloc2(t, y, p, out):  # type: ignore[no-untyped-def]
     lam = np.empty(1)
     acc = np.empty(2)
@@ -99,9 +63,6 @@ def _noop(t, y, p, out):  # type: ignore[no-untyped-def]
     out[0] = y[0]
 
 
-HAND = {"kepler": (_kepler_rhs, _kepler_accel), "pendulum": (_pendulum_rhs, _pendulum_accel)}
-
-
 def ns_per_call(f: Any, y: np.ndarray, p: np.ndarray, out: np.ndarray, n: int = 200_000,
                 repeats: int = 7) -> float:
     _loop4(f, 0.0, y.copy(), p, out, 10)  # compile
@@ -114,32 +75,45 @@ def ns_per_call(f: Any, y: np.ndarray, p: np.ndarray, out: np.ndarray, n: int = 
     return statistics.median(ts) / n * 1e9
 
 
-def profile_system(system: str) -> dict[str, Any]:
+def profile_system(name: str) -> dict[str, Any]:
+    """Kernel costs and the split of one run per method, for benchmark problem ``name``; the
+    hand-written kernels are the problem's own ``deriv`` and ``accel`` (the ones the
+    hand-written peers run), compiled with numba."""
+    from mechsim.bench.peers import _jit
     from mechsim.bench.problems import problem
-    from mechsim.integrators import make_stepper
+    from mechsim.bench.run import stepper_counts
+    from mechsim.errors import ParameterError
+    from mechsim.integrators import choose_method, make_stepper
     from mechsim.systems import load_system
 
-    pb = problem(system)
-    model = load_system(system, **pb.params)
+    pb = problem(name)
+    model = load_system(pb.system, **pb.params)
     k = model.kernels
     y = model.initial_y()
     p = model.parameter_vector()
     nq = len(model.coordinates)
     dy = np.zeros(y.size)
     a = np.zeros(nq)
-    hand_rhs, hand_acc = HAND[system]
-    r: dict[str, Any] = {"system": system, "ns": {
+    hy, hq = pb.y0.copy(), pb.y0[: pb.y0.size // 2].copy()
+    ns: dict[str, float] = {
         "model rhs": ns_per_call(k.rhs, y, p, dy),
-        "hand rhs": ns_per_call(hand_rhs, y, p, dy),
-        "model accel_q": ns_per_call(k.accel_q, y[:nq].copy(), p, a),
-        "hand accel_q": ns_per_call(hand_acc, y[:nq].copy(), p, a),
-        "2 × np.empty (as in generated rhs)": ns_per_call(_alloc2, y, p, dy),
-        "x ** (3/2)": ns_per_call(_pow15, y, p, dy),
-        "x * sqrt(x)": ns_per_call(_sqrt15, y, p, dy),
-        "empty call (loop overhead)": ns_per_call(_noop, y, p, dy)}}
+        "hand rhs": ns_per_call(_jit(pb.deriv), hy, pb.p, np.zeros(hy.size))}
+    if hasattr(k, "accel_q"):
+        ns["model accel_q"] = ns_per_call(k.accel_q, y[:nq].copy(), p, a)
+    if pb.accel is not None:
+        ns["hand accel_q"] = ns_per_call(_jit(pb.accel), hq, pb.p, np.zeros(hq.size))
+    ns.update({"2 × np.empty (as in generated rhs)": ns_per_call(_alloc2, y, p, dy),
+               "x ** (3/2)": ns_per_call(_pow15, y, p, dy),
+               "x * sqrt(x)": ns_per_call(_sqrt15, y, p, dy),
+               "empty call (loop overhead)": ns_per_call(_noop, y, p, dy)})
+    r: dict[str, Any] = {"system": name, "ns": ns}
     runs = []
     t = pb.times()
     for method, tol in (("dop853", 1e-10), ("yoshida8", 1e-10), ("yoshida6", 1e-10)):
+        try:
+            choose_method(model, method)
+        except ParameterError:
+            continue
         make_stepper(model, method, tol).advance(t)  # warm
         walls, setups = [], []
         for _ in range(5):
@@ -150,9 +124,10 @@ def profile_system(system: str) -> dict[str, Any]:
             walls.append(time.perf_counter() - t0)
             setups.append(t1 - t0)
         wall = statistics.median(walls)
-        calls = int(st.st[7]) if method == "dop853" else int(st.st[2])  # type: ignore[attr-defined]
-        per = r["ns"]["model rhs" if method == "dop853" else "model accel_q"]
-        hand = r["ns"]["hand rhs" if method == "dop853" else "hand accel_q"]
+        calls = stepper_counts(st) or 0
+        kind = "rhs" if method == "dop853" else "accel_q"
+        per = ns.get(f"model {kind}", math.nan)
+        hand = ns.get(f"hand {kind}", math.nan)
         runs.append({"method": method, "tolerance": tol, "wall_ms": wall * 1e3,
                      "make_stepper_ms": statistics.median(setups) * 1e3,
                      "steps": st.n_steps, "force_calls": calls,
@@ -184,10 +159,10 @@ def markdown(results: list[dict[str, Any]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m mechsim.bench.kernel_profile")
-    ap.add_argument("systems", nargs="*", default=["kepler", "pendulum"])
+    ap.add_argument("problems", nargs="*", default=["kepler", "pendulum"])
     ap.add_argument("--out")
     a = ap.parse_args(argv)
-    text = markdown([profile_system(s) for s in a.systems])
+    text = markdown([profile_system(s) for s in a.problems])
     if a.out:
         Path(a.out).write_text(text)
     print(text)

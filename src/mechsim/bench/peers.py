@@ -1,4 +1,5 @@
-"""Peers: the same IVP solved by scipy, REBOUND, MuJoCo and Drake, as their users would.
+"""Peers: the same IVP solved by scipy, hand-written numba loops, a matrix-exponential
+propagator, REBOUND, MuJoCo and Drake, as their users would.
 
 Each adapter turns a :class:`~mechsim.bench.problems.Problem` and one setting of its accuracy
 knob into a zero-argument callable that integrates from the initial state and returns the
@@ -8,8 +9,23 @@ object and stepping is.
 
 - scipy: ``solve_ivp`` (RK45, DOP853, Radau, LSODA) with rtol = atol = setting, ``t_eval`` at
   the samples, on the plain numpy right-hand side of the problem (no Jacobian given).
-- rebound (kepler): IAS15 with ``epsilon`` = setting; WHFast with a fixed step (setting = steps
-  per orbit). A test particle of mass 0 around a unit mass, G = 1.
+- handwritten: what a competent user writes in an afternoon with numba: fixed-step RK4 on the
+  problem's own right-hand side ``deriv`` (every problem), Yoshida-4 (the Forest–Ruth /
+  Yoshida fourth-order composition of velocity Verlet, weights w₁, w₀, w₁ with
+  w₁ = 1/(2 − 2^⅓), w₀ = −2^⅓ w₁; kick–drift–kick, the last force reused by the next stage)
+  on ``accel`` where q̈ does not depend on q̇, and the Boris pusher (drift ½h, E half-kick,
+  rotation about B, E half-kick, drift ½h) for the charged particle in its uniform fields.
+  All allocation-free loops over in-place kernels, swept over steps per period (setting).
+  Each loop and kernel is JIT-compiled once, in ``prepare``, by a run on the first two
+  samples: the timed callable never includes compilation.
+- expm (linear problems: the harmonic and coupled oscillators): one matrix exponential
+  ``scipy.linalg.expm(A Δt)`` for the sample interval (timed), then one matrix-vector product
+  per sample; exact up to round-off, no accuracy knob (one point).
+- rebound (kepler, cr3bp): IAS15 with ``epsilon`` = setting; WHFast with a fixed step (setting =
+  steps per period: the orbit for kepler, the primaries' for cr3bp). The test particle has
+  mass 0; kepler: around a unit mass, states relative to it; cr3bp: the two primaries on
+  their circular orbit about the barycentre (at rest at the origin) are integrated too,
+  states barycentric.
 - mujoco (pendulum, double_pendulum): hinge joints, point masses (inertia 1e-15 kg m² about
   their centres; the double pendulum's second body hangs from the first at l₁, its hinge angle
   is relative, converted to and from the absolute θ₂), RK4 and semi-implicit Euler with a
@@ -20,14 +36,17 @@ object and stepping is.
   accuracy = setting.
 
 A family whose package cannot be imported is reported missing (one line) and skipped.
+``--quick`` runs only the local, cheap families (``QUICK_FAMILIES``).
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -46,17 +65,23 @@ class Contestant:
     knob: str  # what the setting means: tolerance, epsilon, accuracy, steps_per_orbit, ...
     settings: list[float]
     prepare: Callable[[Problem, float], Runner]
+    # Maps the runner's states to the problem's compared states (not timed); None: the runner
+    # returns problem states.
+    convert: Callable[[Problem, np.ndarray], np.ndarray] | None = None
 
 
 def available(family: str) -> tuple[bool, str]:
     """Can the family's package be imported? (reason when not)."""
     module = {"scipy": "scipy.integrate", "rebound": "rebound", "mujoco": "mujoco",
-              "drake": "pydrake.all"}[family]
+              "drake": "pydrake.all", "handwritten": "numba", "expm": "scipy.linalg"}[family]
     try:
         mod = importlib.import_module(module)
     except Exception as e:  # noqa: BLE001 - any import failure means "missing"
         return False, f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"
-    return True, str(getattr(mod, "__version__", "") or _dist_version(family))
+    dist = {"handwritten": "numba", "expm": "scipy"}.get(family, family)
+    if family in ("handwritten", "expm"):
+        mod = importlib.import_module(dist)
+    return True, str(getattr(mod, "__version__", "") or _dist_version(dist))
 
 
 def _dist_version(family: str) -> str:
@@ -97,37 +122,45 @@ def _rebound(integrator: str) -> Callable[[Problem, float], Runner]:
     def prepare(pb: Problem, setting: float) -> Runner:
         import rebound
 
+        cfg = pb.extra["rebound"]
         t = pb.times()
-        GM = float(pb.extra["GM"])
-        period = pb.t_end / float(pb.extra["orbits"])
+        k, origin = len(cfg["bodies"]), cfg["origin"]
 
         def run() -> tuple[np.ndarray, dict[str, Any]]:
             sim = rebound.Simulation()
-            sim.G = GM
-            sim.add(m=1.0)
+            sim.G = cfg["G"]
+            for m, x, y, vx, vy in cfg["bodies"]:
+                sim.add(m=m, x=x, y=y, vx=vx, vy=vy)
             sim.add(m=0.0, x=pb.y0[0], y=pb.y0[1], vx=pb.y0[2], vy=pb.y0[3])
             sim.integrator = integrator
             out = np.empty((t.size, 4))
             ps = sim.particles
+
+            def record(i: int) -> None:
+                p = ps[k]
+                if origin is None:
+                    out[i] = (p.x, p.y, p.vx, p.vy)
+                else:
+                    c = ps[origin]
+                    out[i] = (p.x - c.x, p.y - c.y, p.vx - c.vx, p.vy - c.vy)
+
             if integrator == "ias15":
-                sim.integrator.epsilon = setting
+                try:  # REBOUND 5; REBOUND 4 keeps it in ri_ias15
+                    sim.integrator.epsilon = setting
+                except AttributeError:
+                    sim.ri_ias15.epsilon = setting
                 for i, ti in enumerate(t):
                     if ti > 0:
                         sim.integrate(float(ti))
-                    out[i] = (ps[1].x - ps[0].x, ps[1].y - ps[0].y, ps[1].vx - ps[0].vx,
-                              ps[1].vy - ps[0].vy)
+                    record(i)
             else:  # whfast: fixed step, a whole number of steps per sample interval
                 gap = t[1] - t[0]
-                k = max(1, math.ceil(gap / (period / setting) - 1e-9))
-                sim.dt = gap / k
-                done = 0
-                for i, ti in enumerate(t):
-                    n = round(ti / sim.dt) - done
-                    if n > 0:
-                        sim.steps(n)
-                        done += n
-                    out[i] = (ps[1].x - ps[0].x, ps[1].y - ps[0].y, ps[1].vx - ps[0].vx,
-                              ps[1].vy - ps[0].vy)
+                n_sub = max(1, math.ceil(gap / (cfg["period"] / setting) - 1e-9))
+                sim.dt = gap / n_sub
+                record(0)
+                for i in range(1, t.size):
+                    sim.steps(n_sub)
+                    record(i)
             return out, {"n_steps": int(sim.steps_done), "n_rhs": None}
         return run
     return prepare
@@ -265,10 +298,176 @@ def _drake(scheme: str) -> Callable[[Problem, float], Runner]:
     return prepare
 
 
+# --- hand-written numba loops ----------------------------------------------------------------
+@functools.cache
+def _loops() -> SimpleNamespace:
+    """The hand-written loops, compiled lazily (numba is imported on first use)."""
+    from numba import njit
+
+    @njit(cache=False)
+    def rk4(f, p, y0, t_out, n_sub):  # type: ignore[no-untyped-def]
+        n = y0.size
+        Y = np.empty((t_out.size, n))
+        y = y0.copy()
+        k1, k2, k3, k4, tmp = (np.empty(n), np.empty(n), np.empty(n), np.empty(n),
+                               np.empty(n))
+        Y[0] = y
+        for i in range(1, t_out.size):
+            t = t_out[i - 1]
+            h = (t_out[i] - t) / n_sub
+            for _ in range(n_sub):
+                f(t, y, p, k1)
+                for j in range(n):
+                    tmp[j] = y[j] + 0.5 * h * k1[j]
+                f(t + 0.5 * h, tmp, p, k2)
+                for j in range(n):
+                    tmp[j] = y[j] + 0.5 * h * k2[j]
+                f(t + 0.5 * h, tmp, p, k3)
+                for j in range(n):
+                    tmp[j] = y[j] + h * k3[j]
+                f(t + h, tmp, p, k4)
+                for j in range(n):
+                    y[j] += h / 6.0 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+                t += h
+            Y[i] = y
+        return Y
+
+    @njit(cache=False)
+    def yoshida4(acc, p, y0, t_out, n_sub):  # type: ignore[no-untyped-def]
+        n = y0.size // 2
+        q, v, a = y0[:n].copy(), y0[n:].copy(), np.empty(n)
+        w1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
+        w0 = 1.0 - 2.0 * w1
+        Y = np.empty((t_out.size, 2 * n))
+        Y[0] = y0
+        t = t_out[0]
+        acc(t, q, p, a)
+        for i in range(1, t_out.size):
+            h = (t_out[i] - t_out[i - 1]) / n_sub
+            for _ in range(n_sub):
+                for stage in range(3):
+                    hw = h * (w0 if stage == 1 else w1)
+                    for j in range(n):
+                        v[j] += 0.5 * hw * a[j]
+                        q[j] += hw * v[j]
+                    t += hw
+                    acc(t, q, p, a)
+                    for j in range(n):
+                        v[j] += 0.5 * hw * a[j]
+            t = t_out[i]
+            Y[i, :n] = q
+            Y[i, n:] = v
+        return Y
+
+    @njit(cache=False)
+    def boris(qm, E, B, y0, t_out, n_sub):  # type: ignore[no-untyped-def]
+        x, v = y0[:3].copy(), y0[3:].copy()
+        vm, vp, tv, sv = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+        Y = np.empty((t_out.size, 6))
+        Y[0] = y0
+        for i in range(1, t_out.size):
+            h = (t_out[i] - t_out[i - 1]) / n_sub
+            for j in range(3):  # rotation vectors of the (uniform) magnetic field
+                tv[j] = 0.5 * h * qm * B[j]
+            t2 = tv[0] * tv[0] + tv[1] * tv[1] + tv[2] * tv[2]
+            for j in range(3):
+                sv[j] = 2.0 * tv[j] / (1.0 + t2)
+            for _ in range(n_sub):
+                for j in range(3):
+                    x[j] += 0.5 * h * v[j]
+                    vm[j] = v[j] + 0.5 * h * qm * E[j]
+                vp[0] = vm[0] + vm[1] * tv[2] - vm[2] * tv[1]
+                vp[1] = vm[1] + vm[2] * tv[0] - vm[0] * tv[2]
+                vp[2] = vm[2] + vm[0] * tv[1] - vm[1] * tv[0]
+                v[0] = vm[0] + vp[1] * sv[2] - vp[2] * sv[1] + 0.5 * h * qm * E[0]
+                v[1] = vm[1] + vp[2] * sv[0] - vp[0] * sv[2] + 0.5 * h * qm * E[1]
+                v[2] = vm[2] + vp[0] * sv[1] - vp[1] * sv[0] + 0.5 * h * qm * E[2]
+                for j in range(3):
+                    x[j] += 0.5 * h * v[j]
+            Y[i, :3] = x
+            Y[i, 3:] = v
+        return Y
+
+    return SimpleNamespace(rk4=rk4, yoshida4=yoshida4, boris=boris)
+
+
+_JIT: dict[Any, Any] = {}
+
+
+def _jit(f: Any) -> Any:
+    """One numba dispatcher per problem kernel (compiled on its first call)."""
+    if f not in _JIT:
+        from numba import njit
+
+        _JIT[f] = njit(cache=False)(f)
+    return _JIT[f]
+
+
+def _n_sub(pb: Problem, steps_per_period: float) -> int:
+    t = pb.times()
+    return max(1, math.ceil(steps_per_period * (t[1] - t[0]) / pb.period - 1e-9))
+
+
+def _handwritten(method: str) -> Callable[[Problem, float], Runner]:
+    def prepare(pb: Problem, steps_per_period: float) -> Runner:
+        loops = _loops()
+        t = pb.times()
+        n_sub = _n_sub(pb, steps_per_period)
+        y0 = np.ascontiguousarray(pb.y0, dtype=np.float64)
+        steps = n_sub * (t.size - 1)
+        if method == "boris":
+            b = pb.extra["boris"]
+            E, B = np.array(b["E"], dtype=np.float64), np.array(b["B"], dtype=np.float64)
+            qm = float(b["q_over_m"])
+
+            def call(tt: np.ndarray) -> np.ndarray:
+                return loops.boris(qm, E, B, y0, tt, n_sub)  # type: ignore[no-any-return]
+            evals = None
+        else:
+            loop = loops.rk4 if method == "rk4" else loops.yoshida4
+            kernel = _jit(pb.deriv if method == "rk4" else pb.accel)
+            p = np.ascontiguousarray(pb.p, dtype=np.float64)
+
+            def call(tt: np.ndarray) -> np.ndarray:
+                return loop(kernel, p, y0, tt, n_sub)  # type: ignore[no-any-return]
+            evals = 4 * steps if method == "rk4" else 3 * steps + 1
+        call(t[:2].copy())  # JIT-compile now, outside the timed callable
+
+        def run() -> tuple[np.ndarray, dict[str, Any]]:
+            return call(t), {"n_steps": steps, "n_rhs": evals}
+        return run
+    return prepare
+
+
+# --- matrix exponential ---------------------------------------------------------------------
+def _expm(pb: Problem, setting: float) -> Runner:
+    from scipy.linalg import expm
+
+    if pb.linear is None:
+        raise ValueError(f"{pb.name} is not linear")
+    A = np.asarray(pb.linear, dtype=np.float64)
+    t = pb.times()
+    gap = float(t[1] - t[0])
+
+    def run() -> tuple[np.ndarray, dict[str, Any]]:
+        P = expm(A * gap)
+        Y = np.empty((t.size, pb.y0.size))
+        Y[0] = pb.y0
+        for i in range(1, t.size):
+            Y[i] = P @ Y[i - 1]
+        return Y, {"n_steps": t.size - 1, "n_rhs": None}
+    return run
+
+
+QUICK_FAMILIES = ("scipy", "handwritten", "expm")  # --quick: local, cheap peers only
+STEPS_PER_PERIOD = [4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384]
+
+
 def contestants(pb: Problem, quick: bool, families: tuple[str, ...] | None = None
                 ) -> tuple[list[Contestant], dict[str, str], dict[str, str]]:
-    """Peer contestants for ``pb`` (only families it fits; scipy only when ``quick``); also
-    the families missing (with reason) and the versions of those found."""
+    """Peer contestants for ``pb`` (only families it fits; with ``quick`` only
+    ``QUICK_FAMILIES``); also the families missing (with reason) and the versions of those
+    found."""
     wanted = [f for f in pb.peers if families is None or f in families]
     out: list[Contestant] = []
     missing: dict[str, str] = {}
@@ -280,17 +479,29 @@ def contestants(pb: Problem, quick: bool, families: tuple[str, ...] | None = Non
             missing[fam] = info
             continue
         versions[fam] = info
-        if quick and fam != "scipy":  # found, but --quick runs scipy only
+        if quick and fam not in QUICK_FAMILIES:  # found, but --quick runs only local peers
             continue
         if fam == "scipy":
             for m in ("RK45", "DOP853", "Radau", "LSODA"):
                 out.append(Contestant(f"scipy:{m}", fam, "rtol=atol", tols, _scipy(m)))
+        elif fam == "handwritten":
+            spp = [8, 32, 128] if quick else STEPS_PER_PERIOD
+            out.append(Contestant("handwritten:RK4", fam, "steps_per_period", spp,
+                                  _handwritten("rk4")))
+            if pb.accel is not None:
+                out.append(Contestant("handwritten:Yoshida4", fam, "steps_per_period", spp,
+                                      _handwritten("yoshida4")))
+            if "boris" in pb.extra:
+                out.append(Contestant("handwritten:Boris", fam, "steps_per_period", spp,
+                                      _handwritten("boris")))
+        elif fam == "expm":
+            out.append(Contestant("expm:propagator", fam, "none", [0.0], _expm))
         elif fam == "rebound":
             out.append(Contestant("rebound:IAS15", fam, "epsilon",
                                   [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10],
                                   _rebound("ias15")))
-            out.append(Contestant("rebound:WHFast", fam, "steps_per_orbit",
-                                  [10, 30, 100, 300, 1000], _rebound("whfast")))
+            out.append(Contestant("rebound:WHFast", fam, "steps_per_period",
+                                  [10, 30, 100, 300, 1000, 3000, 10000], _rebound("whfast")))
         elif fam == "mujoco":
             sps = [50, 100, 200, 500, 1000, 2000, 5000, 10000]
             out.append(Contestant("mujoco:RK4", fam, "steps_per_second", sps, _mujoco("RK4")))

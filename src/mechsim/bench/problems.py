@@ -1,24 +1,56 @@
-"""Benchmark problems: one initial-value problem per system, with a reference solution.
+"""Benchmark problems: initial-value problems of mechsim's systems, each with a reference solution.
 
-Each :class:`Problem` holds what every contestant needs: the system id and parameters (the
-mechsim model is built from them), the horizon and sample times, a plain-numpy right-hand side
-on the state ``[q, v]`` (written here by hand from the same physics, as a user of scipy would:
-not through mechsim's kernels), the conserved quantity used for the invariant error, and the
+Each :class:`Problem` holds what every contestant needs: the mechsim system id and parameters
+(the mechsim model is built from them), the horizon and sample times, a right-hand side
+written here by hand from the same physics, as a user of scipy or numba would write it (not
+through mechsim's kernels), the conserved quantity used for the invariant error, and the
 reference solution at the sample times.
 
-References: closed forms where the system module offers one (Kepler's equation for ``kepler``,
-the transient + steady-state solution of ``driven_oscillator``, Jacobi elliptic functions for
-the ``pendulum`` released from rest, the normal-mode solution of ``harmonic_oscillator``).
-Systems without a closed form use a high-precision run of the hand-written RHS, checked
-against independent ones: ``double_pendulum`` (chaotic, λ ≈ 1.9 /s, so a short horizon of
-5 s) takes a fixed-step run of the DOP853 tableau in extended precision (``np.longdouble``,
-80-bit on x86: ε ≈ 1.1e-19; steps of 1.25 ms and of 0.31 ms agree to 4e-15 at the end point
-and 1.2e-14 over the run, relative to the state scale). Double precision cannot do this
-well: scipy Radau and DOP853 at rtol = atol = 1e-14 agree with each other to 1e-12 at the
-end point but are 2.7e-12 and 1.7e-12 away from the extended-precision run (7.5e-12 and
-5.1e-12 over the run), i.e. round-off amplified by the chaos. The extended run uses the
-same double-precision g and initial angles as every contestant. Where ``longdouble`` is plain
-double, the reference falls back to Radau at 1e-14 (and says so in ``reference_kind``).
+The right-hand side is ``deriv(t, y, p, dy)``: it writes dy/dt into ``dy`` from the state
+``y`` and the parameter vector ``p``, with scalar ``math`` only, so that the same function
+runs as plain Python (scipy's ``rhs``, a thin wrapper) and compiles with numba (the
+hand-written fixed-step peers). Where q̈ does not depend on q̇ the problem also gives
+``accel(t, q, p, a)`` (for the hand-written Yoshida-4); a linear problem gives its matrix
+(for the matrix-exponential peer).
+
+States and errors. Each problem has its own state (what its ``deriv`` integrates); errors are
+measured on *compared* states, the problem state mapped by ``compare`` (identity except for
+attitudes): ``[q, ω/Ω]`` for the rigid body and the top, q the unit quaternion world_R_body
+(x, y, z, w; q and −q are the same attitude, so each row is compared with the sign that
+matches the reference) and ω the body angular velocity over its initial magnitude Ω, so that
+attitude and rate errors weigh alike. mechsim's output is mapped to the same compared states
+(``from_mechsim``: its state rows where they are the problem's state, else its published
+frames and observables, which do not depend on how mechsim integrates). The end-point error is
+‖C − C_ref‖ at the last sample over the largest ‖C_ref‖ of the run (relative to the state
+scale); the max error is the same over all samples.
+
+References, each by a method independent of mechsim and of the contestants:
+
+- closed forms: ``pendulum`` released from rest (Jacobi sn, cn), ``kepler`` (Kepler's
+  equation), ``driven_oscillator`` (transient + steady state), ``harmonic_oscillator``,
+  ``charged_particle_*`` (helix / cycloid with the E×B drift), ``coupled_oscillators_*``
+  (normal modes u_r,j ∝ cos((j − ½)rπ/N), ω_r² = (κ + 4κ₁₂ sin²(rπ/2N))/m);
+- ``rigid_body_*`` (torque-free, Euler's equations): ω(t) from Jacobi's elliptic functions,
+  the attitude from the Euler angles about the fixed L (θ, ψ algebraic in ω, φ the quadrature
+  of φ̇ = |L|(I₁ω₁² + I₂ω₂²)/(I₁²ω₁² + I₂²ω₂²); Landau & Lifshitz §37);
+- ``heavy_top`` (Lagrange's top): u = cos θ = u₁ + (u₂ − u₁) sn²(κt + c | m) from the roots
+  of the cubic f(u) = (1 − u²)(α − βu) − (b − au)², φ and ψ the quadratures of
+  φ̇ = (b − au)/(1 − u²) and ψ̇ = I₁a/I₃ − uφ̇ (Goldstein §5.7);
+- ``double_pendulum``, ``cr3bp`` and ``spring_pendulum`` (no closed form): a fixed-step run
+  of the DOP853 tableau in extended precision (``np.longdouble``, 80-bit on x86: ε ≈ 1.1e-19),
+  for the CR3BP in the co-rotating frame (autonomous) and for the spring pendulum in
+  Cartesian coordinates (each a formulation other than the contestants'), converted back.
+  For the double pendulum (chaotic, λ ≈ 1.9 /s, so a short horizon of 5 s) steps of 1.25 ms
+  and of 0.31 ms agree to 4e-15 at the end point and 1.2e-14 over the run, relative to the
+  state scale; double precision cannot do this well: scipy Radau and DOP853 at rtol = atol =
+  1e-14 agree with each other to 1e-12 at the end point but are 2.7e-12 and 1.7e-12 away from
+  the extended-precision run, i.e. round-off amplified by the chaos. Where ``longdouble`` is
+  plain double, these references fall back to Radau at 1e-14 (and say so in
+  ``reference_kind``).
+
+The tests check every reference against a tight scipy run of the problem's own right-hand
+side, and mechsim's trajectory at a tight tolerance against the reference (evidence that the
+problem is set up as the mechsim system it names).
 """
 
 from __future__ import annotations
@@ -29,75 +61,166 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.special import ellipj, ellipk
+from scipy.special import ellipj, ellipk, ellipkinc
 
 from mechsim.simulate import output_times
 
 Array = np.ndarray
+Deriv = Callable[[float, Array, Array, Array], None]
 
 
 @dataclass
 class Problem:
-    """One IVP of one system; the state everywhere is ``y = [q, v]`` (no work terms)."""
+    """One IVP of one system (see the module docstring for states and errors)."""
 
+    name: str
     system: str
     params: dict[str, Any]
     t_end: float
     n_samples: int
     description: str
-    rhs: Callable[[float, Array], Array]
+    deriv: Deriv  # deriv(t, y, p, dy): dy = dy/dt, scalar math (plain Python and numba)
+    p: Array
     y0: Array
-    reference: Callable[[Array], Array]  # times (m,) -> states (m, 2n)
+    reference: Callable[[Array], Array]  # times (m,) -> problem states (m, len(y0))
     reference_kind: str
-    conserved: Callable[[Array, Array], Array] | None = None  # (t, Y) -> quantity per row
+    period: float  # a characteristic period: fixed-step peers count steps per period
+    conserved: Callable[[Array, Array], Array] | None = None  # (t, C) -> quantity per row
     conserved_name: str | None = None
-    peers: tuple[str, ...] = ("scipy",)
+    peers: tuple[str, ...] = ("scipy", "handwritten")
+    accel: Deriv | None = None  # accel(t, q, p, a): q̈ when it does not depend on q̇
+    linear: Array | None = None  # A with dy/dt = A y
+    compare: Callable[[Array], Array] | None = None  # problem states -> compared states
+    from_mechsim: Callable[[Any, Array, Array], Array] | None = None  # (model, t, rows) -> C
+    sign_free: slice | None = None  # columns of C that may flip sign as a block (quaternion)
     extra: dict[str, Any] = field(default_factory=dict)
     _ref_cache: Array | None = None
 
-    @property
-    def n_q(self) -> int:
-        return self.y0.size // 2
+    def rhs(self, t: float, y: Array) -> Array:
+        """dy/dt as a new array: the signature scipy's ``solve_ivp`` expects."""
+        dy = np.empty(y.shape)
+        self.deriv(t, y, self.p, dy)
+        return dy
 
     def times(self) -> Array:
         return output_times(self.t_end, self.t_end / self.n_samples)
 
+    def compared(self, Y: Array) -> Array:
+        """Problem states -> compared states."""
+        return Y if self.compare is None else self.compare(Y)
+
+    def mechsim_compared(self, model: Any, t: Array, rows: Array) -> Array:
+        """mechsim's output rows ``[q, v, work terms, ...]`` -> compared states."""
+        if self.from_mechsim is not None:
+            return self.from_mechsim(model, t, rows)
+        return self.compared(rows[:, : self.y0.size])
+
     def reference_states(self) -> Array:
+        """The reference in compared states at the sample times (computed once)."""
         if self._ref_cache is None:
-            self._ref_cache = self.reference(self.times())
+            self._ref_cache = self.compared(self.reference(self.times()))
         return self._ref_cache
 
     def state_scale(self) -> float:
-        """Largest ‖y_ref(t)‖ over the samples: state errors are relative to it."""
+        """Largest ‖C_ref(t)‖ over the samples: state errors are relative to it."""
         return float(np.max(np.linalg.norm(self.reference_states(), axis=1)))
 
     def errors(self, Y: Array) -> dict[str, float | None]:
+        """Errors of a run given in problem states."""
+        if Y.shape != (self.times().size, self.y0.size) or not np.all(np.isfinite(Y)):
+            return self._diverged()
+        return self.compared_errors(self.compared(Y))
+
+    def compared_errors(self, C: Array) -> dict[str, float | None]:
         """End-point and max-over-run state error (relative to ``state_scale``) and the max
-        relative drift of the conserved quantity (None if the system conserves none)."""
+        relative drift of the conserved quantity (None if the problem has none), of a run
+        given in compared states."""
         ref = self.reference_states()
-        if Y.shape != ref.shape or not np.all(np.isfinite(Y)):
-            return {"end_error": math.inf, "max_error": math.inf,
-                    "invariant_error": math.inf if self.conserved else None}
-        d = np.linalg.norm(Y - ref, axis=1) / self.state_scale()
+        if C.shape != ref.shape or not np.all(np.isfinite(C)):
+            return self._diverged()
+        if self.sign_free is not None:
+            flip = np.sum(C[:, self.sign_free] * ref[:, self.sign_free], axis=1) < 0
+            C = C.copy()
+            C[flip, self.sign_free] *= -1.0
+        d = np.linalg.norm(C - ref, axis=1) / self.state_scale()
         out: dict[str, float | None] = {"end_error": float(d[-1]), "max_error": float(d.max()),
                                         "invariant_error": None}
         if self.conserved is not None:
-            c = self.conserved(self.times(), Y)
+            c = self.conserved(self.times(), C)
             c_ref = self.conserved(self.times()[:1], ref[:1])[0]
             scale = float(self.extra.get("conserved_scale", abs(c_ref) or 1.0))
             out["invariant_error"] = float(np.max(np.abs(c - c_ref)) / scale)
         return out
 
+    def _diverged(self) -> dict[str, float | None]:
+        return {"end_error": math.inf, "max_error": math.inf,
+                "invariant_error": math.inf if self.conserved else None}
+
+
+# --- extended-precision reference -------------------------------------------------------------
+EXTENDED = bool(np.finfo(np.longdouble).eps < 1e-18)
+
+
+def _fixed_dop853_longdouble(rhs: Callable[[Array], Array], y0: Array, t: Array,
+                             h_max: float) -> Array:
+    """States at ``t`` (as ``np.longdouble``) from a fixed-step run of the DOP853 tableau on an
+    autonomous ``rhs(y)`` written with numpy functions (so that it keeps ``np.longdouble``);
+    a whole number of steps of at most ``h_max`` between samples."""
+    from scipy.integrate._ivp import dop853_coefficients as dc
+
+    L = np.longdouble
+    A, B = dc.A.astype(L), dc.B.astype(L)
+    ns = dc.N_STAGES
+    y = np.asarray(y0, dtype=L)
+    K = np.empty((ns, y.size), dtype=L)
+    out = np.empty((t.size, y.size), dtype=L)
+    out[0] = y
+    for i in range(1, t.size):
+        gap = L(t[i]) - L(t[i - 1])
+        k = max(1, math.ceil(float(gap) / h_max))
+        h = gap / k
+        for _ in range(k):
+            K[0] = rhs(y)
+            for j in range(1, ns):
+                K[j] = rhs(y + h * (A[j, :j] @ K[:j]))
+            y = y + h * (B @ K)
+        out[i] = y
+    return out
+
+
+def _radau_tight(rhs: Callable[[float, Array], Array], y0: Array, t: Array) -> Array:
+    """scipy Radau at rtol = atol = 1e-14: the fallback where long double is plain double."""
+    import warnings
+
+    from scipy.integrate import solve_ivp
+
+    with warnings.catch_warnings():  # rtol below 100 ε is raised to it: fine here
+        warnings.simplefilter("ignore")
+        sol = solve_ivp(rhs, (0.0, float(t[-1])), y0, method="Radau", t_eval=t,
+                        rtol=1e-14, atol=1e-14)
+    if not sol.success:
+        raise RuntimeError(sol.message)
+    return sol.y.T.copy()
+
+
+_FALLBACK = "scipy Radau @ rtol=atol=1e-14 (error ~1e-12: no long double here)"
+
 
 # --- pendulum ---------------------------------------------------------------------------------
+def _pendulum_deriv(t: float, y: Array, p: Array, dy: Array) -> None:  # p = [g/R]
+    dy[0] = y[1]
+    dy[1] = -p[0] * math.sin(y[0])
+
+
+def _pendulum_accel(t: float, q: Array, p: Array, a: Array) -> None:
+    a[0] = -p[0] * math.sin(q[0])
+
+
 def pendulum(t_end: float = 100.0, n_samples: int = 200, angle: float = 1.0) -> Problem:
     m, R, g = 1.0, 1.0, 9.81
     w0 = math.sqrt(g / R)
     k = math.sin(angle / 2)
     K = float(ellipk(k * k))
-
-    def rhs(t: float, y: Array) -> Array:
-        return np.array([y[1], -(g / R) * math.sin(y[0])])
 
     def reference(t: Array) -> Array:
         # Released from rest at φ₀: sin(φ/2) = k sn(K − ω₀t | k²), φ̇ = −2kω₀ cn(K − ω₀t | k²).
@@ -109,25 +232,37 @@ def pendulum(t_end: float = 100.0, n_samples: int = 200, angle: float = 1.0) -> 
         return 0.5 * m * R**2 * Y[:, 1] ** 2 + m * g * R * (1 - np.cos(Y[:, 0]))
 
     e0 = m * g * R * (1 - math.cos(angle))
-    return Problem("pendulum", {"formulation": "reduced", "initial.angle": angle}, t_end,
-                   n_samples, f"simple pendulum released from rest at φ₀ = {angle} rad, "
+    return Problem("pendulum", "pendulum", {"formulation": "reduced", "initial.angle": angle},
+                   t_end, n_samples, f"simple pendulum released from rest at φ₀ = {angle} rad, "
                    f"g = {g}, R = {R}; {t_end:g} s ≈ {t_end * w0 / (4 * K):.0f} periods",
-                   rhs, np.array([angle, 0.0]), reference, "closed form (Jacobi sn, cn)",
-                   energy, "energy", peers=("scipy", "mujoco", "drake"),
+                   _pendulum_deriv, np.array([g / R]), np.array([angle, 0.0]), reference,
+                   "closed form (Jacobi sn, cn)", 4 * K / w0, energy, "energy",
+                   peers=("scipy", "handwritten", "mujoco", "drake"), accel=_pendulum_accel,
                    extra={"conserved_scale": e0, "m": m, "R": R, "g": g})
 
 
 # --- kepler -----------------------------------------------------------------------------------
+def _kepler_deriv(t: float, y: Array, p: Array, dy: Array) -> None:  # p = [GM]
+    r2 = y[0] * y[0] + y[1] * y[1]
+    c = p[0] / (r2 * math.sqrt(r2))
+    dy[0] = y[2]
+    dy[1] = y[3]
+    dy[2] = -c * y[0]
+    dy[3] = -c * y[1]
+
+
+def _kepler_accel(t: float, q: Array, p: Array, a: Array) -> None:
+    r2 = q[0] * q[0] + q[1] * q[1]
+    c = p[0] / (r2 * math.sqrt(r2))
+    a[0] = -c * q[0]
+    a[1] = -c * q[1]
+
+
 def kepler(orbits: float = 100.0, n_samples: int = 200, e: float = 0.5) -> Problem:
     GM, a = 1.0, 1.0
     period = 2 * math.pi * math.sqrt(a**3 / GM)
     n_mean = 2 * math.pi / period
     rp = a * (1 - e)
-
-    def rhs(t: float, y: Array) -> Array:
-        x, yy, vx, vy = y
-        r3 = (x * x + yy * yy) ** 1.5
-        return np.array([vx, vy, -GM * x / r3, -GM * yy / r3])
 
     def reference(t: Array) -> Array:
         M = np.mod(n_mean * np.asarray(t, dtype=float), 2 * math.pi)
@@ -147,14 +282,22 @@ def kepler(orbits: float = 100.0, n_samples: int = 200, e: float = 0.5) -> Probl
         return 0.5 * (Y[:, 2] ** 2 + Y[:, 3] ** 2) - GM / r
 
     y0 = np.array([rp, 0.0, 0.0, math.sqrt(GM * (1 + e) / rp)])
-    return Problem("kepler", {"eccentricity": e}, orbits * period, n_samples,
+    return Problem("kepler", "kepler", {"eccentricity": e}, orbits * period, n_samples,
                    f"Kepler orbit e = {e}, a = 1, GM = 1, from pericentre; {orbits:g} orbits",
-                   rhs, y0, reference, "closed form (Kepler's equation)", energy, "energy",
-                   peers=("scipy", "rebound"),
-                   extra={"conserved_scale": GM / (2 * a), "GM": GM, "orbits": orbits})
+                   _kepler_deriv, np.array([GM]), y0, reference,
+                   "closed form (Kepler's equation)", period, energy, "energy",
+                   peers=("scipy", "handwritten", "rebound"), accel=_kepler_accel,
+                   extra={"conserved_scale": GM / (2 * a),
+                          "rebound": {"G": GM, "bodies": [(1.0, 0.0, 0.0, 0.0, 0.0)],
+                                      "origin": 0, "period": period}})
 
 
 # --- driven_oscillator ----------------------------------------------------------------------
+def _driven_deriv(t: float, y: Array, p: Array, dy: Array) -> None:  # p = [m, k, b, F0, w]
+    dy[0] = y[1]
+    dy[1] = (p[3] * math.cos(p[4] * t) - p[2] * y[1] - p[1] * y[0]) / p[0]
+
+
 def driven_oscillator(t_end: float = 100.0, n_samples: int = 200) -> Problem:
     m, k, b, F0, w = 1.0, 4.0, 0.4, 1.0, 1.8
     w0 = math.sqrt(k / m)
@@ -167,9 +310,6 @@ def driven_oscillator(t_end: float = 100.0, n_samples: int = 200) -> Problem:
     C = x0 - D * math.cos(delta)
     E = (v0 - D * w * math.sin(delta) + beta * C) / w1
 
-    def rhs(t: float, y: Array) -> Array:
-        return np.array([y[1], (F0 * math.cos(w * t) - b * y[1] - k * y[0]) / m])
-
     def reference(t: Array) -> Array:
         ex = np.exp(-beta * t)
         c1, s1 = np.cos(w1 * t), np.sin(w1 * t)
@@ -178,19 +318,25 @@ def driven_oscillator(t_end: float = 100.0, n_samples: int = 200) -> Problem:
              + ex * ((-beta * C + w1 * E) * c1 + (-beta * E - w1 * C) * s1))
         return np.stack([x, v], axis=1)
 
-    return Problem("driven_oscillator", {}, t_end, n_samples,
+    return Problem("driven_oscillator", "driven_oscillator", {}, t_end, n_samples,
                    f"m = {m}, k = {k}, b = {b}, F₀ = {F0}, ω = {w}, from rest; {t_end:g} s",
-                   rhs, np.array([x0, v0]), reference, "closed form (transient + steady state)",
-                   None, None, peers=("scipy",))
+                   _driven_deriv, np.array([m, k, b, F0, w]), np.array([x0, v0]), reference,
+                   "closed form (transient + steady state)", 2 * math.pi / w0)
 
 
 # --- harmonic_oscillator --------------------------------------------------------------------
+def _harmonic_deriv(t: float, y: Array, p: Array, dy: Array) -> None:  # p = [k/m]
+    dy[0] = y[1]
+    dy[1] = -p[0] * y[0]
+
+
+def _harmonic_accel(t: float, q: Array, p: Array, a: Array) -> None:
+    a[0] = -p[0] * q[0]
+
+
 def harmonic_oscillator(t_end: float = 100.0, n_samples: int = 200) -> Problem:
     m, k, x0, v0 = 1.0, 4.0, 0.5, 0.0
     w0 = math.sqrt(k / m)
-
-    def rhs(t: float, y: Array) -> Array:
-        return np.array([y[1], -(k / m) * y[0]])
 
     def reference(t: Array) -> Array:
         c, s = np.cos(w0 * t), np.sin(w0 * t)
@@ -199,81 +345,57 @@ def harmonic_oscillator(t_end: float = 100.0, n_samples: int = 200) -> Problem:
     def energy(t: Array, Y: Array) -> Array:
         return 0.5 * m * Y[:, 1] ** 2 + 0.5 * k * Y[:, 0] ** 2
 
-    return Problem("harmonic_oscillator", {}, t_end, n_samples,
+    return Problem("harmonic_oscillator", "harmonic_oscillator", {}, t_end, n_samples,
                    f"m = {m}, k = {k}, x₀ = {x0}; {t_end:g} s ≈ {t_end * w0 / 2 / math.pi:.0f} "
-                   "periods", rhs, np.array([x0, v0]), reference, "closed form",
-                   energy, "energy", peers=("scipy",), extra={"conserved_scale": 0.5 * k * x0**2})
-
-
-def _fixed_dop853_longdouble(rhs: Callable[[float, Array], Array], y0: Array, t: Array,
-                             h_max: float) -> Array:
-    """States at ``t`` from a fixed-step run of the DOP853 tableau (autonomous ``rhs``, which
-    must be written with numpy functions so that it keeps ``np.longdouble``) in extended
-    precision; a whole number of steps of at most ``h_max`` between samples."""
-    from scipy.integrate._ivp import dop853_coefficients as dc
-
-    L = np.longdouble
-    A, B = dc.A.astype(L), dc.B.astype(L)
-    ns = dc.N_STAGES
-    y = np.asarray(y0, dtype=L)
-    K = np.empty((ns, y.size), dtype=L)
-    out = np.empty((t.size, y.size))
-    out[0] = y0
-    for i in range(1, t.size):
-        gap = L(t[i]) - L(t[i - 1])
-        k = max(1, math.ceil(float(gap) / h_max))
-        h = gap / k
-        for _ in range(k):
-            K[0] = rhs(0.0, y)
-            for j in range(1, ns):
-                K[j] = rhs(0.0, y + h * (A[j, :j] @ K[:j]))
-            y = y + h * (B @ K)
-        out[i] = y.astype(float)
-    return out
+                   "periods", _harmonic_deriv, np.array([k / m]), np.array([x0, v0]),
+                   reference, "closed form", 2 * math.pi / w0, energy, "energy",
+                   peers=("scipy", "handwritten", "expm"), accel=_harmonic_accel,
+                   linear=np.array([[0.0, 1.0], [-k / m, 0.0]]),
+                   extra={"conserved_scale": 0.5 * k * x0**2})
 
 
 # --- double_pendulum --------------------------------------------------------------------------
+def _double_pendulum_deriv(t: float, y: Array, p: Array, dy: Array) -> None:
+    # p = [m1, m2, l1, l2, g]. Euler–Lagrange equations of L = T − V (derived independently
+    # with sympy from the Cartesian bob positions): M(θ) θ̈ = f(θ, θ̇), M 2×2 by Cramer's rule.
+    m1, m2, l1, l2, g = p[0], p[1], p[2], p[3], p[4]
+    t1, t2, w1, w2 = y[0], y[1], y[2], y[3]
+    c, s = math.cos(t1 - t2), math.sin(t1 - t2)
+    m11, m12, m22 = (m1 + m2) * l1 * l1, m2 * l1 * l2 * c, m2 * l2 * l2
+    f1 = -m2 * l1 * l2 * w2 * w2 * s - (m1 + m2) * g * l1 * math.sin(t1)
+    f2 = m2 * l1 * l2 * w1 * w1 * s - m2 * g * l2 * math.sin(t2)
+    det = m11 * m22 - m12 * m12
+    dy[0] = w1
+    dy[1] = w2
+    dy[2] = (m22 * f1 - m12 * f2) / det
+    dy[3] = (m11 * f2 - m12 * f1) / det
+
+
 def double_pendulum(t_end: float = 5.0, n_samples: int = 200) -> Problem:
     # Defaults of load_system("double_pendulum") (angles form): absolute angles θ₁, θ₂ from
     # straight down, point masses on massless rods.
     m1, m2, l1, l2, g = 1.0, 1.0, 1.0, 1.0, 9.81
     th1, th2 = 2.0, 2.5
+    p = np.array([m1, m2, l1, l2, g])
 
-    def accel(y: Any, sin: Any, cos: Any) -> list[Any]:
-        # Euler–Lagrange equations of L = T − V (derived independently with sympy from the
-        # Cartesian bob positions): M(θ) θ̈ = f(θ, θ̇), M 2×2 solved by Cramer's rule.
+    def rhs_ext(y: Array) -> Array:  # the same equations in numpy, keeping np.longdouble
         t1, t2, w1, w2 = y
-        c, s = cos(t1 - t2), sin(t1 - t2)
+        c, s = np.cos(t1 - t2), np.sin(t1 - t2)
         m11, m12, m22 = (m1 + m2) * l1 * l1, m2 * l1 * l2 * c, m2 * l2 * l2
-        f1 = -m2 * l1 * l2 * w2 * w2 * s - (m1 + m2) * g * l1 * sin(t1)
-        f2 = m2 * l1 * l2 * w1 * w1 * s - m2 * g * l2 * sin(t2)
+        f1 = -m2 * l1 * l2 * w2 * w2 * s - (m1 + m2) * g * l1 * np.sin(t1)
+        f2 = m2 * l1 * l2 * w1 * w1 * s - m2 * g * l2 * np.sin(t2)
         det = m11 * m22 - m12 * m12
-        return [w1, w2, (m22 * f1 - m12 * f2) / det, (m11 * f2 - m12 * f1) / det]
-
-    def rhs(t: float, y: Array) -> Array:  # what scipy users would write: math on floats
-        return np.array(accel(y, math.sin, math.cos))
-
-    def rhs_ext(t: float, y: Array) -> Array:  # the same in numpy, keeping np.longdouble
-        return np.array(accel(y, np.sin, np.cos), dtype=y.dtype)
+        return np.array([w1, w2, (m22 * f1 - m12 * f2) / det, (m11 * f2 - m12 * f1) / det],
+                        dtype=y.dtype)
 
     y0 = np.array([th1, th2, 0.0, 0.0])
-
-    extended = bool(np.finfo(np.longdouble).eps < 1e-18)
+    pb: Problem
 
     def reference(t: Array) -> Array:
-        if extended:
-            return _fixed_dop853_longdouble(rhs_ext, y0, np.asarray(t, dtype=float), 1.25e-3)
-        import warnings
-
-        from scipy.integrate import solve_ivp
-
-        with warnings.catch_warnings():  # rtol below 100 ε is raised to it: fine here
-            warnings.simplefilter("ignore")
-            sol = solve_ivp(rhs, (0.0, float(t[-1])), y0, method="Radau", t_eval=t,
-                            rtol=1e-14, atol=1e-14)
-        if not sol.success:
-            raise RuntimeError(sol.message)
-        return sol.y.T.copy()
+        t = np.asarray(t, dtype=float)
+        if EXTENDED:
+            return _fixed_dop853_longdouble(rhs_ext, y0, t, 1.25e-3).astype(float)
+        return _radau_tight(pb.rhs, y0, t)
 
     def energy(t: Array, Y: Array) -> Array:
         t1, t2, w1, w2 = Y.T
@@ -283,14 +405,626 @@ def double_pendulum(t_end: float = 5.0, n_samples: int = 200) -> Problem:
              + m2 * g * (l1 + l2 - l1 * np.cos(t1) - l2 * np.cos(t2)))
         return T + V
 
-    return Problem("double_pendulum", {}, t_end, n_samples,
-                   f"double pendulum, m₁ = m₂ = {m1}, l₁ = l₂ = {l1}, g = {g}, from rest at "
-                   f"θ₁ = {th1}, θ₂ = {th2} rad (chaotic, λ ≈ 1.9 /s); {t_end:g} s",
-                   rhs, y0, reference,
-                   "DOP853 tableau, fixed step 1.25 ms, long double (error ~1e-14)" if extended
-                   else "scipy Radau @ rtol=atol=1e-14 (error ~3e-12: no long double here)",
-                   energy, "energy", peers=("scipy", "mujoco", "drake"),
-                   extra={"m1": m1, "m2": m2, "l1": l1, "l2": l2, "g": g})
+    pb = Problem("double_pendulum", "double_pendulum", {}, t_end, n_samples,
+                 f"double pendulum, m₁ = m₂ = {m1}, l₁ = l₂ = {l1}, g = {g}, from rest at "
+                 f"θ₁ = {th1}, θ₂ = {th2} rad (chaotic, λ ≈ 1.9 /s); {t_end:g} s",
+                 _double_pendulum_deriv, p, y0, reference,
+                 "DOP853 tableau, fixed step 1.25 ms, long double (error ~1e-14)" if EXTENDED
+                 else _FALLBACK, 2 * math.pi * math.sqrt(l1 / g), energy, "energy",
+                 peers=("scipy", "handwritten", "mujoco", "drake"),
+                 extra={"m1": m1, "m2": m2, "l1": l1, "l2": l2, "g": g})
+    return pb
+
+
+# --- attitudes --------------------------------------------------------------------------------
+def _quat_from_matrices(R: Array) -> Array:
+    """Unit quaternions (x, y, z, w) of rotation matrices (m, 3, 3)."""
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_matrix(R).as_quat())
+
+
+def _euler_zxz_matrices(phi: Array, theta: Array, psi: Array) -> Array:
+    """R_z(φ) R_x(θ) R_z(ψ) for arrays of angles: shape (m, 3, 3)."""
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_euler("ZXZ", np.stack([phi, theta, psi], axis=1))
+                      .as_matrix())
+
+
+def _attitude_compare(omega_scale: float) -> Callable[[Array], Array]:
+    """Compared state [q, ω/Ω] of a (q, ω) rigid-body state (the quaternion normalised)."""
+    def compare(Y: Array) -> Array:
+        q = Y[:, :4] / np.linalg.norm(Y[:, :4], axis=1)[:, None]
+        return np.concatenate([q, Y[:, 4:7] / omega_scale], axis=1)
+    return compare
+
+
+def _mechsim_attitude(frame: str, omega_scale: float) -> Callable[[Any, Array, Array], Array]:
+    """Compared state [q, ω/Ω] from mechsim's published frame ``frame`` (world_R_body) and its
+    observables ``omega_1..3`` (body angular velocity), whatever its state layout."""
+    def convert(model: Any, t: Array, rows: Array) -> Array:
+        from mechsim.simulate import evaluate
+
+        out = evaluate(model, np.ascontiguousarray(t), np.ascontiguousarray(rows),
+                       model.parameter_vector(), ("observables", "frames"))
+        assert out.frames is not None
+        k = [f.child for f in model.frames].index(frame)
+        q = out.frames[:, k, 3:7]
+        w = np.stack([out.observables[f"omega_{i}"] for i in (1, 2, 3)], axis=1)
+        return np.concatenate([q, w / omega_scale], axis=1)
+    return convert
+
+
+# --- rigid_body (torque-free, Euler's equations) ----------------------------------------------
+def _rigid_body_deriv(t: float, y: Array, p: Array, dy: Array) -> None:
+    # p = [I1, I2, I3]; y = [q (x, y, z, w), ω (body)]: q̇ = ½ q ⊗ (ω, 0), Euler's equations.
+    x, yy, z, w = y[0], y[1], y[2], y[3]
+    w1, w2, w3 = y[4], y[5], y[6]
+    dy[0] = 0.5 * (w * w1 + yy * w3 - z * w2)
+    dy[1] = 0.5 * (w * w2 + z * w1 - x * w3)
+    dy[2] = 0.5 * (w * w3 + x * w2 - yy * w1)
+    dy[3] = -0.5 * (x * w1 + yy * w2 + z * w3)
+    dy[4] = (p[1] - p[2]) * w2 * w3 / p[0]
+    dy[5] = (p[2] - p[0]) * w3 * w1 / p[1]
+    dy[6] = (p[0] - p[1]) * w1 * w2 / p[2]
+
+
+def jacobi_elliptic_longdouble(u: Array, m1: Any) -> tuple[Array, Array, Array]:
+    """sn, cn, dn (``np.longdouble``) of u for the parameter m = 1 − m1, by the arithmetic-
+    geometric mean (Abramowitz & Stegun 16.4), with the complementary parameter m1 given
+    directly: near m = 1 (near a separatrix) it carries the precision that m = 1 − m1 would
+    lose in rounding. Accurate to ~|u| × 1e-19."""
+    L = np.longdouble
+    m1 = L(m1)
+    a, b, c = [L(1)], np.sqrt(m1), [np.sqrt(L(1) - m1)]
+    while abs(c[-1]) > L(1e-19) * a[-1] and len(a) < 40:
+        an, bn, cn = (a[-1] + b) / 2, np.sqrt(a[-1] * b), (a[-1] - b) / 2
+        a.append(an)
+        c.append(cn)
+        b = bn
+    n = len(a) - 1
+    phi = L(2) ** n * a[n] * np.asarray(u, dtype=L)
+    prev = phi
+    for k in range(n, 0, -1):
+        prev = phi
+        phi = (phi + np.arcsin(c[k] / a[k] * np.sin(phi))) / 2
+    return np.sin(phi), np.cos(phi), np.cos(phi) / np.cos(prev - phi)
+
+
+def free_rigid_body_omega(inertia: Array, w0: Array) -> Callable[[Array], Array]:
+    """ω(t) (m, 3; ``np.longdouble``) of the torque-free body, I₁ < I₂ < I₃, from Jacobi's
+    elliptic functions (Landau & Lifshitz §37). For |L|² > 2E I₂ (rotation about axis 3):
+    ω = (A₁ cn u, s A₂ sn u, s A₃ dn u), u = λt + u₀, s = sign ω₃; for |L|² < 2E I₂ the same
+    with axes 1 and 3 exchanged and ω reversed (which keeps Euler's equations, with the phase
+    running backwards). The constants come from mpmath at 40 digits (near the separatrix
+    1 − m ∝ |L|² − 2E I₂ cancels), the functions from :func:`jacobi_elliptic_longdouble`."""
+    import mpmath
+
+    I = [float(v) for v in inertia]
+    w = [float(v) for v in w0]
+    if not (I[0] < I[1] < I[2]):
+        raise ValueError("principal moments must be ascending and distinct")
+    with mpmath.workdps(40):
+        Im, wm = [mpmath.mpf(v) for v in I], [mpmath.mpf(v) for v in w]
+        M2 = sum((i * x) ** 2 for i, x in zip(Im, wm, strict=True))
+        E2 = sum(i * x * x for i, x in zip(Im, wm, strict=True))
+        flip = M2 < E2 * Im[1]
+        if flip:
+            Im, wm = Im[::-1], [-x for x in wm[::-1]]
+        I1, I2, I3 = Im
+        A1 = mpmath.sqrt((E2 * I3 - M2) / (I1 * (I3 - I1)))
+        A2 = mpmath.sqrt((E2 * I3 - M2) / (I2 * (I3 - I2)))
+        A3 = mpmath.sqrt((M2 - E2 * I1) / (I3 * (I3 - I1)))
+        lam = mpmath.sqrt((I3 - I2) * (M2 - E2 * I1) / (I1 * I2 * I3))
+        den = (I3 - I2) * (M2 - E2 * I1)
+        m = (I2 - I1) * (E2 * I3 - M2) / den
+        m1 = (I3 - I1) * (M2 - E2 * I2) / den
+        s = 1 if wm[2] >= 0 else -1
+        u0 = mpmath.ellipf(mpmath.atan2(s * wm[1] / A2, wm[0] / A1), m)
+        L = np.longdouble
+        c = [L(mpmath.nstr(v, 30)) for v in (A1, A2, A3, lam, u0, m1)]
+    sign = L(-1) if flip else L(1)
+
+    def omega(t: Array) -> Array:
+        u = c[4] + sign * c[3] * np.asarray(t, dtype=L)
+        sn, cn, dn = jacobi_elliptic_longdouble(u, c[5])
+        W = np.stack([c[0] * cn, s * c[1] * sn, s * c[2] * dn], axis=-1)
+        return -W[..., ::-1] if flip else W
+    return omega
+
+
+def free_rigid_body_period(inertia: Array, w0: Array) -> float:
+    """Period of ω(t) of the torque-free body: 4K(m)/λ (K of 1 − m, accurate near m = 1)."""
+    from scipy.special import ellipkm1
+
+    I = [float(v) for v in inertia]
+    M2 = sum((i * float(x)) ** 2 for i, x in zip(I, w0, strict=True))
+    E2 = sum(i * float(x) ** 2 for i, x in zip(I, w0, strict=True))
+    if M2 < E2 * I[1]:
+        I = I[::-1]
+    I1, I2, I3 = I
+    den = (I3 - I2) * (M2 - E2 * I1)
+    lam = math.sqrt(den / (I1 * I2 * I3))
+    return 4 * float(ellipkm1((I3 - I1) * (M2 - E2 * I2) / den)) / lam
+
+
+def _cumulative_quadrature(f: Callable[[Array], Array], t: Array, h_max: float) -> Array:
+    """∫₀^t f at each sample time (f vectorised; nodes, weights and sums in ``np.longdouble``):
+    20-point Gauss–Legendre on pieces of at most ``h_max`` between samples (f smooth: exact
+    to round-off for pieces well under its time scale)."""
+    L = np.longdouble
+    x, wts = (v.astype(L) for v in np.polynomial.legendre.leggauss(20))
+    out = np.zeros(t.size, dtype=L)
+    for i in range(1, t.size):
+        k = max(1, math.ceil((t[i] - t[i - 1]) / h_max))
+        edges = L(t[i - 1]) + (L(t[i]) - L(t[i - 1])) * np.arange(k + 1, dtype=L) / k
+        mid, half = (edges[1:] + edges[:-1]) / 2, np.diff(edges) / 2
+        nodes = (mid[:, None] + half[:, None] * x[None, :]).ravel()
+        out[i] = out[i - 1] + np.sum((half[:, None] * wts[None, :]).ravel() * f(nodes))
+    return out
+
+
+def free_rigid_body_attitude(inertia: Array, w0: Array, R0: Array, t: Array,
+                             h_max: float = 0.01) -> tuple[Array, Array]:
+    """(world_R_body matrices (m, 3, 3), ω (m, 3)) of the torque-free body. In a frame A with
+    z along the fixed L, world_R_body = R_A R_z(φ) R_x(θ) R_z(ψ) with cos θ = I₃ω₃/|L|,
+    tan ψ = I₁ω₁/(I₂ω₂) and φ̇ = |L|(I₁ω₁² + I₂ω₂²)/(I₁²ω₁² + I₂²ω₂²), integrated by
+    Gauss–Legendre quadrature (Landau & Lifshitz §37)."""
+    L = np.longdouble
+    I = np.asarray(inertia, dtype=float)
+    t = np.asarray(t, dtype=float)
+    omega = free_rigid_body_omega(I, w0)
+    W = omega(t)
+    Lb0 = I * np.asarray(w0, dtype=float)
+    z = R0 @ Lb0 / np.linalg.norm(Lb0)
+    e = np.eye(3)[int(np.argmin(np.abs(z)))]
+    x = np.cross(e, z)
+    x /= np.linalg.norm(x)
+    RA = np.stack([x, np.cross(z, x), z], axis=1)
+    RAB0 = RA.T @ R0
+    phi0 = math.atan2(RAB0[0, 2], -RAB0[1, 2])
+    IL = I.astype(L)
+    M = np.sqrt(np.sum((IL * np.asarray(w0, dtype=L)) ** 2))
+
+    def phidot(tau: Array) -> Array:
+        w = omega(tau)
+        a, b = IL[0] * w[:, 0] ** 2, IL[1] * w[:, 1] ** 2
+        return M * (a + b) / (IL[0] * a + IL[1] * b)
+
+    two_pi = L(2) * L("3.14159265358979323846264338327950288")
+    phi = np.mod(L(phi0) + _cumulative_quadrature(phidot, t, h_max), two_pi).astype(float)
+    Lb = (IL * W).astype(float)
+    theta = np.arctan2(np.hypot(Lb[:, 0], Lb[:, 1]), Lb[:, 2])
+    psi = np.arctan2(Lb[:, 0], Lb[:, 1])
+    return RA[None, :, :] @ _euler_zxz_matrices(phi, theta, psi), W.astype(float)
+
+
+def _rigid_body(name: str, omega: tuple[float, float, float], t_end: float, n_samples: int,
+                what: str) -> Problem:
+    mass, size = 1.0, (0.3, 0.2, 0.1)  # mechsim's default box; its principal axes are x, y, z
+    a, b, c = size
+    I = mass / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+    angles = (0.3, 0.7, -0.4)  # initial attitude, z-x-z Euler angles
+    R0 = _euler_zxz_matrices(*(np.array([v]) for v in angles))[0]
+    q0 = _quat_from_matrices(R0[None])[0]
+    w0 = np.array(omega, dtype=float)
+    scale = float(np.linalg.norm(w0))
+
+    def reference(t: Array) -> Array:
+        R, W = free_rigid_body_attitude(I, w0, R0, t)
+        return np.concatenate([_quat_from_matrices(R), W], axis=1)
+
+    def twice_kinetic(t: Array, C: Array) -> Array:
+        return np.sum(I * (C[:, 4:7] * scale) ** 2, axis=1)
+
+    params = {"shape": "box", "mass": mass, "size.x": a, "size.y": b, "size.z": c,
+              "initial.phi": angles[0], "initial.theta": angles[1], "initial.psi": angles[2],
+              **{f"initial.omega_{i + 1}": float(w0[i]) for i in range(3)}}
+    M2, E2 = float(np.sum((I * w0) ** 2)), float(np.sum(I * w0 * w0))
+    return Problem(name, "rigid_body", params, t_end, n_samples,
+                   f"torque-free box {a}×{b}×{c} m, {mass} kg (I = {I[0]:.4g}, {I[1]:.4g}, "
+                   f"{I[2]:.4g} kg m²), ω₀ = {omega} rad/s {what}, |L|²/(2E I₂) = "
+                   f"{M2 / (E2 * I[1]):.6f}, period of ω {free_rigid_body_period(I, w0):.4g} s; "
+                   f"{t_end:g} s",
+                   _rigid_body_deriv, I.copy(), np.concatenate([q0, w0]), reference,
+                   "closed form (ω: Jacobi sn, cn, dn; attitude: Euler angles about L, φ by "
+                   "Gauss–Legendre quadrature)", 2 * math.pi / scale, twice_kinetic,
+                   "kinetic energy", compare=_attitude_compare(scale),
+                   from_mechsim=_mechsim_attitude("principal", scale), sign_free=slice(0, 4),
+                   extra={"omega_scale": scale})
+
+
+def rigid_body_intermediate(t_end: float = 50.0, n_samples: int = 200) -> Problem:
+    return _rigid_body("rigid_body_intermediate", (0.02, 4.0, 0.02), t_end, n_samples,
+                       "near the intermediate axis (it flips over every half period)")
+
+
+def rigid_body_generic(t_end: float = 50.0, n_samples: int = 200) -> Problem:
+    return _rigid_body("rigid_body_generic", (3.0, 1.0, 2.0), t_end, n_samples,
+                       "(tumbling about axis 1)")
+
+
+# --- heavy_top (Lagrange's top, Euler angles z-x-z) -------------------------------------------
+def _heavy_top_deriv(t: float, y: Array, p: Array, dy: Array) -> None:
+    # p = [I1, I3, MgR]; y = [φ, θ, ψ, φ̇, θ̇, ψ̇]; θ from the upward vertical, V = MgR cos θ.
+    # L = ½I₁(θ̇² + φ̇² sin²θ) + ½I₃ω₃² − MgR cos θ, ω₃ = ψ̇ + φ̇ cos θ (constant).
+    I1, I3, mgr = p[0], p[1], p[2]
+    th, dphi, dth, dpsi = y[1], y[3], y[4], y[5]
+    s, c = math.sin(th), math.cos(th)
+    w3 = dpsi + dphi * c
+    ddphi = dth * (I3 * w3 - 2.0 * I1 * c * dphi) / (I1 * s)
+    dy[0] = dphi
+    dy[1] = dth
+    dy[2] = dpsi
+    dy[3] = ddphi
+    dy[4] = (I1 * dphi * dphi * s * c - I3 * w3 * dphi * s + mgr * s) / I1
+    dy[5] = -ddphi * c + dphi * s * dth
+
+
+def heavy_top_reference(I1: float, I3: float, mgr: float, init: Array, t: Array) -> Array:
+    """[φ, θ, ψ, φ̇, θ̇, ψ̇] of Lagrange's top at ``t`` (see the module docstring)."""
+    phi0, th0, psi0, dphi0, dth0, dpsi0 = (float(v) for v in init)
+    u0 = math.cos(th0)
+    w3 = dpsi0 + dphi0 * u0
+    a = I3 * w3 / I1
+    b = (I1 * math.sin(th0) ** 2 * dphi0 + I3 * w3 * u0) / I1
+    beta = 2 * mgr / I1
+    alpha = dth0**2 + dphi0**2 * math.sin(th0) ** 2 + beta * u0
+    coeffs = [beta, -(alpha + a * a), 2 * a * b - beta, alpha - b * b]
+    roots = np.sort(np.roots(coeffs).real)
+    dcoeffs = np.polyder(coeffs)
+    for _ in range(3):  # polish with Newton
+        roots = roots - np.polyval(coeffs, roots) / np.polyval(dcoeffs, roots)
+    u1, u2, u3 = (float(r) for r in roots)
+    m = (u2 - u1) / (u3 - u1)
+    kappa = math.sqrt(beta * (u3 - u1)) / 2
+    s0 = min(max((u0 - u1) / (u2 - u1), 0.0), 1.0)
+    c = float(ellipkinc(math.asin(math.sqrt(s0)), m))
+    if -math.sin(th0) * dth0 < 0:  # u̇(0) < 0
+        c = -c
+
+    def u_of(tt: Array) -> tuple[Array, Array]:
+        sn, cn, dn, _ = ellipj(kappa * np.asarray(tt, dtype=float) + c, m)
+        return u1 + (u2 - u1) * sn * sn, 2 * (u2 - u1) * kappa * sn * cn * dn
+
+    def phidot(uu: Array) -> Array:
+        return (b - a * uu) / (1 - uu * uu)
+
+    def u_phidot(tt: Array) -> Array:
+        uu = u_of(tt)[0]
+        return uu * phidot(uu)
+
+    t = np.asarray(t, dtype=float)
+    h = 2 * float(ellipk(m)) / kappa / 40  # 40 pieces per nutation period
+    phi = phi0 + _cumulative_quadrature(lambda tt: phidot(u_of(tt)[0]), t, h)
+    slip = _cumulative_quadrature(u_phidot, t, h)  # ∫ u φ̇ dt
+    u, du = u_of(t)
+    th = np.arccos(u)
+    dphi = phidot(u)
+    return np.stack([phi, th, psi0 + w3 * t - slip, dphi, -du / np.sin(th),
+                     w3 - u * dphi], axis=1).astype(float)
+
+
+def heavy_top(t_end: float = 10.0, n_samples: int = 200) -> Problem:
+    # mechsim's default top (symmetric_top, quaternion formulation), released with φ̇ = θ̇ = 0:
+    # it nutates in cusps.
+    M, g, R, I1, I3 = 1.0, 9.81, 0.1, 0.02, 0.01
+    mgr = M * g * R
+    init = np.array([0.0, 0.6, 0.0, 0.0, 0.0, 40.0])  # φ, θ, ψ, φ̇, θ̇, ψ̇
+    phi, th, psi, dphi, dth, dpsi = init
+    w0 = np.array([dphi * math.sin(th) * math.sin(psi) + dth * math.cos(psi),
+                   dphi * math.sin(th) * math.cos(psi) - dth * math.sin(psi),
+                   dphi * math.cos(th) + dpsi])
+    scale = float(np.linalg.norm(w0))
+
+    def compare(Y: Array) -> Array:
+        phi, th, psi, dphi, dth, dpsi = Y.T
+        q = _quat_from_matrices(_euler_zxz_matrices(phi, th, psi))
+        w = np.stack([dphi * np.sin(th) * np.sin(psi) + dth * np.cos(psi),
+                      dphi * np.sin(th) * np.cos(psi) - dth * np.sin(psi),
+                      dphi * np.cos(th) + dpsi], axis=1)
+        return np.concatenate([q, w / scale], axis=1)
+
+    def energy(t: Array, C: Array) -> Array:
+        q = C[:, :4]
+        up = (q[:, 3] ** 2 + q[:, 2] ** 2 - q[:, 0] ** 2 - q[:, 1] ** 2) / np.sum(q * q, axis=1)
+        w = C[:, 4:7] * scale
+        return 0.5 * (I1 * (w[:, 0] ** 2 + w[:, 1] ** 2) + I3 * w[:, 2] ** 2) + mgr * up
+
+    def reference(t: Array) -> Array:
+        return heavy_top_reference(I1, I3, mgr, init, t)
+
+    params = {"formulation": "quaternion", "mass": M, "gravity": g, "cm_distance": R,
+              "transverse_inertia": I1, "axial_inertia": I3, "initial.phi": phi,
+              "initial.theta": th, "initial.psi": psi, "initial_rate.phi": dphi,
+              "initial_rate.theta": dth, "initial_rate.psi": dpsi}
+    return Problem("heavy_top", "symmetric_top", params, t_end, n_samples,
+                   f"heavy symmetric top (Lagrange), M = {M}, g = {g}, R = {R}, I₁ = {I1}, "
+                   f"I₃ = {I3}, released at θ₀ = {th} rad with ψ̇₀ = {dpsi} rad/s, φ̇₀ = θ̇₀ = 0 "
+                   f"(nutation in cusps); {t_end:g} s; state: Euler angles z-x-z",
+                   _heavy_top_deriv, np.array([I1, I3, mgr]), init.copy(), reference,
+                   "closed form (cos θ: Jacobi sn²; φ, ψ by Gauss–Legendre quadrature)",
+                   2 * math.pi * I1 / (I3 * w0[2]),  # fast top: nutation at I₃ω₃/I₁
+                   energy, "energy", compare=compare,
+                   from_mechsim=_mechsim_attitude("body", scale), sign_free=slice(0, 4),
+                   extra={"omega_scale": scale, "conserved_scale": mgr})
+
+
+# --- cr3bp (planar, inertial frame) -----------------------------------------------------------
+def _cr3bp_accel(t: float, q: Array, p: Array, a: Array) -> None:
+    # p = [G m1, G m2, a1, a2, ω]: primaries at a_k (cos ωt, sin ωt).
+    c, s = math.cos(p[4] * t), math.sin(p[4] * t)
+    dx1, dy1 = q[0] - p[2] * c, q[1] - p[2] * s
+    dx2, dy2 = q[0] - p[3] * c, q[1] - p[3] * s
+    r1 = dx1 * dx1 + dy1 * dy1
+    r2 = dx2 * dx2 + dy2 * dy2
+    k1 = p[0] / (r1 * math.sqrt(r1))
+    k2 = p[1] / (r2 * math.sqrt(r2))
+    a[0] = -k1 * dx1 - k2 * dx2
+    a[1] = -k1 * dy1 - k2 * dy2
+
+
+def _cr3bp_deriv(t: float, y: Array, p: Array, dy: Array) -> None:
+    c, s = math.cos(p[4] * t), math.sin(p[4] * t)
+    dx1, dy1 = y[0] - p[2] * c, y[1] - p[2] * s
+    dx2, dy2 = y[0] - p[3] * c, y[1] - p[3] * s
+    r1 = dx1 * dx1 + dy1 * dy1
+    r2 = dx2 * dx2 + dy2 * dy2
+    k1 = p[0] / (r1 * math.sqrt(r1))
+    k2 = p[1] / (r2 * math.sqrt(r2))
+    dy[0] = y[2]
+    dy[1] = y[3]
+    dy[2] = -k1 * dx1 - k2 * dx2
+    dy[3] = -k1 * dy1 - k2 * dy2
+
+
+def cr3bp(orbits: float = 20.0, n_samples: int = 200, r0: float = 1.8) -> Problem:
+    G, m1, m2, L = 1.0, 0.9, 0.1, 1.0
+    M = m1 + m2
+    w = math.sqrt(G * M / L**3)
+    a1, a2 = m2 / M * L, -m1 / M * L
+    p = np.array([G * m1, G * m2, a1, a2, w])
+    y0 = np.array([r0, 0.0, 0.0, math.sqrt(G * M / r0)])  # circular about the barycentre
+    period = 2 * math.pi / w
+    pb: Problem
+
+    def synodic_ext(z: Array) -> Array:  # co-rotating frame: autonomous
+        xi, eta, dxi, deta = z
+        r1 = ((xi - a1) ** 2 + eta**2) ** 1.5
+        r2 = ((xi - a2) ** 2 + eta**2) ** 1.5
+        return np.array([dxi, deta,
+                         2 * w * deta + w * w * xi - G * m1 * (xi - a1) / r1
+                         - G * m2 * (xi - a2) / r2,
+                         -2 * w * dxi + w * w * eta - G * m1 * eta / r1 - G * m2 * eta / r2],
+                        dtype=z.dtype)
+
+    def reference(t: Array) -> Array:
+        t = np.asarray(t, dtype=float)
+        if not EXTENDED:
+            return _radau_tight(pb.rhs, y0, t)
+        Ld = np.longdouble
+        x, y, vx, vy = (Ld(v) for v in y0)
+        z0 = np.array([x, y, vx + Ld(w) * y, vy - Ld(w) * x], dtype=Ld)
+        Z = _fixed_dop853_longdouble(synodic_ext, z0, t, 0.01)
+        ang = Ld(w) * t.astype(Ld)
+        c, s = np.cos(ang), np.sin(ang)
+        ux, uy = Z[:, 2] - Ld(w) * Z[:, 1], Z[:, 3] + Ld(w) * Z[:, 0]
+        return np.stack([c * Z[:, 0] - s * Z[:, 1], s * Z[:, 0] + c * Z[:, 1],
+                         c * ux - s * uy, s * ux + c * uy], axis=1).astype(float)
+
+    def jacobi(t: Array, Y: Array) -> Array:
+        c, s = np.cos(w * t), np.sin(w * t)
+        r1 = np.hypot(Y[:, 0] - a1 * c, Y[:, 1] - a1 * s)
+        r2 = np.hypot(Y[:, 0] - a2 * c, Y[:, 1] - a2 * s)
+        E = 0.5 * (Y[:, 2] ** 2 + Y[:, 3] ** 2) - G * m1 / r1 - G * m2 / r2
+        return E - w * (Y[:, 0] * Y[:, 3] - Y[:, 1] * Y[:, 2])
+
+    params = {"formulation": "inertial", "gravitational_constant": G, "primary_mass": m1,
+              "secondary_mass": m2, "separation": L, "initial.x": float(y0[0]),
+              "initial.y": float(y0[1]), "initial_rate.x": float(y0[2]),
+              "initial_rate.y": float(y0[3])}
+    pb = Problem("cr3bp", "cr3bp", params, orbits * period, n_samples,
+                 f"planar CR3BP, m₁ = {m1}, m₂ = {m2}, L = {L}, G = {G}: test particle on a "
+                 f"near-circular orbit about both primaries from r = {r0} (inertial frame); "
+                 f"{orbits:g} orbits of the primaries",
+                 _cr3bp_deriv, p, y0, reference,
+                 "DOP853 tableau in the co-rotating frame, fixed step 0.01, long double"
+                 if EXTENDED else _FALLBACK, period, jacobi, "Jacobi integral",
+                 peers=("scipy", "handwritten", "rebound"), accel=_cr3bp_accel,
+                 extra={"rebound": {"G": G, "origin": None, "period": period, "bodies": [
+                     (m1, a1, 0.0, 0.0, a1 * w), (m2, a2, 0.0, 0.0, a2 * w)]}})
+    return pb
+
+
+# --- charged_particle (uniform B along z, uniform E) ------------------------------------------
+def _charged_deriv(t: float, y: Array, p: Array, dy: Array) -> None:
+    # p = [q/m, Ex, Ey, Ez, Bx, By, Bz]: v̇ = (q/m)(E + v × B).
+    k = p[0]
+    vx, vy, vz = y[3], y[4], y[5]
+    dy[0] = vx
+    dy[1] = vy
+    dy[2] = vz
+    dy[3] = k * (p[1] + vy * p[6] - vz * p[5])
+    dy[4] = k * (p[2] + vz * p[4] - vx * p[6])
+    dy[5] = k * (p[3] + vx * p[5] - vy * p[4])
+
+
+def charged_particle_reference(qm: float, E: Array, B: float, y0: Array, t: Array) -> Array:
+    """Uniform B ẑ and E: u = v⊥ − v_d (v_d = E × B/B²) turns at ω_c = (q/m)B (clockwise for
+    ω_c > 0), z accelerates at (q/m)E_z."""
+    t = np.asarray(t, dtype=float)
+    wc = qm * B
+    vdx, vdy = E[1] / B, -E[0] / B
+    ux, uy = y0[3] - vdx, y0[4] - vdy
+    c, s = np.cos(wc * t), np.sin(wc * t)
+    x = y0[0] + vdx * t + (ux * s + uy * (1 - c)) / wc
+    y = y0[1] + vdy * t + (ux * (c - 1) + uy * s) / wc
+    z = y0[2] + y0[5] * t + 0.5 * qm * E[2] * t * t
+    return np.stack([x, y, z, vdx + ux * c + uy * s, vdy - ux * s + uy * c,
+                     y0[5] + qm * E[2] * t], axis=1)
+
+
+def _charged_particle(name: str, E: tuple[float, float, float], t_end: float, n_samples: int
+                      ) -> Problem:
+    m, q, B = 1.0, 1.0, 2.0
+    Ev = np.array(E, dtype=float)
+    y0 = np.array([1.0, 0.0, 0.0, 0.0, -1.5, 0.2])  # mechsim's default initial state
+
+    def reference(t: Array) -> Array:
+        return charged_particle_reference(q / m, Ev, B, y0, t)
+
+    def energy(t: Array, Y: Array) -> Array:
+        return 0.5 * m * np.sum(Y[:, 3:6] ** 2, axis=1) - q * (Y[:, 0:3] @ Ev)
+
+    params = {"formulation": "symmetric", "mass": m, "charge": q, "magnetic_field": B,
+              **{f"electric_field.{a}": float(Ev[i]) for i, a in enumerate("xyz")},
+              **{f"initial.{a}": float(y0[i]) for i, a in enumerate("xyz")},
+              **{f"initial_rate.{a}": float(y0[3 + i]) for i, a in enumerate("xyz")}}
+    wc = abs(q * B / m)
+    field_text = f"B = {B} T along z" + (f", E = {E} V/m" if any(E) else "")
+    return Problem(name, "charged_particle", params, t_end, n_samples,
+                   f"charged particle q = {q} C, m = {m} kg, {field_text}, from r₀ = (1, 0, 0), "
+                   f"v₀ = (0, −1.5, 0.2); {t_end:g} s ≈ {t_end * wc / (2 * math.pi):.0f} "
+                   "gyrations; Cartesian (mechsim's symmetric gauge)",
+                   _charged_deriv, np.array([q / m, *Ev, 0.0, 0.0, B]), y0, reference,
+                   "closed form (gyration + E×B drift)", 2 * math.pi / wc, energy, "energy",
+                   extra={"conserved_scale": 0.5 * m * float(y0[3:] @ y0[3:]),
+                          "boris": {"q_over_m": q / m, "E": tuple(Ev), "B": (0.0, 0.0, B)}})
+
+
+def charged_particle_b(t_end: float = 60.0, n_samples: int = 200) -> Problem:
+    return _charged_particle("charged_particle_b", (0.0, 0.0, 0.0), t_end, n_samples)
+
+
+def charged_particle_exb(t_end: float = 60.0, n_samples: int = 200) -> Problem:
+    return _charged_particle("charged_particle_exb", (0.5, 0.0, 0.0), t_end, n_samples)
+
+
+# --- spring_pendulum (polar: extension x, angle θ) --------------------------------------------
+def _spring_pendulum_deriv(t: float, y: Array, p: Array, dy: Array) -> None:
+    # p = [l, k/m, g]; bob at (l + x)(sin θ, −cos θ).
+    r = p[0] + y[0]
+    dy[0] = y[2]
+    dy[1] = y[3]
+    dy[2] = r * y[3] * y[3] + p[2] * math.cos(y[1]) - p[1] * y[0]
+    dy[3] = -(p[2] * math.sin(y[1]) + 2.0 * y[2] * y[3]) / r
+
+
+def spring_pendulum(t_end: float = 20.0, n_samples: int = 200) -> Problem:
+    m, l, k, g = 1.0, 1.0, 40.0, 9.81
+    y0 = np.array([0.3, 0.8, 0.0, 0.0])  # mechsim's defaults: extension, angle, rates
+    pb: Problem
+
+    def cartesian_ext(z: Array) -> Array:  # bob (y, z), z up: independent formulation
+        yy, zz, vy, vz = z
+        rho = np.sqrt(yy * yy + zz * zz)
+        f = k / m * (rho - l) / rho
+        return np.array([vy, vz, -f * yy, -g - f * zz], dtype=z.dtype)
+
+    def reference(t: Array) -> Array:
+        t = np.asarray(t, dtype=float)
+        if not EXTENDED:
+            return _radau_tight(pb.rhs, y0, t)
+        Ld = np.longdouble
+        x, th, dx, dth = (Ld(v) for v in y0)
+        r, s, c = Ld(l) + x, np.sin(th), np.cos(th)
+        z0 = np.array([r * s, -r * c, dx * s + r * dth * c, -dx * c + r * dth * s], dtype=Ld)
+        Z = _fixed_dop853_longdouble(cartesian_ext, z0, t, 2e-3)
+        yy, zz, vy, vz = Z.T
+        rho = np.sqrt(yy * yy + zz * zz)
+        return np.stack([rho - Ld(l), np.arctan2(yy, -zz), (yy * vy + zz * vz) / rho,
+                         (-zz * vy + yy * vz) / (rho * rho)], axis=1).astype(float)
+
+    def energy(t: Array, Y: Array) -> Array:
+        x, th, dx, dth = Y.T
+        r = l + x
+        return 0.5 * m * (dx**2 + r**2 * dth**2) - m * g * r * np.cos(th) + 0.5 * k * x**2
+
+    params = {"formulation": "polar", "mass": m, "length": l, "spring_constant": k,
+              "gravity": g, "initial.extension": float(y0[0]), "initial.angle": float(y0[1]),
+              "initial_rate.extension": float(y0[2]), "initial_rate.angle": float(y0[3])}
+    pb = Problem("spring_pendulum", "spring_pendulum", params, t_end, n_samples,
+                 f"spring pendulum m = {m}, l = {l}, k = {k}, g = {g}, released at extension "
+                 f"{y0[0]} m, angle {y0[1]} rad (polar coordinates); {t_end:g} s",
+                 _spring_pendulum_deriv, np.array([l, k / m, g]), y0, reference,
+                 "DOP853 tableau in Cartesian coordinates, fixed step 2 ms, long double"
+                 if EXTENDED else _FALLBACK, 2 * math.pi * math.sqrt(m / k), energy, "energy",
+                 extra={"conserved_scale": 0.5 * k * y0[0] ** 2})
+    return pb
+
+
+# --- coupled_oscillators (N masses, anchors κ, neighbours κ₁₂) --------------------------------
+def _coupled_accel(t: float, q: Array, p: Array, a: Array) -> None:
+    # p = [κ/m, κ₁₂/m]
+    n = q.size
+    for j in range(n):
+        f = -p[0] * q[j]
+        if j > 0:
+            f -= p[1] * (q[j] - q[j - 1])
+        if j < n - 1:
+            f -= p[1] * (q[j] - q[j + 1])
+        a[j] = f
+
+
+def _coupled_deriv(t: float, y: Array, p: Array, dy: Array) -> None:
+    n = y.size // 2
+    for j in range(n):
+        f = -p[0] * y[j]
+        if j > 0:
+            f -= p[1] * (y[j] - y[j - 1])
+        if j < n - 1:
+            f -= p[1] * (y[j] - y[j + 1])
+        dy[j] = y[n + j]
+        dy[n + j] = f
+
+
+def coupled_oscillators(count: int = 2, t_end: float = 100.0, n_samples: int = 200) -> Problem:
+    m, k, kc, D = 1.0, 4.0, 0.4, 0.2
+    n = count
+    j = np.arange(1, n + 1)
+    r = np.arange(n)
+    U = np.cos(np.outer(r, j - 0.5) * math.pi / n)  # mode r (rows), mass j
+    U /= np.linalg.norm(U, axis=1)[:, None]
+    w = np.sqrt((k + 4 * kc * np.sin(r * math.pi / (2 * n)) ** 2) / m)
+    x0 = np.zeros(n)
+    x0[0] = D  # mechsim's initial_mode 0: only mass 1 displaced
+    y0 = np.concatenate([x0, np.zeros(n)])
+    lap = np.zeros((n, n))  # path-graph Laplacian: one coupling spring per neighbour pair
+    for i in range(n - 1):
+        lap[i:i + 2, i:i + 2] += np.array([[1.0, -1.0], [-1.0, 1.0]])
+    Kmat = k * np.eye(n) + kc * lap
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Kmat / m, np.zeros((n, n))]])
+
+    def reference(t: Array) -> Array:
+        t = np.asarray(t, dtype=float)
+        eta0, deta0 = U @ x0, U @ y0[n:]
+        c, s = np.cos(np.outer(t, w)), np.sin(np.outer(t, w))
+        eta = eta0 * c + deta0 / w * s
+        deta = -eta0 * w * s + deta0 * c
+        return np.concatenate([eta @ U, deta @ U], axis=1)
+
+    def energy(t: Array, Y: Array) -> Array:
+        x, v = Y[:, :n], Y[:, n:]
+        return 0.5 * m * np.sum(v * v, axis=1) + 0.5 * np.einsum("ij,jk,ik->i", x, Kmat, x)
+
+    return Problem(f"coupled_oscillators_{n}", "coupled_oscillators",
+                   {"count": n, "mass": m, "spring_constant": k, "coupling_constant": kc,
+                    "initial_mode": 0, "initial_amplitude": D}, t_end, n_samples,
+                   f"{n} coupled oscillators, m = {m}, κ = {k}, κ₁₂ = {kc}, mass 1 displaced "
+                   f"by {D} m; {t_end:g} s", _coupled_deriv, np.array([k / m, kc / m]), y0,
+                   reference, "closed form (normal modes)", 2 * math.pi / float(w.max()),
+                   energy, "energy", peers=("scipy", "handwritten", "expm"),
+                   accel=_coupled_accel, linear=A,
+                   extra={"conserved_scale": 0.5 * k * D * D})
+
+
+def coupled_oscillators_2(t_end: float = 100.0, n_samples: int = 200) -> Problem:
+    return coupled_oscillators(2, t_end, n_samples)
+
+
+def coupled_oscillators_12(t_end: float = 100.0, n_samples: int = 200) -> Problem:
+    return coupled_oscillators(12, t_end, n_samples)
 
 
 BUILDERS: dict[str, Callable[..., Problem]] = {
@@ -299,6 +1033,23 @@ BUILDERS: dict[str, Callable[..., Problem]] = {
     "driven_oscillator": driven_oscillator,
     "harmonic_oscillator": harmonic_oscillator,
     "double_pendulum": double_pendulum,
+    "rigid_body_intermediate": rigid_body_intermediate,
+    "rigid_body_generic": rigid_body_generic,
+    "heavy_top": heavy_top,
+    "cr3bp": cr3bp,
+    "charged_particle_b": charged_particle_b,
+    "charged_particle_exb": charged_particle_exb,
+    "spring_pendulum": spring_pendulum,
+    "coupled_oscillators_2": coupled_oscillators_2,
+    "coupled_oscillators_12": coupled_oscillators_12,
+}
+
+# The mechsim system each problem runs on (without building the problem).
+SYSTEM_OF: dict[str, str] = {
+    "rigid_body_intermediate": "rigid_body", "rigid_body_generic": "rigid_body",
+    "heavy_top": "symmetric_top", "charged_particle_b": "charged_particle",
+    "charged_particle_exb": "charged_particle", "coupled_oscillators_2": "coupled_oscillators",
+    "coupled_oscillators_12": "coupled_oscillators",
 }
 
 # Horizons of --quick (CI): a few periods.
@@ -308,8 +1059,21 @@ QUICK: dict[str, dict[str, Any]] = {
     "driven_oscillator": {"t_end": 5.0, "n_samples": 20},
     "harmonic_oscillator": {"t_end": 5.0, "n_samples": 20},
     "double_pendulum": {"t_end": 2.0, "n_samples": 20},
+    "rigid_body_intermediate": {"t_end": 10.0, "n_samples": 20},
+    "rigid_body_generic": {"t_end": 5.0, "n_samples": 20},
+    "heavy_top": {"t_end": 1.0, "n_samples": 20},
+    "cr3bp": {"orbits": 2.0, "n_samples": 20},
+    "charged_particle_b": {"t_end": 5.0, "n_samples": 20},
+    "charged_particle_exb": {"t_end": 5.0, "n_samples": 20},
+    "spring_pendulum": {"t_end": 3.0, "n_samples": 20},
+    "coupled_oscillators_2": {"t_end": 10.0, "n_samples": 20},
+    "coupled_oscillators_12": {"t_end": 10.0, "n_samples": 20},
 }
 
 
-def problem(system: str, quick: bool = False) -> Problem:
-    return BUILDERS[system](**(QUICK[system] if quick else {}))
+def system_of(name: str) -> str:
+    return SYSTEM_OF.get(name, name)
+
+
+def problem(name: str, quick: bool = False) -> Problem:
+    return BUILDERS[name](**(QUICK[name] if quick else {}))

@@ -37,7 +37,7 @@ def summary_rows(res: dict[str, Any]) -> list[list[str]]:
     return rows
 
 
-SUMMARY_HEAD = ["system", "end error", "mechsim best", "best peer", "peer/mechsim",
+SUMMARY_HEAD = ["problem", "end error", "mechsim fastest", "best peer", "peer/mechsim",
                 "best scipy", "scipy/mechsim"]
 
 
@@ -94,7 +94,8 @@ def markdown(res: dict[str, Any]) -> str:
         pb = s["problem"]
         c = s["compile"]
         cold = c["cold_s"]
-        out += [f"## {sid}", "", f"{pb['description']}; {pb['n_samples']} samples; reference: "
+        out += [f"## {sid}", "", f"mechsim system `{pb.get('system', sid)}`: "
+                f"{pb['description']}; {pb['n_samples']} samples; reference: "
                 f"{pb['reference']}; conserved: {pb['conserved'] or 'none'}.", "",
                 f"Model build in the benchmark process: {c['load_s']:.2f} s; first call "
                 "per contestant (kernel load or JIT, imports; not in the sweep): "
@@ -105,49 +106,103 @@ def markdown(res: dict[str, Any]) -> str:
         head = ["contestant", "knob", "setting", "time [ms]", "warm-up [ms]", "end error",
                 "max error", "invariant", "steps", "f evals", "status"]
         rows = []
+        shown: set[str] = set()
         for r in s["runs"]:
+            same = [x for x in s["runs"] if x["contestant"] == r["contestant"]]
+            if all(x["status"] == same[0]["status"] != "ok" for x in same):
+                if r["contestant"] not in shown:  # one line for a method that never applies
+                    shown.add(r["contestant"])
+                    rows.append([r["contestant"], r["knob"], "all"] + ["—"] * 7
+                                + [r["status"]])
+                continue
             rows.append([r["contestant"] + (f" ({r['method']})" if r.get("method") and
                                             r["contestant"].endswith("auto") else ""),
                          r["knob"], f"{r['setting']:g}", _ms(r["time_s"]), _ms(r["warmup_s"]),
                          _e(r["end_error"]), _e(r["max_error"]), _e(r["invariant_error"]),
                          "—" if r["n_steps"] is None else str(r["n_steps"]),
                          "—" if r["n_rhs"] is None else str(r["n_rhs"]),
-                         r["status"] if r["repeats"] != 1 else "ok (timed once)"])
+                         (f"ok (same run as {r['same_as']})" if r.get("same_as")
+                          else r["status"] if r["repeats"] != 1 else "ok (timed once)")])
         out += [_table(head, rows), ""]
     return "\n".join(out)
 
 
+FAMILY_STYLE = {  # (line style, marker, line width) per family; colours are per contestant
+    "mechsim": ("-", "o", 2.0), "scipy": ("--", "s", 1.0), "handwritten": (":", "^", 1.3),
+    "expm": ("", "*", 1.0), "rebound": ("-.", "D", 1.0), "mujoco": ("--", "v", 1.0),
+    "drake": ("-.", "P", 1.0)}
+
+
+ZERO_AT = 1e-17  # an error of exactly 0 (a closed form) is drawn here: a log axis has no 0
+
+
+def palette(n: int) -> list[Any]:
+    """``n`` distinct colours (qualitative maps first, then evenly spaced hues)."""
+    from matplotlib import colormaps
+
+    cols: list[Any] = []
+    for name in ("tab10", "Dark2", "Set1", "tab20b"):
+        for c in colormaps[name].colors:  # type: ignore[attr-defined]
+            if c not in cols:
+                cols.append(c)
+    if n > len(cols):
+        hsv = colormaps["hsv"]
+        cols += [hsv(i / (n - len(cols) + 1)) for i in range(n - len(cols))]
+    return cols[:n]
+
+
 def plot(res: dict[str, Any], sid: str, path: Path) -> None:
+    """Write :func:`figure` of problem ``sid`` to ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig = figure(res, sid)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def figure(res: dict[str, Any], sid: str) -> Any:
+    """Work-precision figure of one problem: wall time against end-point error (top) and
+    against the conserved quantity's drift (bottom). Each contestant keeps one colour, used
+    by no other contestant, and each panel's legend lists exactly its own lines."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     s = res["systems"][sid]
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), dpi=80)
+    conserved = s["problem"].get("conserved")
     names = list(dict.fromkeys(r["contestant"] for r in s["runs"]))
-    for ax, key, label in ((axes[0], "end_error", "end-point state error"),
-                           (axes[1], "invariant_error", "max relative invariant drift")):
-        drawn = False
+    colour = dict(zip(names, palette(len(names)), strict=True))
+    fig, axes = plt.subplots(2, 1, figsize=(10, 9), dpi=80)
+    panels = ((axes[0], "end_error", "end-point state error, relative to the state scale "
+               "(dimensionless)", "time to reach an end-point error"),
+              (axes[1], "invariant_error", f"max relative drift of the {conserved or 'invariant'}"
+               " (dimensionless)", f"time against the drift of the {conserved or 'invariant'}"))
+    for ax, key, xlabel, title in panels:
         for name in names:
-            pts = [(r[key], r["time_s"]) for r in s["runs"] if r["contestant"] == name
-                   and r["status"] == "ok" and r[key] is not None and 0 < r[key] <= 10]
+            rows = [r for r in s["runs"] if r["contestant"] == name]
+            pts = sorted((max(r[key], ZERO_AT), r["time_s"]) for r in rows
+                         if r["status"] == "ok" and r[key] is not None and 0 <= r[key] <= 10)
             if not pts:
                 continue
-            pts.sort()
-            ms = name.startswith("mechsim")
-            ax.loglog([p[0] for p in pts], [p[1] * 1e3 for p in pts], "-o" if ms else "--.",
-                      lw=2 if ms else 1, ms=4, label=name)
-            drawn = True
-        ax.set_xlabel(label)
+            label = name + (f" (error 0 drawn at {ZERO_AT:g})" if pts[0][0] == ZERO_AT
+                            else "")
+            ls, marker, lw = (("", "x", 1.0) if name == "mechsim:auto"  # marks on its pick
+                              else FAMILY_STYLE.get(rows[0]["family"], ("-", ".", 1.0)))
+            ax.loglog([p[0] for p in pts], [p[1] * 1e3 for p in pts], linestyle=ls or "none",
+                      marker=marker, lw=lw, ms=5, color=colour[name], label=label)
+        ax.set_xlabel(xlabel)
         ax.set_ylabel("wall time [ms]")
+        ax.set_title(f"{sid}: {title}", fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
-        ax.invert_xaxis()
-        if not drawn:
-            ax.text(0.5, 0.5, "no conserved quantity", ha="center", transform=ax.transAxes)
-    axes[0].set_title(f"{sid}: work-precision", fontsize=10)
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="center right", fontsize=7)
-    fig.tight_layout(rect=(0, 0, 0.8, 1))
-    fig.savefig(path)
-    plt.close(fig)
+        if ax.lines:
+            ax.invert_xaxis()
+            ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7,
+                      title="contestant", title_fontsize=7)
+        else:
+            ax.text(0.5, 0.5, "no conserved quantity" if key == "invariant_error"
+                    else "no run", ha="center", va="center", transform=ax.transAxes)
+            ax.set_xticks([])
+            ax.set_yticks([])
+    fig.tight_layout()
+    return fig

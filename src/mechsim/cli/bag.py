@@ -14,8 +14,9 @@ def add_parser(sub: Any) -> None:
     i = bsub.add_parser("info", help="what a bag holds (like `ros2 bag info`)")
     i.add_argument("bag", metavar="DIR")
     i.set_defaults(func=cmd_bag_info)
-    r = bsub.add_parser("repair", help="complete an interrupted bag (rewrite the MCAP with "
-                        "its summary, write metadata.yaml)")
+    r = bsub.add_parser("repair", help="complete an interrupted or damaged bag (rewrite the "
+                        "MCAP from its readable chunks with a summary, write metadata.yaml); "
+                        "refused while the bag is being recorded")
     r.add_argument("bag", metavar="DIR")
     r.set_defaults(func=cmd_bag_repair)
 
@@ -41,7 +42,13 @@ def cmd_bag_repair(a: argparse.Namespace) -> int:
     except RuntimeError:
         pass
     r = repair_bag(Path(a.bag))
-    state = "was complete" if r.complete else "was truncated; readable chunks kept"
+    if r.complete:
+        state = "was complete"
+    elif r.lost_chunks:
+        state = (f"{r.lost_chunks} damaged chunk{'s' if r.lost_chunks != 1 else ''} skipped, "
+                 f"the others kept; original kept as {r.damaged.name if r.damaged else '?'}")
+    else:
+        state = "was truncated; readable chunks kept"
     print(f"bag {r.path}: {r.messages} messages on {r.topics} topics ({state}); "
           "metadata.yaml written")
     return 0

@@ -17,7 +17,8 @@ Layout of the recording (Rerun 0.41, one timeline ``sim_time``: duration = stamp
   plots/<ns>/energy/<term>               kinetic, potential, total, energy_function,
                                          work_external, work_dissipated [J]
   plots/<ns>/balance_residual            (total − total₀) − (W_ext − W_diss) [J]
-  plots/<ns>/drift/<invariant>           I − I₀ (a constraint residual as it is: it should be 0)
+  plots/<ns>/drift/<invariant>           I − I₀ (a constraint residual as it is: it should be 0),
+                                         as the invariant's ``Law`` (from system_info) says
   plots/<ns>/invariants/<name>, plots/<ns>/observables/<name>, plots/<ns>/state/<coordinate>
   plots/<ns>/diagnostics/<law>           level 0 OK, 1 WARN, 2 ERROR, 3 STALE from /diagnostics
                                          statuses named ``mechsim/<ns>/<law>``
@@ -31,9 +32,13 @@ time: no per-message logging cost and no ``log_time`` timeline.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
+import os
+import shutil
 import sys
+import tempfile
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +47,8 @@ from typing import Any
 import numpy as np
 
 from mechsim.errors import MechsimError
+from mechsim.files import publish
+from mechsim.systems.base import Law
 
 TIMELINE = "sim_time"
 ENERGY_TERMS = ("kinetic", "potential", "total", "energy_function", "work_external",
@@ -53,6 +60,7 @@ HANDLED_TYPES = {
     "diagnostic_msgs/msg/DiagnosticArray",
 }
 _FLUSH_ROWS = 4096
+_BALANCE = Law("work_balance")
 
 
 def _ns(stamp: Any) -> int:
@@ -119,24 +127,42 @@ class _System:
     links: list[tuple[str, str, str]] = field(default_factory=list)  # entity, frame a, frame b
     trails: list[tuple[str, str]] = field(default_factory=list)  # entity, frame
     last_trail: dict[str, tuple[float, float, float]] = field(default_factory=dict)
-    energy0: float | None = None
+    balance0: float | None = None  # the work balance's value at the epoch's first sample
     invariants0: dict[str, float] = field(default_factory=dict)
+    laws: dict[str, Law] = field(default_factory=dict)  # invariant laws from system_info
     last_t: int = 0
 
 
 class RerunSink:
-    """Outlet sink writing a Rerun ``.rrd`` recording; call :meth:`close` to finish the file."""
+    """Outlet sink writing a Rerun ``.rrd`` recording; call :meth:`close` to finish the file.
+
+    The recording is written into a private temporary directory (``mkdtemp``, mode 0700) beside
+    ``path`` and renamed onto ``path`` by :meth:`close` once Rerun has flushed it completely, so
+    a failed write (a full disk) never leaves a half-written ``path``, and the error names it.
+    ``replace=False``: an existing ``path`` is never overwritten (MechsimError at close);
+    :meth:`discard` drops the recording. After a hard kill the recording so far stays in the
+    hidden ``.<name>.*.partial`` directory (Rerun reads it)."""
 
     def __init__(self, path: str | Path, *, application_id: str = "mechsim",
-                 recording_id: str | None = None) -> None:
+                 recording_id: str | None = None, replace: bool = True) -> None:
         import rerun as rr
 
         self.path = Path(path)
-        if self.path.parent and not self.path.parent.exists():
+        self.replace = replace
+        try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.rec = rr.RecordingStream(application_id,
-                                      recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
-        self.rec.save(str(self.path), default_blueprint=self._blueprint())
+            self._tmpdir = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".partial",
+                                                 dir=self.path.parent))
+        except OSError as e:
+            raise MechsimError(f"rrd {self.path}: cannot write ({e.strerror or e})") from None
+        self._tmp = self._tmpdir / self.path.name
+        try:
+            self.rec = rr.RecordingStream(
+                application_id, recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
+            self.rec.save(str(self._tmp), default_blueprint=self._blueprint())
+        except BaseException:
+            self._remove_tmp()
+            raise
         self.rec.set_log_time_enabled(False)
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
@@ -179,15 +205,46 @@ class RerunSink:
                 self._scalar(_path("plots", st.ns, "state", name), t, value)
 
     def close(self) -> None:
-        """Send the buffered columns and the final blueprint; finish the file. Idempotent."""
+        """Send the buffered columns and the final blueprint; finish the file and rename it
+        onto ``path``. Idempotent. MechsimError naming the file if it could not be written
+        (nothing is left at ``path`` then, nor a temporary)."""
         if self.closed:
             return
         self.closed = True
-        for entity in list(self.series):
-            self._flush(entity)
-        self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
-        self.rec.flush()
-        self.rec.disconnect()
+        try:
+            for entity in list(self.series):
+                self._flush(entity)
+            self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+            self.rec.flush()  # RuntimeError if Rerun's file writer stopped (disk full, ...)
+            self.rec.disconnect()
+            fd = os.open(self._tmp, os.O_RDONLY | os.O_NOFOLLOW)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            publish(self._tmp, self.path, replace=self.replace)
+        except FileExistsError:
+            raise MechsimError(f"rrd {self.path}: exists (not replaced)") from None
+        except OSError as e:
+            raise MechsimError(f"rrd {self.path}: write failed ({e.strerror or e}); "
+                               "nothing written") from None
+        except RuntimeError as e:
+            raise MechsimError(f"rrd {self.path}: write failed (Rerun's file writer stopped: "
+                               f"{str(e).splitlines()[0] if str(e) else 'no reason given'}); "
+                               "nothing written") from None
+        finally:
+            self._remove_tmp()
+
+    def discard(self) -> None:
+        """Stop and drop the recording: ``path`` is left as it was. Idempotent."""
+        if not self.closed:
+            self.closed = True
+            with contextlib.suppress(Exception):
+                self.rec.disconnect()
+        self._remove_tmp()
+
+    def _remove_tmp(self) -> None:
+        shutil.rmtree(self._tmpdir, ignore_errors=True)
 
     def __enter__(self) -> RerunSink:
         return self
@@ -212,7 +269,7 @@ class RerunSink:
         return t
 
     def _rebaseline(self, st: _System) -> None:
-        st.energy0 = None
+        st.balance0 = None
         st.invariants0.clear()
         st.last_trail.clear()
 
@@ -228,6 +285,14 @@ class RerunSink:
         first = not st.key
         st.key, st.system = key, info.system
         self._rebaseline(st)
+        st.laws = {}
+        for law_key in info.laws:
+            try:
+                law = Law.from_key(law_key)
+            except ValueError:
+                continue
+            if law.stream == "invariants":
+                st.laws[law.name] = law
         if first:
             self._label_plots(st, info)
         try:
@@ -389,20 +454,18 @@ class RerunSink:
                   m.work_dissipated)
         for term, value in zip(ENERGY_TERMS, values, strict=True):
             self._scalar(_path("plots", st.ns, "energy", term), t, value)
-        if st.energy0 is None:
-            st.energy0 = float(m.total)
-        residual = (m.total - st.energy0) - (m.work_external - m.work_dissipated)
-        self._scalar(_path("plots", st.ns, "balance_residual"), t, residual)
+        balance = float(_BALANCE.value(energy=m))
+        if st.balance0 is None:
+            st.balance0 = balance
+        self._scalar(_path("plots", st.ns, "balance_residual"), t,
+                     _BALANCE.deviation(balance, st.balance0))
 
     def _on_invariants(self, st: _System, t: int, m: Any) -> None:
         for name, value in zip(m.names, m.values, strict=False):
             self._scalar(_path("plots", st.ns, "invariants", name), t, value)
-            if name.startswith("constraint_"):
-                drift = float(value)
-            else:
-                v0 = st.invariants0.setdefault(name, float(value))
-                drift = float(value) - v0
-            self._scalar(_path("plots", st.ns, "drift", name), t, drift)
+            law = st.laws.get(name) or Law.for_invariant(name)
+            v0 = st.invariants0.setdefault(name, float(value))
+            self._scalar(_path("plots", st.ns, "drift", name), t, law.deviation(float(value), v0))
 
     def _on_diagnostics(self, msg: Any) -> None:
         import rerun as rr
@@ -507,36 +570,45 @@ class RerunSink:
 
 
 # --- bags ---------------------------------------------------------------------------------------
-def convert_bag(bag: str | Path, rrd: str | Path) -> dict[str, int]:
+def convert_bag(bag: str | Path, rrd: str | Path, *, replace: bool = False) -> dict[str, int]:
     """Feed every drawable message of a rosbag2 MCAP bag (``mechsim.outputs.bag.read_messages``,
     recording order) through a RerunSink writing ``rrd``: the same recording as a live run.
-    Returns the number of messages per topic that were drawn."""
+    Returns the number of messages per topic that were drawn.
+
+    ``rrd`` appears only once the whole bag was read and the recording written; an existing
+    ``rrd`` is replaced only with ``replace`` (MechsimError otherwise, before any work), and on
+    any error (a corrupt bag, Ctrl-C) it is left as it was."""
     from mechsim.environment import import_rclpy
 
     import_rclpy()
     from rclpy.serialization import deserialize_message
 
-    from mechsim.outputs.bag import message_class, read_messages, read_metadata
+    from mechsim.outputs.bag import check_bag, message_class, read_messages
 
-    read_metadata(bag)  # a clear error before the .rrd is created
+    check_bag(bag)  # a clear error (unreadable, being recorded) before any work
+    if not replace and os.path.lexists(rrd):
+        raise MechsimError(f"rrd {rrd}: exists (not replaced)")
     counts: dict[str, int] = {}
     classes: dict[str, Any] = {}
-    existed = Path(rrd).exists()
+    sink = RerunSink(rrd, replace=replace)
     try:
-        with RerunSink(rrd) as sink:
-            for m in read_messages(bag):
-                if m.type_name not in HANDLED_TYPES:
-                    continue
-                cls = classes.get(m.type_name)
-                if cls is None:
-                    cls = classes[m.type_name] = message_class(m.type_name)
-                sink.write(m.topic, m.type_name, deserialize_message(m.data, cls), None,
-                           m.log_time)
-                counts[m.topic] = counts.get(m.topic, 0) + 1
+        for m in read_messages(bag):
+            if m.type_name not in HANDLED_TYPES:
+                continue
+            cls = classes.get(m.type_name)
+            if cls is None:
+                cls = classes[m.type_name] = message_class(m.type_name)
+            try:
+                msg = deserialize_message(m.data, cls)
+            except Exception:  # noqa: BLE001 - rclpy raises plain exceptions on bad CDR
+                raise MechsimError(f"bag {bag}: a {m.type_name} message on {m.topic} does not "
+                                   "deserialize (corrupt bag)") from None
+            sink.write(m.topic, m.type_name, msg, None, m.log_time)
+            counts[m.topic] = counts.get(m.topic, 0) + 1
     except BaseException:
-        if not existed:  # a corrupt bag or Ctrl-C: no partial recording left behind
-            Path(rrd).unlink(missing_ok=True)
+        sink.discard()
         raise
+    sink.close()
     return counts
 
 

@@ -1,44 +1,120 @@
 """The diagnostics node: checks every system's conservation laws live, on /diagnostics.
 
 It discovers systems by their ``<ns>/system_info`` topics (any process), learns from each which
-laws hold (energy, energy function h, work balance, invariants, constraints) and their scales,
-and follows ``<ns>/energy`` and ``<ns>/invariants``. One DiagnosticStatus per law per system,
-named ``mechsim/<ns>/<law>``, hardware_id ``<ns>``; level from the relative drift against the
-``warn_drift`` / ``error_drift`` parameters (the worst drift seen so far sets the level, so an
-ERROR stays visible); a system silent for ``stale_timeout`` wall seconds is STALE. Published
-every ``period`` seconds of wall time, and on demand with :meth:`publish_now`.
+laws hold and their scales (``SystemInfo.laws`` are ``Law`` keys), and follows ``<ns>/energy``
+and ``<ns>/invariants``; each law's value and drift come from its ``Law``. One DiagnosticStatus
+per law per system, named ``mechsim/<ns>/<law>``, hardware_id ``<ns>``; level from the relative
+drift against the ``warn_drift`` / ``error_drift`` parameters (the worst finite drift of the
+epoch sets the level, so an ERROR stays visible; a non-finite sample is ERROR until finite
+values return); a system silent for ``stale_timeout`` wall seconds is STALE. Published every
+``period`` seconds of wall time, and on demand with :meth:`publish_now`.
+
+Epochs. A system's run is cut into epochs by a reset or an accepted parameter change; every law
+re-bases (initial value, worst drift) at the start of each. The signal is in the sample streams
+themselves, so it needs no ordering between topics: **a sample whose stamp is not later than the
+previous sample of the same stream, from the same publisher, starts a new epoch** for the laws
+that stream carries. A reset restarts at t = 0 (the stamp goes back); after a change that keeps
+the state, the simulator publishes the current sample again with the new parameters (the same
+stamp). A ``system_info`` never re-bases by itself: it updates the set of laws and their scales.
+
+Trust and bounds. Each stream of a system (system_info, energy, invariants) belongs to the first
+publisher heard on it; messages from any other publisher are ignored (counted in ``ignored``),
+so a spoofed ``system_info`` or sample cannot re-base a running system. When the owning
+publisher has left the graph, the system is forgotten and rediscovered with its new publisher.
+At most ``max_systems`` namespaces are followed (those that also have an energy topic first); a
+followed namespace silent for ``expire_timeout`` (or for ``stale_timeout`` once its topics have
+left the graph) is forgotten, subscriptions destroyed; namespaces are followed in turns, and a
+silent one not again before ``expire_timeout`` has passed. Messages fed in-process
+(:meth:`feed`) are trusted.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.subscription import Subscription
 from std_msgs.msg import Header
 
 from mechsim.outputs.sink import Sink
 from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet
+from mechsim.systems.base import LEVEL_NAMES, Law
 from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
 
-LEVEL_NAMES = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 _SUB_QOS = QoSProfile(depth=1000)
+_INFO_TYPE = "mechsim_msgs/msg/SystemInfo"
+STREAMS = ("system_info", "energy", "invariants")
+#: Laws read from one system_info at most (the rest is ignored).
+MAX_LAWS = 256
+#: How often discovery and expiry run [s, wall time].
+HOUSEKEEPING_PERIOD = 0.5
+
+
+def _stamp_ns(header: Header) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _publisher(info: Any) -> bytes:
+    """The publisher GID of a received message (b"" where the middleware gives none)."""
+    gid = info.get("publisher_gid") if isinstance(info, dict) else None
+    return bytes(gid["data"]) if gid else b""
 
 
 @dataclass
 class LawState:
-    key: str
+    """One law of one system, over the current epoch."""
+
+    law: Law
     scale: float
     initial: float | None = None
     current: float = 0.0
     drift: float = 0.0
-    max_drift: float = 0.0
-    samples: int = 0
+    max_drift: float = 0.0  # worst drift of a finite sample this epoch
+    samples: int = 0  # all epochs
+    nonfinite: int = 0  # non-finite samples this epoch
+    finite_now: bool = True  # the latest sample is finite
+
+    @property
+    def key(self) -> str:
+        return self.law.key
+
+    @property
+    def worst(self) -> float:
+        """Worst drift of the epoch, infinite if a sample was not finite."""
+        return math.inf if self.nonfinite else self.max_drift
+
+    def rebase(self) -> None:
+        self.initial = None
+        self.drift = self.max_drift = 0.0
+        self.nonfinite = 0
+        self.finite_now = True
+
+    def update(self, value: float) -> None:
+        self.samples += 1
+        self.current = value
+        if not math.isfinite(value):
+            self.nonfinite += 1
+            self.finite_now = False
+            self.drift = math.inf
+            return
+        self.finite_now = True
+        if self.initial is None:
+            self.initial = value
+        self.drift = float(self.law.drift(value, self.initial, self.scale))
+        self.max_drift = max(self.max_drift, self.drift)
 
 
 @dataclass
@@ -48,19 +124,27 @@ class SystemState:
     laws: dict[str, LawState] = field(default_factory=dict)
     last_seen: float = field(default_factory=time.monotonic)
     last_stamp: Header | None = None
+    epoch: int = 0
+    #: Per stream: the publisher it belongs to (absent: not heard yet) and its last stamp.
+    publishers: dict[str, bytes] = field(default_factory=dict)
+    stamps: dict[str, int] = field(default_factory=dict)
 
 
-def relative_drift(law: LawState, value: float, is_constraint: bool = False) -> float:
-    if is_constraint:
-        return abs(value) / law.scale
-    assert law.initial is not None
-    return abs(value - law.initial) / law.scale
+@dataclass
+class _Follow:
+    """A discovered namespace being followed over DDS."""
+
+    subs: list[Subscription[Any]]
+    last_heard: float = field(default_factory=time.monotonic)
+    suspect: bool = False  # another publisher spoke on a stream: check the owner is still there
 
 
 class DiagnosticsNode(Node):
-    def __init__(self, *, context: Context | None = None, warn_drift: float = 1e-6,
-                 error_drift: float = 1e-3, period: float = 1.0, stale_timeout: float = 5.0,
-                 sinks: list[Sink] | None = None, discover: bool = True) -> None:
+    def __init__(self, *, context: Context | None = None, warn_drift: float = Law.WARN_DRIFT,
+                 error_drift: float = Law.ERROR_DRIFT, period: float = 1.0,
+                 stale_timeout: float = 5.0, expire_timeout: float = 60.0,
+                 max_systems: int = 100, sinks: list[Sink] | None = None,
+                 discover: bool = True) -> None:
         """``discover=False``: follow only systems fed to it in-process (scene runner)."""
         super().__init__("diagnostics", namespace="mechsim", context=context)
         rng = [FloatingPointRange(from_value=0.0, to_value=1.0)]
@@ -76,18 +160,26 @@ class DiagnosticsNode(Node):
         self.declare_parameter("stale_timeout", float(stale_timeout), ParameterDescriptor(
             description="a system silent this long (wall time) is STALE [s]",
             floating_point_range=[FloatingPointRange(from_value=0.1, to_value=3600.0)]))
+        self.declare_parameter("expire_timeout", float(expire_timeout), ParameterDescriptor(
+            description="a discovered system silent this long (wall time) is forgotten [s]",
+            floating_point_range=[FloatingPointRange(from_value=0.1, to_value=86400.0)]))
+        self.declare_parameter("max_systems", int(max_systems), ParameterDescriptor(
+            description="most systems followed at once (discovery)",
+            integer_range=[IntegerRange(from_value=1, to_value=10000)]))
         self.add_on_set_parameters_callback(self._check_thresholds)
         self.systems: dict[str, SystemState] = {}
-        self._subs: dict[str, list] = {}
+        self._follows: dict[str, _Follow] = {}
+        self._quiet: dict[str, float] = {}  # forgotten while still in the graph: when
+        self.ignored = 0  # messages from a publisher that does not own the stream
         self.outlet = Outlet(self, sinks)
         self.t_diag = self.outlet.channel("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS)
         self.published = 0
         if discover:
-            self._discover()
-            self.create_timer(0.5, self._discover)
+            self._housekeeping()
+            self.create_timer(HOUSEKEEPING_PERIOD, self._housekeeping)
         self.create_timer(period, self.publish_now)
 
-    def _check_thresholds(self, params: list) -> SetParametersResult:
+    def _check_thresholds(self, params: list[Any]) -> SetParametersResult:
         warn = self.get_parameter("warn_drift").value
         err = self.get_parameter("error_drift").value
         for p in params:
@@ -100,86 +192,181 @@ class DiagnosticsNode(Node):
                                        reason="warn_drift must be smaller than error_drift")
         return SetParametersResult(successful=True)
 
-    # --- discovery ------------------------------------------------------------------------
-    def _discover(self) -> None:
-        for topic, types in self.get_topic_names_and_types():
-            if topic.endswith("/system_info") and "mechsim_msgs/msg/SystemInfo" in types:
-                ns = topic[: -len("/system_info")]
-                if ns not in self._subs:
-                    self.watch(ns)
+    def _param(self, name: str) -> Any:
+        return self.get_parameter(name).value
+
+    # --- discovery, expiry --------------------------------------------------------------------
+    def _housekeeping(self) -> None:
+        topics = dict(self.get_topic_names_and_types())
+        present = {t[: -len("/system_info")] for t, types in topics.items()
+                   if t.endswith("/system_info") and _INFO_TYPE in types}
+        now = time.monotonic()
+        expire, stale = self._param("expire_timeout"), self._param("stale_timeout")
+        for ns, follow in list(self._follows.items()):
+            silent = now - follow.last_heard
+            gone = ns not in present
+            if follow.suspect:
+                follow.suspect = False
+                gone = gone or not self._owners_present(ns)
+                if gone:
+                    silent = math.inf  # its owner left: follow whoever publishes now
+            if silent > expire or (gone and silent > stale):
+                self.forget(ns)
+                if not gone:
+                    self._quiet[ns] = now
+        for ns in [ns for ns in self._quiet if ns not in present]:
+            del self._quiet[ns]
+        limit = int(self._param("max_systems"))
+        while len(self._quiet) > 10 * limit:  # oldest first: they may be followed again
+            del self._quiet[min(self._quiet, key=self._quiet.__getitem__)]
+        # In turns: namespaces with an energy topic first, then those never (or longest not)
+        # followed; a silent one waits expire_timeout before it is followed again.
+        candidates = sorted((ns for ns in present - self._follows.keys()
+                             if now - self._quiet.get(ns, -math.inf) > expire),
+                            key=lambda ns: (f"{ns}/energy" not in topics,
+                                            self._quiet.get(ns, -math.inf), ns))
+        for ns in candidates[: max(0, limit - len(self._follows))]:
+            self.watch(ns)
+
+    def _owners_present(self, ns: str) -> bool:
+        st = self.systems.get(ns)
+        if st is None:
+            return True
+        for stream, gid in st.publishers.items():
+            if not gid:
+                continue
+            live = {bytes(p.endpoint_gid) for p in
+                    self.get_publishers_info_by_topic(f"{ns}/{stream}")}
+            if gid not in live:
+                return False
+        return True
 
     def watch(self, ns: str) -> None:
-        """Follow the system whose topics live under namespace ``ns`` (e.g. "/pendulum")."""
-        if ns in self._subs:
+        """Follow the system whose topics live under namespace ``ns`` (e.g. "/pendulum"): its
+        system_info now, its samples once a system_info has been accepted."""
+        if ns in self._follows:
             return
-        self._subs[ns] = [
-            self.create_subscription(SystemInfo, f"{ns}/system_info",
-                                     lambda m, ns=ns: self._on_info(ns, m), LATCHED_QOS),
+        sub = self.create_subscription(
+            SystemInfo, f"{ns}/system_info",
+            functools.partial(self._dds, ns, "system_info"), LATCHED_QOS)
+        self._follows[ns] = _Follow([sub])
+
+    def forget(self, ns: str) -> None:
+        """Stop following ``ns`` and drop what is known about it."""
+        follow = self._follows.pop(ns, None)
+        if follow is not None:
+            for sub in follow.subs:
+                self.destroy_subscription(sub)
+        self.systems.pop(ns, None)
+
+    def _follow_samples(self, ns: str) -> None:
+        follow = self._follows.get(ns)
+        if follow is None or len(follow.subs) > 1:
+            return
+        follow.subs += [
             self.create_subscription(Energy, f"{ns}/energy",
-                                     lambda m, ns=ns: self._on_energy(ns, m), _SUB_QOS),
+                                     functools.partial(self._dds, ns, "energy"), _SUB_QOS),
             self.create_subscription(NamedScalars, f"{ns}/invariants",
-                                     lambda m, ns=ns: self._on_invariants(ns, m), _SUB_QOS),
+                                     functools.partial(self._dds, ns, "invariants"), _SUB_QOS),
         ]
 
-    def _on_info(self, ns: str, info: SystemInfo) -> None:
-        old = self.systems.get(ns)
-        same = old is not None and list(old.info.laws) == list(info.laws) and \
-            old.info.parameters_yaml == info.parameters_yaml
-        if same:
-            return
-        st = SystemState(info.instance or ns.strip("/"), info)
-        for key, scale in zip(info.laws, info.law_scales, strict=False):
-            st.laws[key] = LawState(key, scale if scale > 0 else 1.0)
-        self.systems[ns] = st
+    # --- receiving ----------------------------------------------------------------------------
+    def _dds(self, ns: str, stream: str, msg: Any, info: Any) -> None:
+        self._receive(ns, stream, msg, _publisher(info))
 
-    def _update(self, st: SystemState, key: str, value: float) -> None:
-        law = st.laws.get(key)
-        if law is None:
-            return
-        is_constraint = key.startswith("constraint:")
-        if law.initial is None:
-            law.initial = value
-        law.current = value
-        law.drift = relative_drift(law, value, is_constraint) if math.isfinite(value) else \
-            math.inf
-        law.max_drift = max(law.max_drift, law.drift)
-        law.samples += 1
+    def feed(self, ns: str, stream: str, msg: Any) -> None:
+        """Hand a message of ``ns``'s ``stream`` ("system_info", "energy", "invariants") to
+        the node in-process (trusted: no publisher check)."""
+        if stream in STREAMS:
+            self._receive(ns, stream, msg, None)
+
+    def _on_info(self, ns: str, info: SystemInfo) -> None:
+        self.feed(ns, "system_info", info)
 
     def _on_energy(self, ns: str, m: Energy) -> None:
-        st = self.systems.get(ns)
-        if st is None:
-            return
-        st.last_seen = time.monotonic()
-        st.last_stamp = m.header
-        self._update(st, "energy", m.total)
-        self._update(st, "energy_function", m.energy_function)
-        # Balance: total − total₀ − (W_ext − W_diss); its "initial" is total₀ at W = 0.
-        self._update(st, "work_balance", m.total - (m.work_external - m.work_dissipated))
+        self.feed(ns, "energy", m)
 
     def _on_invariants(self, ns: str, m: NamedScalars) -> None:
-        st = self.systems.get(ns)
-        if st is None:
-            return
-        st.last_seen = time.monotonic()
-        for name, value in zip(m.names, m.values, strict=False):
-            key = f"constraint:{name}" if name.startswith("constraint_") else f"invariant:{name}"
-            self._update(st, key, value)
+        self.feed(ns, "invariants", m)
 
-    # --- output ---------------------------------------------------------------------------
+    def _owns(self, st: SystemState, ns: str, stream: str, publisher: bytes | None) -> bool:
+        """Whether ``publisher`` owns ``stream`` of ``st`` (the first one heard does)."""
+        if publisher is None:
+            return True
+        owner = st.publishers.setdefault(stream, publisher)
+        if owner == publisher:
+            return True
+        self.ignored += 1
+        follow = self._follows.get(ns)
+        if follow is not None:
+            follow.suspect = True
+        return False
+
+    def _receive(self, ns: str, stream: str, msg: Any, publisher: bytes | None) -> None:
+        st = self.systems.get(ns)
+        if stream == "system_info":
+            if st is None:
+                st = self.systems[ns] = SystemState(msg.instance or ns.strip("/"), msg)
+                if publisher is not None:
+                    st.publishers["system_info"] = publisher
+                self._follow_samples(ns)
+            elif not self._owns(st, ns, stream, publisher):
+                return
+            self._set_laws(st, msg)
+        elif st is None or not self._owns(st, ns, stream, publisher):
+            return
+        now = time.monotonic()
+        st.last_seen = now
+        follow = self._follows.get(ns)
+        if follow is not None:
+            follow.last_heard = now
+        if stream == "system_info":
+            return
+        stamp = _stamp_ns(msg.header)
+        previous = st.stamps.get(stream)
+        st.stamps[stream] = stamp
+        laws = [law for law in st.laws.values() if law.law.stream == stream]
+        if previous is not None and stamp <= previous:  # a new epoch starts here
+            st.epoch += 1
+            for law in laws:
+                law.rebase()
+        if stream == "energy":
+            st.last_stamp = msg.header
+            for law in laws:
+                law.update(float(law.law.value(energy=msg)))
+        else:
+            values = dict(zip(msg.names, msg.values, strict=False))
+            for law in laws:
+                if law.law.name in values:
+                    law.update(float(law.law.value(invariants=values)))
+
+    def _set_laws(self, st: SystemState, info: SystemInfo) -> None:
+        """Adopt the laws and scales of ``info``; laws that go on keep their epoch."""
+        st.info = info
+        laws: dict[str, LawState] = {}
+        for key, scale in list(zip(info.laws, info.law_scales, strict=False))[:MAX_LAWS]:
+            try:
+                law = Law.from_key(key)
+            except ValueError:
+                continue  # not a law this version knows
+            scale = float(scale) if math.isfinite(scale) and scale > 0 else 1.0
+            state = st.laws.get(law.key) or LawState(law, scale)
+            state.scale = scale
+            laws[law.key] = state
+        st.laws = laws
+
+    # --- output -------------------------------------------------------------------------------
     def level(self, law: LawState, stale: bool) -> int:
         if law.samples == 0 or stale:
             return 3
-        if not math.isfinite(law.max_drift):
+        if not law.finite_now:
             return 2
-        if law.max_drift >= self.get_parameter("error_drift").value:
-            return 2
-        if law.max_drift >= self.get_parameter("warn_drift").value:
-            return 1
-        return 0
+        return law.law.level(law.max_drift, self._param("warn_drift"),
+                             self._param("error_drift"))
 
     def statuses(self) -> list[DiagnosticStatus]:
         out = []
-        timeout = self.get_parameter("stale_timeout").value
+        timeout = self._param("stale_timeout")
         now = time.monotonic()
         for st in self.systems.values():
             stale = now - st.last_seen > timeout
@@ -192,6 +379,8 @@ class DiagnosticsNode(Node):
                 else:
                     text = (f"{LEVEL_NAMES[level]}: relative drift {law.drift:.3g}, "
                             f"max {law.max_drift:.3g}")
+                    if law.nonfinite:
+                        text += f", {law.nonfinite} non-finite sample(s)"
                 label = key.replace(":", "/")
                 out.append(DiagnosticStatus(
                     level=bytes([level]), name=f"mechsim/{st.name}/{label}", message=text,
@@ -202,6 +391,8 @@ class DiagnosticsNode(Node):
                         KeyValue(key="current", value=f"{law.current!r}"),
                         KeyValue(key="scale", value=f"{law.scale!r}"),
                         KeyValue(key="samples", value=str(law.samples)),
+                        KeyValue(key="nonfinite", value=str(law.nonfinite)),
+                        KeyValue(key="epoch", value=str(st.epoch)),
                         KeyValue(key="system", value=st.info.system),
                         KeyValue(key="integrator", value=st.info.integrator)]))
         return out
@@ -220,9 +411,9 @@ class DiagnosticsNode(Node):
         self.published += 1
 
     def summary(self) -> list[tuple[str, str, float, int]]:
-        """(system, law, max relative drift, level) for every law, for tables."""
+        """(system, law, worst relative drift of the epoch, level) for every law, for tables."""
         rows = []
         for st in self.systems.values():
             for key, law in st.laws.items():
-                rows.append((st.name, key, law.max_drift, self.level(law, False)))
+                rows.append((st.name, key, law.worst, self.level(law, False)))
         return rows

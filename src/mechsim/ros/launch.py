@@ -76,12 +76,7 @@ class DiagnosticsFeed:
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
         base, _, leaf = topic.rpartition("/")
-        if leaf == "system_info":
-            self.diag._on_info(base, msg)
-        elif leaf == "energy":
-            self.diag._on_energy(base, msg)
-        elif leaf == "invariants":
-            self.diag._on_invariants(base, msg)
+        self.diag.feed(base, leaf, msg)
 
 
 # --- graph hygiene ------------------------------------------------------------------------

@@ -27,7 +27,10 @@ model, stepper, kernels and outputs together. When each change takes effect:
   ``initial_rate.*`` are stored and take effect at the next reset (or structural change);
 - method and tolerance: a new stepper continues from the current state.
 Epochs: ``epoch`` counts the runs with one fixed model; a reset or an accepted model change
-starts a new one (and republishes system_info), so a consumer re-bases its reference values.
+starts a new one, so a consumer re-bases its reference values. On the topics a new epoch is a
+sample whose stamp is not later than the previous one: a reset restarts at t = 0, and after a
+model change that keeps the state the current sample is published again (same stamp, new
+parameters); system_info is republished with the new laws and scales.
 Guards: a non-finite state, a failed step (also an error from an extreme parameter value) or an
 enforced constraint residual past the hard limit stops this system only (``_fail``): last good
 state kept, ERROR on /diagnostics.
@@ -219,7 +222,7 @@ class SimulatorNode(Node):
         hard-limit guard watches them."""
         names = [q.name for q in self.model.invariants]
         self._constraints = [names.index(law.name) for law in self.model.laws()
-                             if law.kind == "constraint" and law.name in names] \
+                             if law.is_constraint and law.name in names] \
             if self.model.structure.n_constraints > 0 else []
 
     def _start(self) -> None:
@@ -262,7 +265,7 @@ class SimulatorNode(Node):
     def _emit(self, times: np.ndarray, Y: np.ndarray) -> int:
         """Check the rows of ``Y`` against the guards and publish them, in order, up to the
         first bad one (which stops the system). Returns the number of rows published."""
-        n = len(self.model.coordinates)
+        at = self.model.layout
         good = times.size
         if not np.isfinite(Y).all():
             good = int(np.argmin(np.all(np.isfinite(Y), axis=1)))
@@ -279,7 +282,7 @@ class SimulatorNode(Node):
                 [out.invariants[name] for name in names])
         if self._constraints and good and inv is not None:
             r = inv[:, self._constraints]
-            limit = self.constraint_limit * np.maximum(1.0, np.max(np.abs(Y[:good, :n]),
+            limit = self.constraint_limit * np.maximum(1.0, np.max(np.abs(Y[:good, at.q]),
                                                                    axis=1))
             bad = ~np.all(np.isfinite(r) & (np.abs(r) <= limit[:, None]), axis=1)
             if bad.any():
@@ -299,12 +302,12 @@ class SimulatorNode(Node):
 
     def _publish_sample(self, t: float, y: np.ndarray, out: Outputs, inv: np.ndarray | None,
                         i: int, want: tuple[str, ...]) -> None:
-        o, f = self.outlet, self.factory
-        n = len(self.model.coordinates)
+        o, f, at = self.outlet, self.factory, self.model.layout
         ns = messages.stamp_ns(t, self.time_offset)
         if self.publish_clock:
             o.publish(self.t_clock, messages.clock(ns), ns)
-        s = Sample(t, y[:n], y[n:2 * n], float(y[2 * n]), float(y[2 * n + 1]))
+        s = Sample(t, y[at.q], y[at.v], float(y[at.work_external]),
+                   float(y[at.work_dissipated]))
         o.publish(self.t_state, f.state(s, ns), ns)
         if "energy" in want:
             assert out.kinetic is not None and out.potential is not None
@@ -504,5 +507,9 @@ class SimulatorNode(Node):
             self.stepper = c.stepper
         if c.model is not None or c.stepper is not None:
             self._publish_static()
+        if c.model is not None:
+            # The current sample again, with the new parameters and the same stamp: a stamp
+            # not later than the previous one is the diagnostics node's signal of a new epoch.
+            self._emit(np.array([self.t]), self.stepper.y.copy()[None, :])
         if repace:
             self._start_realtime()

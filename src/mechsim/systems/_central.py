@@ -1,7 +1,8 @@
 """Shared physics of central-force motion (seed 003 ch. 4, seed 001 §2.16–2.20): the relative
 orbit's first integrals as sympy expressions, and the analytic oracles (effective potential,
-turning points, Kepler elements, conic classes, Kepler's equation). Used by ``kepler`` and
-``central_force``.
+turning points, Kepler elements, conic classes, Kepler's equation), and the three-dimensional
+orbit vectors L and A with the orbit frame they define. Used by ``kepler``, ``central_force``,
+``central_force_3d`` and ``two_body_field``.
 """
 
 from __future__ import annotations
@@ -34,6 +35,71 @@ def declare_orbit_quantities(b: LagrangianBuilder, mu: Expr, x: Expr, y: Expr, d
     b.observable("radius", "m", r)
     b.observable("areal_velocity", "m^2/s", Lz / (2 * mu))
     return r, Lz
+
+
+def declare_orbit_vectors(b: LagrangianBuilder, mu: Expr, r: tuple[Expr, Expr, Expr],
+                          v: tuple[Expr, Expr, Expr], k: Expr | None = None
+                          ) -> tuple[tuple[Expr, Expr, Expr], tuple[Expr, Expr, Expr] | None]:
+    """Three-dimensional relative orbit: declare the angular momentum L = μ r × ṙ and, for
+    U = −k/r, the Laplace–Runge–Lenz vector A = μ ṙ × L − μ k r̂ as invariants
+    (``angular_momentum_x`` …, ``runge_lenz_x`` …), and the eccentricity |A|/(μk) as an
+    observable. Returns (L, A) (A None without k)."""
+    x, y, z = r
+    vx, vy, vz = v
+    L = (mu * (y * vz - z * vy), mu * (z * vx - x * vz), mu * (x * vy - y * vx))
+    for axis, c in zip("xyz", L, strict=True):
+        b.invariant(f"angular_momentum_{axis}", "kg m^2/s", c)
+    if k is None:
+        return L, None
+    rn = sp.sqrt(x**2 + y**2 + z**2)
+    A = (mu * (vy * L[2] - vz * L[1]) - mu * k * x / rn,
+         mu * (vz * L[0] - vx * L[2]) - mu * k * y / rn,
+         mu * (vx * L[1] - vy * L[0]) - mu * k * z / rn)
+    for axis, c in zip("xyz", A, strict=True):
+        b.invariant(f"runge_lenz_{axis}", "kg^2 m^3/s^2", c)
+    b.observable("eccentricity", "", sp.sqrt(A[0] ** 2 + A[1] ** 2 + A[2] ** 2) / (mu * k))
+    return L, A
+
+
+def vector_law_scales(scales: dict[str, float], angular_momentum: float,
+                      runge_lenz: float | None = None, energy: float | None = None
+                      ) -> dict[str, float]:
+    """Drift scales for the component laws of ``declare_orbit_vectors``: |L| for each L
+    component, μk for each A component (|A| = μkε), and ``energy`` for per-axis energies
+    (``energy_x`` …): a component's own initial value may be zero or round-off (cos π/2), which
+    would make round-off look like a large relative drift."""
+    out = dict(scales)
+    for key in out:
+        name = key.split(":", 1)[-1]
+        if name.startswith("angular_momentum_") and angular_momentum > 0:
+            out[key] = angular_momentum
+        elif name.startswith("runge_lenz_") and runge_lenz:
+            out[key] = runge_lenz
+        elif name.startswith("energy_") and energy:
+            out[key] = energy
+    return out
+
+
+def orbit_quaternion(L: tuple[Expr, Expr, Expr], A: tuple[Expr, Expr, Expr] | None = None
+                     ) -> tuple[Expr, Expr, Expr, Expr]:
+    """Quaternion (x, y, z, w) of the orbit frame: z along L, x toward periapsis (along A;
+    along the ascending node n̂ = ẑ × L/|ẑ × L| without A), as the z-x-z rotation by the node
+    longitude Ω = atan2(L_x, −L_y), the inclination i and the argument of periapsis ω:
+    q = q_z(Ω) q_x(i) q_z(ω). At i = 0 only Ω + ω matters and both come from the same n̂."""
+    Lx, Ly, Lz = L
+    node = sp.atan2(Lx, -Ly)
+    incl = sp.atan2(sp.sqrt(Lx**2 + Ly**2), Lz)
+    if A is None:
+        arg = sp.Integer(0)
+    else:
+        nx, ny = sp.cos(node), sp.sin(node)
+        Ln = sp.sqrt(Lx**2 + Ly**2 + Lz**2)
+        # A·(L × n̂) and |L| A·n̂: the sine and cosine of ω, both times |L||A|
+        arg = sp.atan2(A[0] * (-Lz * ny) + A[1] * (Lz * nx) + A[2] * (Lx * ny - Ly * nx),
+                       Ln * (A[0] * nx + A[1] * ny))
+    ci, si = sp.cos(incl / 2), sp.sin(incl / 2)
+    return (si * sp.cos((node - arg) / 2), si * sp.sin((node - arg) / 2),
+            ci * sp.sin((node + arg) / 2), ci * sp.cos((node + arg) / 2))
 
 
 # --- oracles ------------------------------------------------------------------------------------
@@ -84,6 +150,24 @@ def kepler_elements(mu: float, k: float, E: float, l: float) -> dict[str, float]
         out.update(semi_major_axis=a, semi_minor_axis=l / math.sqrt(2 * mu * abs(E)),
                    period=2 * math.pi * math.sqrt(mu * a**3 / k))
     return out
+
+
+def pericentre_time(gm: float, r: np.ndarray, v: np.ndarray) -> float:
+    """Pericentre passage time 2π √(r_p³ / (GM (1 + e))) of r̈ = −GM r/r³ from the state
+    (r, v), in specific quantities (h = |r × v|, p = h²/GM, e from the specific energy): the
+    time that limits a fixed step. 1 s when the values leave it undefined (h = 0, or
+    parameters so extreme that it under- or overflows): it is only a step-size hint."""
+    try:
+        with np.errstate(all="ignore"):
+            rn, h = math.hypot(*r), math.hypot(*np.cross(r, v))
+            energy = 0.5 * math.hypot(*v) ** 2 - gm / rn
+            p = h * h / gm
+            e = math.sqrt(max(0.0, 1.0 + 2.0 * energy * p / gm))
+            rp = p / (1.0 + e)
+            ts = 2 * math.pi * math.sqrt(rp**3 / (gm * (1.0 + e)))
+    except (ArithmeticError, ValueError):
+        return 1.0
+    return ts if math.isfinite(ts) and ts > 0 else 1.0
 
 
 def eccentric_anomaly(M: np.ndarray, e: float) -> np.ndarray:

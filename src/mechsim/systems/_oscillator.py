@@ -1,7 +1,9 @@
 """Linear oscillators, shared: the closed-form solution of ẍ + 2βẋ + ω₀²x = 0 (used by
 harmonic_oscillator, damped_oscillator, planar_oscillator per axis and coupled_oscillators per
-normal mode), the ``LinearOscillator`` base of the 1-D oscillators (harmonic, damped, driven)
-with their exact propagator, and quadrature for work terms. Not a system (leading underscore).
+normal mode), the steady response to one drive tone, the ``LinearOscillator`` base of the 1-D
+oscillators (harmonic, damped, driven, periodic drive) with their exact propagator (transient
+plus the superposed tone responses), and quadrature for work terms. Not a system (leading
+underscore).
 """
 
 from __future__ import annotations
@@ -45,6 +47,15 @@ def free_solution(t: np.ndarray, x0: float, v0: float, omega0: float,
     w = math.sqrt(beta * beta - omega0 * omega0)
     ch, sh = np.cosh(w * t), np.sinh(w * t)
     return decay * (x0 * ch + c / w * sh), decay * (v0 * ch - s / w * sh)
+
+
+def tone_response(force_over_mass: float, omega: float, omega0: float, beta: float
+                  ) -> tuple[float, float]:
+    """Amplitude D and phase lag δ ∈ [0, π] of the steady response x = D cos(ωt − δ) of
+    ẍ + 2βẋ + ω₀²x = A cos ωt, A = ``force_over_mass``: D = A/√((ω₀² − ω²)² + 4ω²β²),
+    tan δ = 2ωβ/(ω₀² − ω²) (seed 003 §1.4, eq. 1.2)."""
+    D = force_over_mass / math.sqrt((omega0**2 - omega**2) ** 2 + 4 * omega**2 * beta**2)
+    return D, math.atan2(2 * omega * beta, omega0**2 - omega**2)
 
 
 def state_rows(y0: np.ndarray, columns: list[np.ndarray]) -> np.ndarray:
@@ -112,29 +123,45 @@ class LinearOscillator(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / self.natural_frequency()
 
-    def steady_state(self) -> tuple[float, float]:
-        """Amplitude D and phase lag δ ∈ [0, π] of the particular solution x_p = D cos(ωt − δ)
-        (seed 003 eq. 1.2, with the minus sign its line 213 drops)."""
-        w0, beta, w = self.natural_frequency(), self.beta(), self._optional("drive_frequency")
-        A = self._optional("drive_amplitude") / self.value("mass")
-        D = A / math.sqrt((w0**2 - w**2) ** 2 + 4 * w**2 * beta**2)
-        return D, math.atan2(2 * w * beta, w0**2 - w**2)
+    def drive_tones(self) -> list[tuple[float, float, float]]:
+        """The drive as a sum of tones F(t) = Σ Fₙ cos(ωₙt − φₙ), as (Fₙ, ωₙ, φₙ): here the one
+        tone F₀ cos ωt, none without a drive. A periodic drive overrides this (its Fourier
+        series); ``propagate`` superposes the responses (seed 003 §1.6)."""
+        F0 = self._optional("drive_amplitude")
+        return [(F0, self._optional("drive_frequency"), 0.0)] if F0 != 0.0 else []
+
+    def particular_solution(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """x_p(t), ẋ_p(t): the sum of the steady responses to the drive's tones (zero without
+        a drive); None at an undamped resonance, where no periodic solution exists."""
+        w0, beta, m = self.natural_frequency(), self.beta(), self.value("mass")
+        tones = self.drive_tones()
+        if beta == 0.0 and any(abs(w - w0) <= 1e-12 * w0 for _, w, _ in tones):
+            return None  # undamped resonance: secular growth
+        t = np.asarray(t, dtype=float)
+        x, v = np.zeros(t.shape), np.zeros(t.shape)
+        for F, w, phi in tones:
+            D, delta = tone_response(F / m, w, w0, beta)
+            x = x + D * np.cos(w * t - phi - delta)
+            v = v - D * w * np.sin(w * t - phi - delta)
+        return x, v
 
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
-        """x = x_p + transient (free solution from the state at t₀). Work terms: without a
-        drive W_d grows by E(t₀) − E(t); with one, W_d = ∫ b ẋ² dt by Gauss–Legendre
-        quadrature of the exact ẋ, and W_ext closes the balance."""
+        """x = x_p + transient (free solution from the state at t₀), x_p the sum of the
+        responses to the drive's tones. Work terms: without a drive W_d grows by E(t₀) − E(t);
+        with one, W_d = ∫ b ẋ² dt by Gauss–Legendre quadrature of the exact ẋ, and W_ext
+        closes the balance."""
         t = np.asarray(t, dtype=float)
         m, k, c = self.value("mass"), self.value("spring_constant"), self._optional("damping")
-        F0, w = self._optional("drive_amplitude"), self._optional("drive_frequency")
         w0, beta = self.natural_frequency(), self.beta()
-        driven = F0 != 0.0
-        if driven and beta == 0.0 and abs(w - w0) <= 1e-12 * w0:
+        tones = self.drive_tones()
+        driven = bool(tones)
+        if self.particular_solution(np.array([t0])) is None:
             return None  # undamped resonance: secular growth, not this form
-        D, delta = self.steady_state() if driven else (0.0, 0.0)
 
         def particular(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return D * np.cos(w * s - delta), -D * w * np.sin(w * s - delta)
+            out = self.particular_solution(s)
+            assert out is not None
+            return out
 
         xp0, vp0 = particular(np.array([t0]))
         u, du = free_solution(t - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
@@ -154,7 +181,7 @@ class LinearOscillator(LagrangianModel):
                 us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
                 return c * (vs + dus) ** 2
 
-            piece = 0.05 * 2 * math.pi / max(w0, w)
+            piece = 0.05 * 2 * math.pi / max(w0, *(w for _, w, _ in tones))
             w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
             w_ext = y0[2] + (energy(x, v) - e0) + (w_diss - y0[3])
         return state_rows(y0, [x, v, w_ext, w_diss])

@@ -4,16 +4,19 @@ A model owns its parameters, its generalized coordinates, the names of its invar
 observables, the frames it poses, the conservation laws that hold for it, and a compiled kernel
 module (see ``mechsim.codegen``) with the numeric functions the integrators and outputs call.
 State layout everywhere: ``y = [q (n), v = q̇ (n), work_external, work_dissipated]``, followed
-by the model's discrete mode entries, if it declares any (``modes``; see ``Event``).
+by the model's discrete mode entries, if it declares any (``modes``; see ``Event``); one helper,
+``StateLayout`` (``Model.layout``), says where each part sits. A ``Law`` owns the meaning of
+each conservation law (value, drift, scale, thresholds).
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -61,21 +64,179 @@ class Visual:
     color: tuple[int, int, int] = (220, 220, 220)
 
 
+#: Prefix of the invariants that are constraint residuals (zero on the constraint manifold).
+CONSTRAINT_PREFIX = "constraint_"
+#: Names of the levels a law's drift gets (``DiagnosticStatus`` levels 0..3).
+LEVEL_NAMES = ("OK", "WARN", "ERROR", "STALE")
+_ENERGY_KINDS = ("energy", "energy_function", "work_balance")
+_NAMED_KINDS = ("invariant", "constraint")
+
+
+class EnergyTerms(Protocol):
+    """What an energy-type law reads: an ``Energy`` message, a ``SimulationResult`` (arrays),
+    or anything else with these attributes."""
+
+    total: Any
+    energy_function: Any
+    work_external: Any
+    work_dissipated: Any
+
+
 @dataclass(frozen=True)
 class Law:
-    """A conservation law the diagnostics node checks.
+    """A conservation law, the one home of its meaning: which quantity of a sample it keeps,
+    how far that quantity has drifted, against which scale, and when that is a warning or an
+    error. The simulator declares the laws, the diagnostics node checks them, ``simulate``,
+    the stress catalogue and Rerun evaluate them, all through this class.
 
-    kind: "energy" | "energy_function" | "work_balance" | "invariant" | "constraint";
-    name: the quantity (invariant or constraint name; the kind itself for energy laws).
+    kind:
+      "energy"          T + V is constant;
+      "energy_function" h = Σ q̇ ∂L/∂q̇ − L is constant;
+      "work_balance"    total − (W_ext − W_diss) is constant, i.e. total − total₀ = W_ext − W_diss;
+      "invariant"       the named invariant is constant;
+      "constraint"      the named constraint residual is zero.
+    name: the invariant or residual name; for the energy kinds, the kind itself.
+    On the wire (``SystemInfo.laws``) a law is its ``key``; :meth:`from_key` reads it back.
+    Values, drifts and levels work elementwise on numpy arrays as well as on floats.
     """
 
     kind: str
-    name: str
+    name: str = ""
+
+    #: Default relative drifts from which a law is WARN / ERROR (scene and node defaults).
+    WARN_DRIFT: ClassVar[float] = 1e-6
+    ERROR_DRIFT: ClassVar[float] = 1e-3
+
+    def __post_init__(self) -> None:
+        if self.kind in _ENERGY_KINDS:
+            if self.name not in ("", self.kind):
+                raise ValueError(f"law {self.kind!r} takes no name (got {self.name!r})")
+            object.__setattr__(self, "name", self.kind)
+        elif self.kind in _NAMED_KINDS:
+            if not self.name:
+                raise ValueError(f"law {self.kind!r} needs the name of its quantity")
+        else:
+            raise ValueError(f"unknown law kind {self.kind!r} "
+                             f"(known: {', '.join(_ENERGY_KINDS + _NAMED_KINDS)})")
+
+    @classmethod
+    def from_key(cls, key: str) -> Law:
+        """The law whose ``key`` this is (raises ValueError for anything else)."""
+        kind, sep, name = key.partition(":")
+        if not sep and kind in _ENERGY_KINDS:
+            return cls(kind)
+        if sep and kind in _NAMED_KINDS and name:
+            return cls(kind, name)
+        raise ValueError(f"not a conservation law: {key!r}")
+
+    @classmethod
+    def for_invariant(cls, name: str) -> Law:
+        """The law a model's invariant obeys: a residual named ``constraint_*`` stays zero,
+        anything else stays constant."""
+        return cls("constraint" if name.startswith(CONSTRAINT_PREFIX) else "invariant", name)
 
     @property
     def key(self) -> str:
-        return self.kind if self.kind in ("energy", "energy_function", "work_balance") \
-            else f"{self.kind}:{self.name}"
+        return self.kind if self.kind in _ENERGY_KINDS else f"{self.kind}:{self.name}"
+
+    @property
+    def is_constraint(self) -> bool:
+        """A residual that should stay zero (drift = |value| / scale, no initial value)."""
+        return self.kind == "constraint"
+
+    @property
+    def stream(self) -> str:
+        """Which sample carries the law's quantity: "energy" or "invariants"."""
+        return "energy" if self.kind in _ENERGY_KINDS else "invariants"
+
+    def value(self, energy: EnergyTerms | None = None,
+              invariants: Mapping[str, Any] | None = None) -> Any:
+        """The quantity the law keeps, from a sample's energy terms or its invariants (by
+        name), whichever :attr:`stream` says."""
+        if self.kind in _ENERGY_KINDS:
+            if energy is None:
+                raise ValueError(f"law {self.key} needs the energy terms")
+            if self.kind == "energy":
+                return energy.total
+            if self.kind == "energy_function":
+                return energy.energy_function
+            return energy.total - (energy.work_external - energy.work_dissipated)
+        if invariants is None:
+            raise ValueError(f"law {self.key} needs the invariants")
+        return invariants[self.name]
+
+    def deviation(self, value: Any, initial: Any) -> Any:
+        """How far ``value`` is from what the law demands: the change since ``initial`` (a
+        residual: the value itself)."""
+        return value if self.is_constraint else value - initial
+
+    def drift(self, value: Any, initial: Any, scale: Any) -> Any:
+        """Relative drift |deviation| / scale."""
+        return abs(self.deviation(value, initial)) / scale
+
+    def scale(self, energy_scale: float, initial_invariants: Mapping[str, float]) -> float:
+        """What drifts are measured against: the model's energy scale for the energy kinds,
+        an invariant's initial magnitude (1 if it starts at 0), 1 for a residual (SI)."""
+        if self.kind in _ENERGY_KINDS:
+            return energy_scale
+        if self.kind == "invariant":
+            return abs(float(initial_invariants.get(self.name, 0.0))) or 1.0
+        return 1.0
+
+    def level(self, drift: float, warn: float | None = None, error: float | None = None) -> int:
+        """0 OK, 1 WARN, 2 ERROR for a relative drift (non-finite: ERROR); thresholds default
+        to :attr:`WARN_DRIFT` and :attr:`ERROR_DRIFT`."""
+        warn = self.WARN_DRIFT if warn is None else warn
+        error = self.ERROR_DRIFT if error is None else error
+        if not math.isfinite(drift) or drift >= error:
+            return 2
+        return 1 if drift >= warn else 0
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Where each part of the state vector sits:
+    ``y = [q (n), v = q̇ (n), work_external, work_dissipated, modes (n_modes)]``.
+
+    The index attributes work on one state ``y[layout.q]`` and, with ``[..., index]``, on rows
+    of states ``Y[..., layout.q]``; :meth:`compose` builds a state.
+    """
+
+    n: int
+    n_modes: int = 0
+
+    @property
+    def size(self) -> int:
+        return 2 * self.n + 2 + self.n_modes
+
+    @property
+    def q(self) -> slice:
+        return slice(0, self.n)
+
+    @property
+    def v(self) -> slice:
+        return slice(self.n, 2 * self.n)
+
+    @property
+    def work_external(self) -> int:
+        return 2 * self.n
+
+    @property
+    def work_dissipated(self) -> int:
+        return 2 * self.n + 1
+
+    @property
+    def modes(self) -> slice:
+        return slice(2 * self.n + 2, self.size)
+
+    def compose(self, q: Any, v: Any, work_external: float = 0.0, work_dissipated: float = 0.0,
+                modes: Any = ()) -> np.ndarray:
+        y = np.concatenate([np.asarray(q, dtype=np.float64), np.asarray(v, dtype=np.float64),
+                            [work_external, work_dissipated],
+                            np.asarray(modes, dtype=np.float64)]).astype(np.float64)
+        if y.size != self.size:
+            raise ValueError(f"state of size {y.size}, layout needs {self.size}")
+        return y
 
 
 @dataclass(frozen=True)
@@ -230,14 +391,15 @@ class Model(ABC):
             0.0, self.initial_y(), np.zeros(1)) is not None
 
     def laws(self) -> tuple[Law, ...]:
+        """The conservation laws that hold: energy for closed systems, the work balance always,
+        each invariant, then each constraint residual (``Law.for_invariant``)."""
         s = self.structure
-        laws = [Law("work_balance", "work_balance")]
+        laws = [Law("work_balance")]
         if not (s.dissipative or s.driven or s.time_dependent):
-            laws.insert(0, Law("energy", "energy"))
-        laws += [Law("invariant", q.name) for q in self.invariants
-                 if not q.name.startswith("constraint_")]
-        laws += [Law("constraint", q.name) for q in self.invariants
-                 if q.name.startswith("constraint_")]
+            laws.insert(0, Law("energy"))
+        named = [Law.for_invariant(q.name) for q in self.invariants]
+        laws += [law for law in named if not law.is_constraint]
+        laws += [law for law in named if law.is_constraint]
         return tuple(laws)
 
     def energy_function_conserved(self) -> bool:
@@ -258,17 +420,17 @@ class Model(ABC):
         Invariants: their initial magnitude (1 if zero); constraints: 1 (residual in SI)."""
         inv = np.zeros(max(len(self.invariants), 1))
         self.kernels.invariants(0.0, self.initial_y(), self.parameter_vector(), inv)
-        values = {q.name: abs(float(inv[i])) for i, q in enumerate(self.invariants)}
+        values = {q.name: float(inv[i]) for i, q in enumerate(self.invariants)}
         e = self.energy_scale()
-        out: dict[str, float] = {}
-        for law in self.laws():
-            if law.kind in ("energy", "energy_function", "work_balance"):
-                out[law.key] = e
-            elif law.kind == "invariant":
-                out[law.key] = values.get(law.name) or 1.0
-            else:
-                out[law.key] = 1.0
-        return out
+        scales = {law.key: law.scale(e, values) for law in self.laws()}
+        for key in scales:  # parts of the energy (a mode's share may start at 0)
+            if key.startswith("invariant:") and key[10:].startswith(self.energy_parts):
+                scales[key] = e
+        return scales
+
+    #: Invariants (name prefixes) that are parts of the energy, such as mode energies: their
+    #: drift is measured against the energy scale, not their own initial value.
+    energy_parts: ClassVar[tuple[str, ...]] = ()
 
     def time_scale(self) -> float:
         """A characteristic time (e.g. small-oscillation period), for step-size choices."""
@@ -279,9 +441,14 @@ class Model(ABC):
         return np.array([float(self.values[p.name]) for p in self.parameter_spec()  # type: ignore[arg-type]
                          if p.is_numeric], dtype=np.float64)
 
+    @property
+    def layout(self) -> StateLayout:
+        """Where coordinates, rates, work terms and modes sit in the state vector."""
+        return StateLayout(len(self.coordinates), len(self.modes))
+
     def initial_y(self) -> np.ndarray:
         q0, v0 = self.initial_state()
-        y0 = np.concatenate([q0, v0, [0.0, 0.0], self.initial_modes()]).astype(np.float64)
+        y0 = self.layout.compose(q0, v0, modes=self.initial_modes())
         self.kernels.project(0.0, y0, self.parameter_vector())
         return y0
 

@@ -62,6 +62,7 @@ class CoupledOscillators(LagrangianModel):
     id = "coupled_oscillators"
     title = "N identical coupled oscillators (normal modes, beats)"
     source = "seed 003 ch. 8 (Coupled Oscillations, §8.1–8.4); seed 001 §2.21"
+    energy_parts = ("mode_energy_",)
     oracles = ("ω_r² from |A − ω²M| = 0 (closed form), exact modal solution, conserved mode "
                "energies, beat transfer time π/(ω₁ − ω₂) ≈ π/(2εω₀)")
     parameters = (

@@ -18,7 +18,7 @@ import numpy as np
 import sympy as sp
 
 from mechsim.params import nonnegative, number, positive
-from mechsim.systems._oscillator import LinearOscillator
+from mechsim.systems._oscillator import LinearOscillator, tone_response
 from mechsim.systems.lagrangian import LagrangianBuilder
 
 
@@ -48,6 +48,13 @@ class DrivenOscillator(LinearOscillator):
         b.observable("power_dissipated", "W", c * dx**2)
 
     # --- analytic oracles (seed 003 §1.4–1.5, corrected) ------------------------------------
+    def steady_state(self) -> tuple[float, float]:
+        """Amplitude D and phase lag δ ∈ [0, π] of the particular solution x_p = D cos(ωt − δ)
+        (seed 003 eq. 1.2, with the minus sign its line 213 drops)."""
+        return tone_response(self.value("drive_amplitude") / self.value("mass"),
+                             self.value("drive_frequency"), self.natural_frequency(),
+                             self.beta())
+
     def resonance_frequency(self) -> float:
         """Amplitude resonance ω_R = √(ω₀² − 2β²) (exists only for ω₀² > 2β²)."""
         w0, b = self.natural_frequency(), self.beta()

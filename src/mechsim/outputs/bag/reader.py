@@ -1,0 +1,148 @@
+"""Reading bags: checked metadata, messages in recording order, the ``bag info`` text.
+
+Everything read is from outside: ``metadata.yaml`` is size-bounded, UTF-8, alias-free and
+checked field by field (``metadata.parse_metadata``); storage files are opened only if they are
+regular files; a bag being written (live lock, see ``lock``) is refused; text printed from a bag
+has its control characters escaped (:func:`describe`).
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mechsim.errors import MechsimError, one_line
+from mechsim.files import open_regular, read_bounded
+from mechsim.outputs.bag.lock import check_not_in_use, has_stale_lock
+from mechsim.outputs.bag.metadata import METADATA_FILE, STORAGE_ID, parse_metadata
+
+_FILE_RE = re.compile(r".+_(\d+)\.mcap$")
+
+
+@dataclass
+class BagMessage:
+    topic: str
+    type_name: str
+    log_time: int
+    data: bytes
+
+
+def bag_dir(path: str | Path) -> Path:
+    """``path`` as a bag directory that exists (MechsimError otherwise)."""
+    d = Path(path)
+    if "\x00" in str(path):
+        raise MechsimError(f"bag {str(path)!r}: the path contains a NUL byte")
+    if not d.is_dir():
+        raise MechsimError(f"bag {d}: no such directory")
+    return d
+
+
+def bag_files(d: Path) -> list[Path]:
+    """The storage files ``<name>_<N>.mcap`` of a bag directory, by N."""
+    try:
+        files = [(int(m.group(1)), p) for p in d.iterdir()
+                 if (m := _FILE_RE.match(p.name)) and p.is_file()]
+    except OSError as e:
+        raise MechsimError(f"bag {d}: cannot list ({e.strerror or e})") from None
+    return [p for _, p in sorted(files)]
+
+
+def read_metadata(path: str | Path) -> dict[str, Any]:
+    """Checked ``rosbag2_bagfile_information`` of a bag directory (MechsimError if the bag is
+    being written, or its metadata is missing, unreadable or malformed)."""
+    d = bag_dir(path)
+    check_not_in_use(d)
+    f = d / METADATA_FILE
+    if not f.exists():
+        interrupted = bag_files(d) or has_stale_lock(d)
+        hint = (f"; an interrupted recording? run `mechsim bag repair {d}`"
+                if interrupted else "")
+        raise MechsimError(f"bag {d}: no {METADATA_FILE} (not a rosbag2 bag{hint})")
+    what = f"bag {d}: {METADATA_FILE}"
+    try:
+        raw = read_bounded(f)
+    except OSError as e:
+        raise MechsimError(f"{what}: cannot read ({e.strerror or e})") from None
+    meta = parse_metadata(raw, what)
+    if meta["storage_identifier"] != STORAGE_ID:
+        raise MechsimError(f"{what}: storage_identifier: {meta['storage_identifier']!r} is not "
+                           "supported (only mcap)")
+    for name in meta["relative_file_paths"]:
+        if not (d / name).is_file():
+            raise MechsimError(f"bag {d}: storage file {name} missing")
+    return meta
+
+
+def _corrupt(d: Path, f: Path, e: Exception) -> MechsimError:
+    detail = str(e).splitlines()[0] if str(e) else ""
+    return MechsimError(f"bag {d}: {f.name} is corrupt or truncated ({type(e).__name__}"
+                        f"{': ' + detail if detail else ''}); try `mechsim bag repair {d}`")
+
+
+def check_bag(path: str | Path) -> dict[str, Any]:
+    """Metadata of a bag whose storage files open with a summary (MechsimError otherwise)."""
+    from mcap.reader import make_reader
+
+    d = Path(path)
+    meta = read_metadata(d)
+    for name in meta["relative_file_paths"]:
+        f = d / name
+        try:
+            with open_regular(f) as stream:
+                if make_reader(stream).get_summary() is None:
+                    raise ValueError("no summary section")
+        except Exception as e:  # noqa: BLE001 - whatever the parser throws, the file is bad
+            raise _corrupt(d, f, e) from None
+    return meta
+
+
+def read_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:
+    """Messages of a bag in file (= recording) order; MechsimError on a corrupt file (chunk
+    CRCs are checked: a damaged chunk is an error, never wrong messages)."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    d = Path(path)
+    meta = read_metadata(d)
+    wanted = set(topics) if topics else None
+    for name in meta["relative_file_paths"]:
+        f = d / name
+        try:
+            with open_regular(f) as stream:
+                reader = make_reader(stream, validate_crcs=True)  # no silent garbage
+                for schema, channel, message in reader.iter_messages(
+                        topics=list(wanted) if wanted else None, log_time_order=False):
+                    yield BagMessage(channel.topic, schema.name if schema else "",
+                                     message.log_time, message.data)
+        except (McapError, OSError, ValueError, EOFError, AssertionError, KeyError,
+                struct.error) as e:  # struct.error: a record cut short
+            raise _corrupt(d, f, e) from None
+
+
+def describe(meta: dict[str, Any]) -> str:
+    """``ros2 bag info``-like text of checked bag metadata; every text from the bag has its
+    control characters escaped (a bag cannot drive the terminal)."""
+    dur = meta["duration"]["nanoseconds"] / 1e9
+    start = meta["starting_time"]["nanoseconds_since_epoch"] / 1e9
+    s = one_line
+    lines = [f"Files:             {s(', '.join(meta['relative_file_paths']))}",
+             f"Storage id:        {s(meta['storage_identifier'])}",
+             f"ROS Distro:        {s(meta.get('ros_distro') or '')}",
+             f"Duration:          {dur:.9f}s",
+             f"Start:             {start:.9f} (sim time + offset)",
+             f"Messages:          {meta['message_count']}",
+             "Topic information:"]
+    for t in meta["topics_with_message_count"]:
+        tm = t["topic_metadata"]
+        lines.append(f"  Topic: {s(tm['name'])} | Type: {s(tm['type'])} | "
+                     f"Count: {t['message_count']} | "
+                     f"Serialization Format: {s(tm['serialization_format'])}")
+    custom = meta.get("custom_data") or {}
+    if custom:
+        lines.append("Custom data:")
+        lines += [f"  {s(str(k))}: {s(str(v))}" for k, v in custom.items()]
+    return "\n".join(lines)

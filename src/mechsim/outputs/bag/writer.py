@@ -1,0 +1,261 @@
+"""The bag writer: a sink (``mechsim.ros.outlet``) recording every message into a new bag.
+
+Files. The bag directory is claimed exclusively: created with ``mkdir`` (or, if it exists and is
+empty, claimed by creating its lock), then locked for the whole recording (see ``lock``) with
+the recorder's PID, so ``repair``, ``convert``, ``replay`` and ``bag info`` leave it alone. The
+MCAP file is created with ``O_EXCL|O_NOFOLLOW``; ``metadata.yaml`` is written last, through an
+exclusive temporary renamed into place; then the lock is removed.
+
+Robustness. Records are written by a writer thread (Python runs signal handlers in the main
+thread only, so Ctrl-C / SIGTERM can never interrupt a half-written record); the sink only
+serializes and queues. A chunk is closed and flushed to the file at least every second of
+simulation time and every second of wall time (``mcap.Writer.flush``), so after a hard kill
+every chunk but the last is in the file and ``mechsim bag repair`` completes the bag.
+
+A recording is never deleted after its first message: :meth:`BagWriter.abort` (after an error
+anywhere) completes the bag if the writer is healthy; after a write error (disk full, ...) the
+file keeps every chunk that reached the disk and the error says to repair it. Only a bag that
+holds no message is removed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from mechsim.errors import MechsimError
+from mechsim.files import make_dir, open_exclusive, write_atomic
+from mechsim.outputs.bag.lock import LOCK_FILE, BagLock
+from mechsim.outputs.bag.metadata import (
+    METADATA_FILE,
+    SERIALIZATION,
+    SYSTEM_INFO,
+    BagStats,
+    TopicInfo,
+    bag_metadata,
+    dump_yaml,
+    metadata_text,
+    storage_file_name,
+    system_info_custom,
+)
+from mechsim.outputs.bag.qos import qos_dict
+from mechsim.outputs.bag.typeinfo import cdr_bytes, message_definition, type_description_hash
+
+PROFILE = "ros2"
+SCHEMA_ENCODING = "ros2msg"
+#: A chunk is closed at least this often (simulation time of the stamps, and wall time).
+FLUSH_SIM_NS = 1_000_000_000
+FLUSH_WALL_S = 1.0
+CHUNK_SIZE = 512 * 1024
+_STOP = object()
+
+
+def expand_path(path: str | Path) -> Path:
+    """``~`` and strftime fields (``runs/default_%Y%m%d-%H%M%S``) expanded."""
+    text = os.path.expanduser(str(path))
+    return Path(time.strftime(text) if "%" in text else text)
+
+
+def claim_bag_dir(path: str | Path) -> tuple[Path, BagLock, bool]:
+    """Create (or claim an empty) bag directory and lock it for recording: (directory, lock,
+    created). MechsimError naming the path if it exists with content, is being recorded, or
+    cannot be written."""
+    d = expand_path(path)
+    if "\x00" in str(d):
+        raise MechsimError(f"bag {d!r}: the path contains a NUL byte")
+    try:
+        created = make_dir(d)
+    except MechsimError as e:
+        raise MechsimError(f"bag {e}") from None
+    except OSError as e:
+        raise MechsimError(f"bag {d}: cannot create ({e.strerror or e})") from None
+    not_empty = MechsimError(f"bag {d}: directory exists and is not empty (choose a new path)")
+    try:
+        if not created and any(d.iterdir()):
+            raise not_empty
+        lock = BagLock.acquire(d, "recording", break_stale=False)
+    except OSError as e:
+        _remove_dir(d, created)
+        raise MechsimError(f"bag {d}: cannot write ({e.strerror or e})") from None
+    try:
+        others = any(p.name != LOCK_FILE for p in d.iterdir())  # appeared before the lock?
+    except OSError:
+        others = True
+    if others:
+        lock.release()
+        raise not_empty
+    return d, lock, created
+
+
+def _remove_dir(d: Path, created: bool) -> None:
+    if created:
+        with contextlib.suppress(OSError):
+            d.rmdir()
+
+
+class BagWriter:
+    """Sink writing every message into a new rosbag2 MCAP bag (a context manager).
+
+    ``BagWriter(path)`` claims the directory (new or empty; MechsimError otherwise) and locks
+    it; :meth:`close` finishes the MCAP, writes ``metadata.yaml`` and unlocks; :meth:`abort`
+    stops after an error elsewhere, keeping what was recorded (see the module docstring). A
+    write error (a MechsimError naming the bag) is raised by the next :meth:`write` and by
+    :meth:`close`.
+    """
+
+    def __init__(self, path: str | Path, custom_data: dict[str, str] | None = None,
+                 chunk_size: int = CHUNK_SIZE) -> None:
+        self.path, self._lock, self._created = claim_bag_dir(path)
+        self.file_name = storage_file_name(self.path)
+        self.stats = BagStats(custom_data={k: str(v) for k, v in (custom_data or {}).items()})
+        self._types: dict[str, str] = {}
+        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self.error: Exception | None = None
+        self._closed = False
+        self._finished = False
+        self._chunk_size = chunk_size
+        self._thread = threading.Thread(target=self._run, name="bag-writer", daemon=False)
+        try:
+            self._file = open_exclusive(self.path / self.file_name)
+        except OSError as e:
+            self._lock.release()
+            _remove_dir(self.path, self._created)
+            raise MechsimError(f"bag {self.path}: cannot write ({e.strerror or e})") from None
+        self._thread.start()
+
+    # main thread: serialize and queue (never touches the file)
+    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        self.write_serialized(topic, type_name, msg, qos, ns, cdr_bytes(msg))
+
+    def write_serialized(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int,
+                         data: bytes) -> None:
+        """``write`` with the CDR payload already made (by the Outlet, which publishes the
+        same bytes, so each message is serialized once)."""
+        if self.error is not None:
+            raise self.error
+        if self._closed:
+            return
+        if topic not in self._types:
+            self._types[topic] = type_name
+            self._queue.put(("channel", topic, type_name, qos_dict(qos)))
+        if type_name == SYSTEM_INFO:
+            for key, value in system_info_custom(msg).items():
+                self._queue.put(("custom", key, value))
+        self._queue.put((topic, ns, data))
+
+    def set_custom(self, key: str, value: Any) -> None:
+        self._queue.put(("custom", key, str(value)))
+
+    def close(self) -> BagStats:
+        """Finish the file, write metadata.yaml, unlock (waits for the writer thread); raises
+        the write error if there was one (the recording is kept, see :meth:`abort`)."""
+        self._finish(remove_empty=False)
+        if self.error is not None:
+            raise self.error
+        return self.stats
+
+    def abort(self) -> None:
+        """Stop after an error. What was recorded is kept: completed (footer, metadata.yaml)
+        if the writer is healthy, as far as it reached the disk after a write error (then
+        ``mechsim bag repair`` completes it). A bag without any message is removed."""
+        self._finish(remove_empty=True)
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, exc_type: Any, *exc: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def _finish(self, *, remove_empty: bool) -> None:
+        if not self._closed:
+            self._closed = True
+            self._queue.put(_STOP)
+        self._thread.join()
+        if self._finished:
+            return
+        self._finished = True
+        empty = remove_empty and self.stats.message_count == 0
+        if empty:
+            for name in (self.file_name, METADATA_FILE):
+                with contextlib.suppress(OSError):
+                    (self.path / name).unlink()
+        self._lock.release()
+        if empty:
+            _remove_dir(self.path, self._created)
+
+    # writer thread
+    def _run(self) -> None:
+        try:
+            self._write_loop()
+        except Exception as e:  # noqa: BLE001 - handed to the main thread by write()/close()
+            self.error = self._describe(e)
+            while self._queue.get() is not _STOP:  # drain until close()/abort()
+                pass
+        finally:
+            try:
+                self._file.close()
+            except OSError as e:
+                self.error = self.error or self._describe(e)
+
+    def _describe(self, e: Exception) -> Exception:
+        if not isinstance(e, OSError):
+            return e
+        kept = (f"; the chunks written so far are kept: `mechsim bag repair {self.path}` "
+                "completes the bag" if self.stats.message_count else "; nothing was recorded")
+        return MechsimError(f"bag {self.path}: write failed ({e.strerror or e}){kept}")
+
+    def _write_loop(self) -> None:
+        from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+
+        from mechsim import __version__
+
+        w = Writer(self._file, chunk_size=self._chunk_size, compression=CompressionType.ZSTD)
+        w.start(profile=PROFILE, library=f"mechsim {__version__}; {LIBRARY_IDENTIFIER}")
+        w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(
+            bag_metadata(BagStats(custom_data=dict(self.stats.custom_data)), self.file_name))})
+        self._file.flush()
+        schemas: dict[str, int] = {}
+        channels: dict[str, int] = {}
+        last_flush_ns: int | None = None
+        last_flush_wall = time.monotonic()
+        while True:
+            item = self._queue.get()
+            if item is _STOP:
+                break
+            if item[0] == "channel":
+                _, topic, type_name, qos = item
+                if type_name not in schemas:
+                    schemas[type_name] = w.register_schema(
+                        type_name, SCHEMA_ENCODING, message_definition(type_name).encode())
+                h = type_description_hash(type_name)
+                channels[topic] = w.register_channel(
+                    topic, SERIALIZATION, schemas[type_name],
+                    {"offered_qos_profiles": dump_yaml([qos]), "topic_type_hash": h})
+                self.stats.topics[topic] = TopicInfo(topic, type_name, [qos], h)
+                continue
+            if item[0] == "custom":
+                self.stats.custom_data[item[1]] = item[2]
+                continue
+            topic, ns, data = item
+            w.add_message(channels[topic], log_time=ns, data=data, publish_time=ns)
+            self.stats.add(topic, ns)
+            if last_flush_ns is None:
+                last_flush_ns = ns
+            now = time.monotonic()
+            if ns - last_flush_ns >= FLUSH_SIM_NS or now - last_flush_wall >= FLUSH_WALL_S:
+                w.flush()  # closes the chunk in progress and flushes the stream
+                last_flush_ns, last_flush_wall = ns, now
+        meta = bag_metadata(self.stats, self.file_name)
+        w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
+        w.finish()
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        write_atomic(self.path / METADATA_FILE, metadata_text(meta))
