@@ -30,9 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from mechsim.errors import MechsimError, ParameterError, UnknownSystemError
+from mechsim.files import load_yaml, read_bounded
 from mechsim.integrators import METHODS
 from mechsim.params import (
     DURATION,
@@ -81,35 +80,6 @@ class Scene:
     bag: str | None = None
     rrd: str | None = None
     source: Path | None = None
-
-
-class _NoAliasLoader(yaml.SafeLoader):
-    """Safe YAML without aliases: an alias (``*a``) is refused where it is met, so a few hundred
-    bytes cannot expand into gigabytes (a "billion laughs" alias bomb)."""
-
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
-            raise yaml.composer.ComposerError(None, None, "aliases (*name) are not allowed",
-                                              event.start_mark)
-        return super().compose_node(parent, index)
-
-
-def load_yaml(text: str, where: str) -> Any:
-    """Parse untrusted YAML (safe types, no aliases); MechsimError with one line otherwise."""
-    try:
-        return yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        line = f" line {mark.line + 1}" if mark is not None else ""
-        problem = getattr(e, "problem", None)
-        why = f": {problem}" if isinstance(problem, str) and "alias" in problem else ""
-        raise MechsimError(f"{where}:{line} is not valid YAML{why}") from None
-    except ValueError as e:  # e.g. an integer longer than Python converts (4300 digits)
-        why = (str(e).splitlines() or [""])[0].split(";")[0][:120]
-        raise MechsimError(f"{where}: unreadable value ({why})") from None
-    except RecursionError:
-        raise MechsimError(f"{where}: nested too deeply") from None
 
 
 def positive_number(field_name: str, value: Any, positive: bool = True) -> float:
@@ -244,22 +214,15 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file (MechsimError with a one-line reason on any problem):
-    UTF-8, at most ``MAX_SCENE_BYTES``, YAML without aliases."""
+    """Read and validate a scene file (MechsimError with a one-line reason on any problem): a
+    regular file of at most ``MAX_SCENE_BYTES`` of UTF-8, YAML without aliases
+    (``mechsim.files``)."""
     p = Path(check_text("scene", str(path)))
     try:
-        with p.open("rb") as fh:
-            raw = fh.read(MAX_SCENE_BYTES + 1)
+        raw = read_bounded(p, MAX_SCENE_BYTES)
     except OSError as e:
         raise MechsimError(f"scene {p}: cannot read ({e.strerror or e})") from None
-    if len(raw) > MAX_SCENE_BYTES:
-        raise MechsimError(f"scene {p}: larger than {MAX_SCENE_BYTES // 1024} KiB")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise MechsimError(f"scene {p}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset "
-                           f"{e.start})") from None
-    data = load_yaml(text, f"scene {p}")
+    data = load_yaml(raw, f"scene {p}", MAX_SCENE_BYTES)
     try:
         scene = parse_scene(data, default_name=p.stem)
     except ParameterError as e:
@@ -286,7 +249,7 @@ def apply_overrides(scene: Scene, sets: list[str]) -> None:
         key, raw = item.split("=", 1)
         target, _, name = key.rpartition(":")
         try:
-            value = load_yaml(raw, f"--set {shown(key)}")
+            value = load_yaml(raw, f"--set {shown(key)}", MAX_SET_CHARS)
         except MechsimError:
             value = raw
         hit = False
