@@ -27,9 +27,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = build_parser()
-    a = ap.parse_args(argv)
-    try:
+    try:  # Ctrl-C while the parser's modules import is a quiet 130 too
+        a = build_parser().parse_args(argv)
         return int(a.func(a))
     except MechsimError as e:
         print(f"mechsim: error: {e}", file=sys.stderr)

@@ -13,6 +13,7 @@ import re
 from typing import Any
 
 from mechsim.errors import UnknownSystemError
+from mechsim.params import shown
 from mechsim.systems.base import Model
 
 #: System id -> module whose ``MODEL`` is the system's class.
@@ -94,7 +95,8 @@ def system_class(system_id: str) -> type[Model]:
     if isinstance(system_id, str) and system_id in _CLASSES:
         return _CLASSES[system_id]
     if not isinstance(system_id, str) or system_id not in SYSTEMS:
-        raise UnknownSystemError(str(system_id), system_ids())
+        raise UnknownSystemError(shown(system_id) if not isinstance(system_id, str)
+                                 else shown(system_id)[1:-1], system_ids())
     cls = importlib.import_module(SYSTEMS[system_id]).MODEL
     if getattr(cls, "id", None) != system_id:
         raise TypeError(f"{SYSTEMS[system_id]}.MODEL has id {getattr(cls, 'id', None)!r}, "
