@@ -97,8 +97,8 @@ def test_simulator_and_consumer_on_two_hosts(two_hosts: tuple[str, str, str, str
     scene.write_text("name: hosts\nsystems:\n  - {system: pendulum}\n")
     pre_a, env_a = _in(a, addr_a, addr_b, ros_env)
     pre_b, env_b = _in(b, addr_b, addr_a, ros_env)
-    sim = subprocess.Popen([*pre_a, sys.executable, "-m", "mechsim.ros.launch", "--node",
-                            "pendulum", str(scene)], env=env_a, stdout=subprocess.DEVNULL,
+    sim = subprocess.Popen([*pre_a, *MECHSIM, "run", str(scene), "--only", "pendulum"],
+                           env=env_a, stdout=subprocess.DEVNULL,
                            stderr=subprocess.PIPE, text=True)
     try:
         echo = subprocess.run([*pre_b, *MECHSIM, "topic", "echo", "/pendulum/energy",
@@ -106,6 +106,19 @@ def test_simulator_and_consumer_on_two_hosts(two_hosts: tuple[str, str, str, str
                               capture_output=True, text=True, timeout=300)
         assert echo.returncode == 0, echo.stderr
         assert echo.stdout.count("total:") == 20
+        # The diagnostics node on the other host checks the simulator's laws over the link.
+        diag = subprocess.Popen([*pre_b, *MECHSIM, "run", str(scene), "--only", "diagnostics"],
+                                env=env_b, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                text=True)
+        try:
+            ok = subprocess.run([*pre_b, *MECHSIM, "topic", "echo", "/diagnostics", "--count",
+                                 "3", "--timeout", "120"], env=env_b, capture_output=True,
+                                text=True, timeout=300)
+        finally:
+            diag.terminate()
+            diag.wait(timeout=60)
+        assert ok.returncode == 0, ok.stderr
+        assert "name: mechsim/pendulum/energy" in ok.stdout
         # The loopback default does not cross: a consumer without the profile sees nothing.
         alone = subprocess.run([*pre_b, *MECHSIM, "topic", "echo", "/pendulum/energy",
                                 "--once", "--timeout", "5"], env=ros_env, capture_output=True,

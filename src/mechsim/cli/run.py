@@ -22,6 +22,20 @@ def cmd_run(a: argparse.Namespace) -> int:
     duration = check_duration(a.duration) if a.duration is not None else scene.duration
     bag = a.bag or scene.bag
     rrd = a.rrd or scene.rrd
+    if a.only is not None:  # one node of the scene, e.g. one per host
+        from mechsim.ros.launch import run_single_node
+
+        names = [i.name for i in scene.systems]
+        if a.only != "diagnostics" and a.only not in names:
+            raise ParameterError("--only", f"no instance {a.only!r} in the scene (instances: "
+                                 f"{', '.join(names)}; or diagnostics)")
+        for flag, given in (("--bag", a.bag), ("--rrd", a.rrd), ("--processes", a.processes)):
+            if given:
+                raise ParameterError(flag, "not available with --only")
+        say(f"running {'the diagnostics node' if a.only == 'diagnostics' else a.only} of "
+            f"scene {scene.name!r} (Ctrl-C stops it)")
+        return run_single_node(scene, None if a.only == "diagnostics" else a.only,
+                               fast=a.fast, duration=duration)
     if a.processes:
         if a.bag:
             raise ParameterError("--bag", "not available with --processes (record in-process)")
@@ -66,6 +80,9 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--fast", action="store_true", help="as fast as possible")
     r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
     r.add_argument("--processes", action="store_true", help="one process per node")
+    r.add_argument("--only", metavar="NODE", help="run only this instance's simulator (or "
+                   "`diagnostics`) of the scene: one node per host with the several-hosts "
+                   "DDS profile")
     r.add_argument("--bag", metavar="DIR", help="also record every message to a new rosbag2 "
                    "bag (strftime fields expanded)")
     r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd)")
