@@ -10,10 +10,10 @@ from typing import Any
 def add_parser(sub: Any) -> None:
     b = sub.add_parser("bench", help="work-precision benchmark against scipy, REBOUND, MuJoCo, "
                        "Drake; or the cost of a scene's outputs (--scene)")
-    b.add_argument("systems", nargs="*", metavar="SYSTEM",
-                   help="systems to benchmark (default: all with a benchmark problem)")
+    b.add_argument("systems", nargs="*", metavar="PROBLEM",
+                   help="benchmark problems (default: all; an unknown name lists them)")
     b.add_argument("--quick", action="store_true",
-                   help="tiny horizons, 3 tolerances, scipy only (for CI)")
+                   help="tiny horizons, 3 tolerances, scipy and hand-written peers (for CI)")
     b.add_argument("--out", required=True, metavar="DIR",
                    help="directory for results.json, results.md and PNGs")
     b.add_argument("--repeats", type=int, default=3, help="timed runs per point (median)")
@@ -42,7 +42,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
         return 0
     if a.scene:
         if a.systems:
-            raise ParameterError("--scene", "takes no SYSTEM arguments")
+            raise ParameterError("--scene", "takes no PROBLEM arguments")
         from mechsim.bench.scene_cost import run_scene_cost
 
         run_scene_cost(a.scene, out, duration=a.duration)
@@ -53,7 +53,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
     systems = a.systems or known
     for s in systems:
         if s not in known:
-            raise ParameterError("SYSTEM", f"no benchmark problem for {s!r} (have: "
+            raise ParameterError("PROBLEM", f"no benchmark problem for {s!r} (have: "
                                  f"{', '.join(known)})")
     if a.repeats < 1:
         raise ParameterError("--repeats", "must be at least 1")
