@@ -1,5 +1,6 @@
 """The mechsim command as a user runs it: one-line errors and exit status 2 on bad input,
-never a traceback; `systems --json`; a short run prints the conservation table."""
+never a traceback; `systems --json`; a short run prints the conservation table; every range
+the CLI or a scene accepts is accepted by the nodes too (one definition of each range)."""
 
 from __future__ import annotations
 
@@ -26,6 +27,19 @@ def run(args: list[str], env: dict[str, str], timeout: float = 120) -> subproces
     (["run", "pendulum", "--set", "formulation=x"], "formulation: must be one of"),
     (["run", "kepler", "--set", "eccentricity=1.5"], "eccentricity: must be < 1"),
     (["run", "missing_scene.yaml"], "cannot read"),
+    (["run", "pendulum", "--duration", "-1"], "--duration: must be > 0"),
+    (["run", "pendulum", "--duration", "0"], "--duration: must be > 0"),
+    (["run", "pendulum", "--duration", "nan"], "--duration: must be finite"),
+    (["run", "pendulum", "--duration", "1e300"], "--duration: must be <= 1e+09"),
+    (["record", "pendulum", "--duration", "inf"], "--duration: must be finite"),
+    (["run", "pendulum", "--rate", "0"], "--rate: must be >= 0.01"),
+    (["record", "pendulum", "--duration", "1", "--rate", "1e7"], "--rate: must be <= 10000"),
+    (["run", "pendulum", "--set", "mass=" + "9" * 400], "mass: out of range"),
+    (["run", "pendulum", "--name", "p\n"], "--name: must be a ROS name"),
+    (["run", "pendulum", "--name", "p" * 300], "--name: must be a ROS name"),
+    (["run", "pendulum", "--name", "../x"], "--name: must be a ROS name"),
+    (["record", "pendulum", "--duration", "1", "--bag", "runs/a\x01b"],
+     "--bag: contains the control character"),
 ])
 def test_bad_input_is_one_line(args: list[str], expected: str, ros_env: dict[str, str]) -> None:
     r = run(args, ros_env)
@@ -43,6 +57,20 @@ def test_bad_input_is_one_line(args: list[str], expected: str, ros_env: dict[str
     ("systems:\n  - {system: pendulum}\n  - {system: pendulum}\n", "used twice"),
     ("systems:\n  - {system: pendulum, parameters: {length: -2}}\n",
      "systems[0].parameters.length: must be > 0"),
+    # Accepted by scenes before, then refused by the node's ROS ranges with a traceback:
+    ("systems:\n  - {system: pendulum, tolerance: 1.0e-16}\n",
+     "systems[0].tolerance: must be >= 1e-15"),
+    ("publish_rate: 20000.0\nsystems:\n  - {system: pendulum}\n",
+     "publish_rate: must be <= 10000"),
+    ("real_time_factor: 2.0e+6\nsystems:\n  - {system: pendulum}\n",
+     "real_time_factor: must be <= 1e+06"),
+    ("diagnostics: {warn_drift: 0.5, error_drift: 2.0}\nsystems:\n  - {system: pendulum}\n",
+     "diagnostics.error_drift: must be <= 1"),
+    ("duration: " + "9" * 400 + "\nsystems:\n  - {system: pendulum}\n",
+     "duration: out of range"),
+    ("name: ../../../tmp/x\nsystems:\n  - {system: pendulum}\n", "name: must be letters"),
+    ("systems:\n  - {system: pendulum, name: " + "p" * 300 + "}\n",
+     "systems[0].name: must be a ROS name"),
 ])
 def test_bad_scene_is_one_line(text: str, expected: str, tmp_path: Path,
                                ros_env: dict[str, str]) -> None:
@@ -51,6 +79,49 @@ def test_bad_scene_is_one_line(text: str, expected: str, tmp_path: Path,
     r = run(["run", str(scene)], ros_env)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert expected in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_scene_file_not_utf8_is_one_line(tmp_path: Path, ros_env: dict[str, str]) -> None:
+    scene = tmp_path / "latin1.yaml"
+    scene.write_bytes("name: caf\xe9\nsystems:\n  - {system: pendulum}\n".encode("latin-1"))
+    r = run(["run", str(scene)], ros_env)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "not UTF-8" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_every_accepted_range_edge_runs(tmp_path: Path, ros_env: dict[str, str]) -> None:
+    """The edges of every range a scene and the CLI accept start nodes without a complaint
+    and record a complete bag (before: some were refused by the node's own ROS ranges after
+    the bag was created, leaving an empty bag and a traceback)."""
+    import yaml
+
+    scene = tmp_path / "edges.yaml"
+    scene.write_text(yaml.safe_dump({
+        "name": "edges", "pacing": "realtime", "real_time_factor": 1.0e6,
+        "publish_rate": 10000.0, "diagnostics": {"warn_drift": 0.5, "error_drift": 1.0},
+        "systems": [{"system": "harmonic_oscillator", "name": "tight", "tolerance": 1e-15},
+                    {"system": "kepler", "name": "loose", "tolerance": 0.99,
+                     "method": "dop853"}]}))
+    r = run(["record", str(scene), "--duration", "0.01", "--bag", str(tmp_path / "bag")],
+            ros_env)
+    assert r.returncode in (0, 1), r.stderr  # 1: the loose tolerance may fail its system
+    assert "Traceback" not in r.stderr
+    assert (tmp_path / "bag" / "metadata.yaml").exists()
+    slow = run(["run", "kepler", "--rate", "0.01", "--duration", "100", "--fast"], ros_env)
+    assert slow.returncode == 0, slow.stderr
+
+
+def test_run_system_with_a_name(ros_env: dict[str, str], tmp_path: Path) -> None:
+    """`mechsim run SYSTEM --name NS` names the instance: its topics live under /NS."""
+    from rosbags.highlevel import AnyReader
+
+    r = run(["run", "pendulum", "--name", "left", "--fast", "--duration", "0.5", "--bag",
+             str(tmp_path / "bag")], ros_env)
+    assert r.returncode == 0, r.stderr
+    assert "  left " in r.stdout
+    with AnyReader([tmp_path / "bag"]) as reader:
+        topics = {c.topic for c in reader.connections}
+    assert "/left/state" in topics and not any(t.startswith("/pendulum/") for t in topics)
 
 
 def test_systems_json(ros_env: dict[str, str]) -> None:

@@ -43,7 +43,8 @@ TOPICS: dict[str, tuple[type, Any]] = {
 }
 
 
-def spin_until(ex: SingleThreadedExecutor, cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+def spin_until(ex: SingleThreadedExecutor, cond: Callable[[], bool], timeout: float = 120.0
+               ) -> bool:
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         if cond():
@@ -126,7 +127,7 @@ def test_second_process_receives(ros_context: Any, sim: Any, ros_env: dict[str, 
         n.create_subscription(Energy, "/{NS}/energy", count("e"), 100)
         n.create_subscription(TFMessage, "/tf", count("tf"), 100)
         print("ready", flush=True)
-        end = time.monotonic() + 20
+        end = time.monotonic() + 120
         while time.monotonic() < end and (got["e"] < 20 or got["tf"] < 20):
             rclpy.spin_once(n, timeout_sec=0.05)
         print(got["e"], got["tf"], flush=True)
@@ -138,11 +139,15 @@ def test_second_process_receives(ros_context: Any, sim: Any, ros_env: dict[str, 
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(sim)
     assert spin_until(ex, lambda: sim.outlet.channels[f"/{NS}/energy"].publisher
-                      .get_subscription_count() > 0, 15)
-    for k in range(1, 60):
+                      .get_subscription_count() > 0, 120)
+    # Publish until the other process has what it waits for (a condition, not a pace).
+    end = time.monotonic() + 120
+    k = 0
+    while proc.poll() is None and time.monotonic() < end:
+        k += 1
         sim.advance_to(0.01 * k)
-        time.sleep(0.005)
-    out, _ = proc.communicate(timeout=30)
+        ex.spin_once(timeout_sec=0.001)
+    out, _ = proc.communicate(timeout=120)
     e, tf = (int(x) for x in out.split())
     assert e >= 20 and tf >= 20
     ex.shutdown()

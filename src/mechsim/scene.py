@@ -2,12 +2,12 @@
 
 Format (every field validated; unknown keys are errors)::
 
-    name: pendulum              # scene name (default: file stem)
+    name: pendulum              # scene name (default: file stem); letters, digits, _ . -
     pacing: realtime            # realtime | fast
-    real_time_factor: 1.0       # simulated seconds per wall second, with pacing realtime
+    real_time_factor: 1.0       # simulated seconds per wall second (0: pacing fast)
     duration: 20.0              # simulated seconds (omit: run until stopped)
     publish_rate: 100.0         # Hz of simulation time, per system
-    diagnostics: {warn_drift: 1.0e-6, error_drift: 1.0e-3}
+    diagnostics: {warn_drift: 1.0e-6, error_drift: 1.0e-3}   # relative drifts in (0, 1]
     outputs: {bag: runs/pendulum_bag, rrd: runs/pendulum.rrd}
     systems:
       - system: pendulum        # system id (`mechsim systems`)
@@ -16,6 +16,10 @@ Format (every field validated; unknown keys are errors)::
         method: auto            # auto | dop853 | yoshida8 | yoshida6 | verlet
         tolerance: 1.0e-10
         origin: [0.0, 0.0, 0.0] # where the system's world-rooted frames sit in the world
+
+Ranges of the run settings are defined once in ``mechsim.params`` (shared with the CLI and the
+nodes' ROS parameters). Files are untrusted input: at most 1 MiB of UTF-8, YAML aliases are
+refused, names are checked before they reach ROS or a path.
 """
 
 from __future__ import annotations
@@ -26,15 +30,31 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from mechsim.errors import MechsimError, ParameterError, UnknownSystemError
+from mechsim.files import load_yaml, read_bounded
 from mechsim.integrators import METHODS
-from mechsim.params import flatten
+from mechsim.params import (
+    DURATION,
+    ERROR_DRIFT,
+    PUBLISH_RATE,
+    REAL_TIME_FACTOR,
+    TOLERANCE,
+    WARN_DRIFT,
+    check_text,
+    flatten,
+    shown,
+)
 from mechsim.systems import system_class
 from mechsim.systems.base import Law
 
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+#: Instance names: ROS namespaces, short enough for every topic name built on them.
+MAX_NAME = 64
+_NAME = re.compile(rf"[A-Za-z][A-Za-z0-9_]{{0,{MAX_NAME - 1}}}")
+#: Scene names: part of the default bag path (``runs/<scene>_<time>``), so never a path.
+_SCENE_NAME = re.compile(rf"[A-Za-z0-9_][A-Za-z0-9_.-]{{0,{MAX_NAME - 1}}}")
+#: Largest scene file (bytes) and ``--set`` value (characters) read.
+MAX_SCENE_BYTES = 1 << 20
+MAX_SET_CHARS = 10_000
 
 
 @dataclass
@@ -64,17 +84,51 @@ class Scene:
 
 def positive_number(field_name: str, value: Any, positive: bool = True) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ParameterError(field_name, f"must be a number (got {value!r})")
-    x = float(value)
+        raise ParameterError(field_name, f"must be a number (got {shown(value)})")
+    try:
+        x = float(value)
+    except OverflowError:
+        x = math.inf
     if not math.isfinite(x) or (positive and x <= 0):
-        raise ParameterError(field_name, f"must be a finite positive number (got {value!r})")
+        raise ParameterError(field_name, f"must be a finite positive number (got "
+                             f"{shown(value)})")
     return x
+
+
+def setting(p: Any, field_name: str, value: Any) -> float:
+    """A scene's number for the run setting ``p`` (``mechsim.params``): numbers only (no
+    strings), in the one range the CLI and the nodes share."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ParameterError(field_name, f"must be a number (got {shown(value)})")
+    return float(p.check(value, field_name))
+
+
+def instance_name(field_name: str, value: Any) -> str:
+    """A valid instance name (ROS namespace) or ParameterError naming ``field_name``."""
+    if not isinstance(value, str) or not _NAME.fullmatch(value):
+        raise ParameterError(field_name, f"must be a ROS name [A-Za-z][A-Za-z0-9_]* of at "
+                             f"most {MAX_NAME} characters (got {shown(value)})")
+    return value
+
+
+def scene_name(value: Any) -> str:
+    if not isinstance(value, str) or not _SCENE_NAME.fullmatch(value):
+        raise ParameterError("name", f"must be letters, digits, _ . - (not first: . -), at "
+                             f"most {MAX_NAME} characters (got {shown(value)})")
+    return value
+
+
+def _name_from_stem(stem: str) -> str:
+    """A valid scene name from a file name (characters outside the name set become _)."""
+    name = re.sub(r"[^A-Za-z0-9_.-]", "_", stem).lstrip(".-")[:MAX_NAME]
+    return name or "scene"
 
 
 def _keys(where: str, data: dict[str, Any], allowed: set[str]) -> None:
     for key in data:
         if key not in allowed:
-            raise ParameterError(f"{where}.{key}" if where else str(key),
+            text = key if isinstance(key, str) and len(key) <= 60 else shown(key)
+            raise ParameterError(f"{where}.{text}" if where else text,
                                  f"unknown key (allowed: {', '.join(sorted(allowed))})")
 
 
@@ -86,29 +140,28 @@ def parse_instance(data: Any, index: int) -> Instance:
     if "system" not in data:
         raise ParameterError(f"{where}.system", "missing")
     system = data["system"]
+    if not isinstance(system, str) or len(system) > MAX_NAME:
+        raise ParameterError(f"{where}.system", f"must be a system id (got {shown(system)})")
     cls = system_class(system)  # UnknownSystemError names the id
-    name = data.get("name", system)
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise ParameterError(f"{where}.name", f"must be a ROS name [A-Za-z][A-Za-z0-9_]* "
-                             f"(got {name!r})")
+    name = instance_name(f"{where}.name", data.get("name", system))
     params = data.get("parameters", {}) or {}
     if not isinstance(params, dict):
         raise ParameterError(f"{where}.parameters", "must be a mapping name: value")
     try:
-        cls(**flatten(params))  # validates every parameter now, with the field named
+        flat = flatten(params)
+        cls(**flat)  # validates every parameter now, with the field named
     except ParameterError as e:
         raise ParameterError(f"{where}.parameters.{e.field}", e.reason) from None
     method = data.get("method", "auto")
-    if method not in METHODS:
-        raise ParameterError(f"{where}.method", f"must be one of {', '.join(METHODS)}")
-    tol = positive_number(f"{where}.tolerance", data.get("tolerance", 1e-10))
-    if tol >= 1:
-        raise ParameterError(f"{where}.tolerance", f"must be < 1 (got {tol!r})")
+    if not isinstance(method, str) or method not in METHODS:
+        raise ParameterError(f"{where}.method", f"must be one of {', '.join(METHODS)} "
+                             f"(got {shown(method)})")
+    tol = setting(TOLERANCE, f"{where}.tolerance", data.get("tolerance", TOLERANCE.default))
     origin = data.get("origin", [0.0, 0.0, 0.0])
     if not (isinstance(origin, list | tuple) and len(origin) == 3):
         raise ParameterError(f"{where}.origin", "must be a list of three numbers [x, y, z]")
     org = tuple(positive_number(f"{where}.origin", v, positive=False) for v in origin)
-    return Instance(system, name, flatten(params), method, tol, org)  # type: ignore[arg-type]
+    return Instance(system, name, flat, method, tol, org)  # type: ignore[arg-type]
 
 
 def parse_scene(data: Any, default_name: str = "scene") -> Scene:
@@ -126,22 +179,27 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
             raise ParameterError("systems", f"instance name {n!r} used twice: set `name`")
     pacing = data.get("pacing", "realtime")
     if pacing not in ("realtime", "fast"):
-        raise ParameterError("pacing", f"must be realtime or fast (got {pacing!r})")
-    scene = Scene(name=str(data.get("name", default_name)), systems=instances, pacing=pacing)
+        raise ParameterError("pacing", f"must be realtime or fast (got {shown(pacing)})")
+    name = scene_name(data["name"]) if "name" in data else _name_from_stem(default_name)
+    scene = Scene(name=name, systems=instances, pacing=pacing)
     if "real_time_factor" in data:
-        scene.real_time_factor = positive_number("real_time_factor", data["real_time_factor"])
+        # 0 (as fast as possible) is the same as pacing: fast.
+        scene.real_time_factor = setting(REAL_TIME_FACTOR, "real_time_factor",
+                                         data["real_time_factor"])
+        if scene.real_time_factor == 0:
+            scene.pacing = "fast"
     if data.get("duration") is not None:
-        scene.duration = positive_number("duration", data["duration"])
+        scene.duration = setting(DURATION, "duration", data["duration"])
     if "publish_rate" in data:
-        scene.publish_rate = positive_number("publish_rate", data["publish_rate"])
+        scene.publish_rate = setting(PUBLISH_RATE, "publish_rate", data["publish_rate"])
     diag = data.get("diagnostics") or {}
     if not isinstance(diag, dict):
         raise ParameterError("diagnostics", "must be a mapping")
     _keys("diagnostics", diag, {"warn_drift", "error_drift"})
-    scene.warn_drift = positive_number("diagnostics.warn_drift",
-                                       diag.get("warn_drift", Law.WARN_DRIFT))
-    scene.error_drift = positive_number("diagnostics.error_drift",
-                                        diag.get("error_drift", Law.ERROR_DRIFT))
+    scene.warn_drift = setting(WARN_DRIFT, "diagnostics.warn_drift",
+                               diag.get("warn_drift", Law.WARN_DRIFT))
+    scene.error_drift = setting(ERROR_DRIFT, "diagnostics.error_drift",
+                                diag.get("error_drift", Law.ERROR_DRIFT))
     if scene.warn_drift >= scene.error_drift:
         raise ParameterError("diagnostics.warn_drift", "must be smaller than error_drift")
     outputs = data.get("outputs") or {}
@@ -149,25 +207,22 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
         raise ParameterError("outputs", "must be a mapping")
     _keys("outputs", outputs, {"bag", "rrd"})
     for key in ("bag", "rrd"):
-        if outputs.get(key) is not None and not isinstance(outputs[key], str):
-            raise ParameterError(f"outputs.{key}", "must be a path string")
+        if outputs.get(key) is not None:
+            check_text(f"outputs.{key}", outputs[key])
     scene.bag, scene.rrd = outputs.get("bag"), outputs.get("rrd")
     return scene
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file (MechsimError with a one-line reason on any problem)."""
-    p = Path(path)
+    """Read and validate a scene file (MechsimError with a one-line reason on any problem): a
+    regular file of at most ``MAX_SCENE_BYTES`` of UTF-8, YAML without aliases
+    (``mechsim.files``)."""
+    p = Path(check_text("scene", str(path)))
     try:
-        text = p.read_text()
+        raw = read_bounded(p, MAX_SCENE_BYTES)
     except OSError as e:
         raise MechsimError(f"scene {p}: cannot read ({e.strerror or e})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise MechsimError(f"scene {p}:{where} is not valid YAML") from None
+    data = load_yaml(raw, f"scene {p}", MAX_SCENE_BYTES)
     try:
         scene = parse_scene(data, default_name=p.stem)
     except ParameterError as e:
@@ -176,22 +231,26 @@ def load_scene(path: str | Path) -> Scene:
     return scene
 
 
-def single_system_scene(system: str, parameters: dict[str, Any] | None = None) -> Scene:
-    """The scene `mechsim run SYSTEM` uses: one instance with default settings."""
-    return parse_scene({"name": system, "systems": [{"system": system,
-                                                      "parameters": parameters or {}}]})
+def single_system_scene(system: str, parameters: dict[str, Any] | None = None,
+                        name: str | None = None) -> Scene:
+    """The scene `mechsim run SYSTEM` uses: one instance with default settings, named
+    ``name`` (default: the system id)."""
+    inst = name or system
+    return parse_scene({"name": inst, "systems": [{"system": system, "name": inst,
+                                                   "parameters": parameters or {}}]})
 
 
 def apply_overrides(scene: Scene, sets: list[str]) -> None:
     """``name=value`` for every instance that has the parameter, ``inst:name=value`` for one."""
     for item in sets:
+        check_text("--set", item, MAX_SET_CHARS)
         if "=" not in item:
-            raise ParameterError("--set", f"expected name=value (got {item!r})")
+            raise ParameterError("--set", f"expected name=value (got {shown(item)})")
         key, raw = item.split("=", 1)
         target, _, name = key.rpartition(":")
         try:
-            value = yaml.safe_load(raw)
-        except yaml.YAMLError:
+            value = load_yaml(raw, f"--set {shown(key)}", MAX_SET_CHARS)
+        except MechsimError:
             value = raw
         hit = False
         for idx, inst in enumerate(scene.systems):
@@ -207,19 +266,25 @@ def apply_overrides(scene: Scene, sets: list[str]) -> None:
                      "origin": list(inst.origin)}, idx)
                 hit = True
         if not hit:
-            where = f"instance {target!r}" if target else "any system of the scene"
-            raise ParameterError(f"--set {name}", f"not a parameter of {where}")
+            where = f"instance {shown(target)}" if target else "any system of the scene"
+            raise ParameterError(f"--set {shown(name)}", f"not a parameter of {where}")
 
 
-def scene_from_target(target: str, sets: list[str]) -> Scene:
-    """The scene a command names: a scene file, or a system id run with its default scene;
-    then the ``--set`` overrides."""
+def scene_from_target(target: str, sets: list[str], name: str | None = None) -> Scene:
+    """The scene a command names: a scene file, or a system id run with its default scene
+    (its one instance named ``name``, default the id); then the ``--set`` overrides."""
     from mechsim.systems import system_ids
 
+    check_text("target", target)
+    if name is not None:
+        instance_name("--name", name)
     if target.endswith((".yaml", ".yml")) or Path(target).is_file():
+        if name is not None:
+            raise ParameterError("--name", "only with a SYSTEM target (a scene file names its "
+                                 "instances)")
         scene = load_scene(target)
     elif target in system_ids():
-        scene = single_system_scene(target)
+        scene = single_system_scene(target, name=name)
     else:
         raise UnknownSystemError(target, system_ids())
     apply_overrides(scene, sets)

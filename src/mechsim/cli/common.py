@@ -1,9 +1,24 @@
-"""Helpers every verb shares: progress bar, the conservation table, one-line messages."""
+"""Helpers every verb shares: progress bar, the conservation table, one-line messages, the
+checks of the options every running verb has (same ranges as scenes and nodes)."""
 
 from __future__ import annotations
 
 import sys
 from typing import Any
+
+
+def check_duration(value: float) -> float:
+    """``--duration``: simulated seconds, in the range scenes and nodes accept."""
+    from mechsim.params import DURATION
+
+    return float(DURATION.check(value, "--duration"))
+
+
+def check_rate(value: float) -> float:
+    """``--rate``: publish rate, in the range scenes and nodes accept."""
+    from mechsim.params import PUBLISH_RATE
+
+    return float(PUBLISH_RATE.check(value, "--rate"))
 
 
 def progress_bar(enabled: bool) -> Any:

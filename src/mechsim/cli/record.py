@@ -3,37 +3,37 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from typing import Any
 
 from mechsim.cli.common import print_summary, progress_bar, say
-from mechsim.errors import ParameterError
-from mechsim.ros.record import DEFAULT_BAG, run_with_outputs
-from mechsim.scene import scene_from_target
+from mechsim.ros.process import stop_on_sigterm
+from mechsim.ros.record import DEFAULT_BAG
+
+#: Exit status of a recording stopped by Ctrl-C / SIGTERM (128 + SIGINT, as shells report).
+EXIT_INTERRUPTED = 130
 
 
-def _duration(a: argparse.Namespace, scene: Any) -> float:
+def cmd_record(a: argparse.Namespace) -> int:
+    stop_on_sigterm()  # from here on, a stop completes whatever files exist
+    from mechsim.cli.common import check_duration, check_rate
+    from mechsim.errors import ParameterError
+    from mechsim.ros.record import bag_path, run_with_outputs
+    from mechsim.scene import scene_from_target
+
+    scene = scene_from_target(a.target, a.set, a.name)
+    if a.rate is not None:
+        scene.publish_rate = check_rate(a.rate)
     d = a.duration if a.duration is not None else scene.duration
     if d is None:
         raise ParameterError("--duration", "required (the scene sets no duration and a "
                              "recording runs as fast as possible)")
-    if not (math.isfinite(d) and d > 0):
-        raise ParameterError("--duration", f"must be a finite positive number (got {d!r})")
-    return float(d)
-
-
-def cmd_record(a: argparse.Namespace) -> int:
-    from mechsim.scene import positive_number
-
-    scene = scene_from_target(a.target, a.set)
-    if a.rate is not None:
-        scene.publish_rate = positive_number("--rate", a.rate)
-    duration = _duration(a, scene)
+    duration = check_duration(d)
     bag = a.bag or scene.bag or DEFAULT_BAG
+    bag_path(bag, scene)  # a bad path is refused before anything starts
     show = progress_bar(sys.stderr.isatty())
     say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {duration:g} s "
-         f"simulated, as fast as possible)")
+        f"simulated, as fast as possible)")
     run, lines = run_with_outputs(scene, fast=True, duration=duration, bag=bag,
                                   rrd=a.rrd or scene.rrd, progress=show)
     if run.interrupted:
@@ -41,6 +41,8 @@ def cmd_record(a: argparse.Namespace) -> int:
     print_summary(run)
     for line in lines:
         print(f"  {line}")
+    if run.interrupted:
+        return EXIT_INTERRUPTED
     return 1 if run.failures else 0
 
 
@@ -51,9 +53,10 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--duration", type=float, help="simulated seconds (default: the scene's)")
     r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="parameter override; INSTANCE:NAME=VALUE for one instance")
+    r.add_argument("--name", metavar="NS", help="instance name (ROS namespace) of a single "
+                   "SYSTEM (default: the system id)")
     r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
     r.add_argument("--bag", metavar="DIR", help="new bag directory (strftime fields expanded; "
                    f"default: scene outputs.bag, else {DEFAULT_BAG.replace('%', '%%')})")
     r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording")
     r.set_defaults(func=cmd_record)
-

@@ -1,5 +1,22 @@
 """Start a scene: all nodes in one process (stepped in lockstep by one loop), or one process
-per node (``--processes``). Used by ``mechsim run`` and the scripts in ``launch_scripts/``."""
+per node (``--processes``). Used by ``mechsim run`` and ``mechsim record``.
+
+Graph hygiene. Before its simulator nodes exist, a scene looks at the graph (after a bounded
+discovery wait, ``GRAPH_WAIT``, overlapped with loading the models): an instance whose node
+``/<name>/simulator`` already runs elsewhere on the ROS domain, or a ``/clock`` already
+published by another live node, stops the start with one line naming the running node (one
+clock per graph: sim-time consumers would see time jump). A name left in the graph by a killed
+process (no answer from its parameter service) does not count.
+
+Processes. ``run_processes`` starts ``python -m mechsim.ros.launch`` once per instance and once
+for the diagnostics node; each child dies with the parent (``PR_SET_PDEATHSIG``, also after a
+SIGKILL of the parent), honours ``--rate``, ``--fast`` and ``--duration``, and the parent's exit
+status is the first non-zero status of a child (a refused start: 2; a failed system: 1).
+
+Children run in their own session: a Ctrl-C in the terminal reaches the parent only, which
+stops them with SIGTERM (handled from their first line; ROS and the models are imported later,
+so a child stopped while starting exits quietly).
+"""
 
 from __future__ import annotations
 
@@ -8,14 +25,24 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mechsim.errors import MechsimError, ParameterError
-from mechsim.scene import Scene, apply_overrides, load_scene
+from mechsim.ros.process import die_with_parent, stop_on_sigterm, stopping
+
+if TYPE_CHECKING:
+    from mechsim.scene import Scene
+
+#: Seconds of discovery before the graph is checked for duplicate names and /clock. A new
+#: participant learns of the running ones from their periodic announcements, every 3 s with
+#: Fast DDS's default (its initial burst is often missed): measured on loopback, 0.1-3.0 s.
+GRAPH_WAIT = 3.5
+#: Seconds a node found in the graph has to answer before it counts as gone (killed).
+LIVENESS_TIMEOUT = 2.0
 
 
 @dataclass
@@ -49,20 +76,96 @@ class DiagnosticsFeed:
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
         base, _, leaf = topic.rpartition("/")
-        if leaf == "system_info":
-            self.diag._on_info(base, msg)
-        elif leaf == "energy":
-            self.diag._on_energy(base, msg)
-        elif leaf == "invariants":
-            self.diag._on_invariants(base, msg)
+        self.diag.feed(base, leaf, msg)
 
 
+# --- graph hygiene ------------------------------------------------------------------------
+def _alive(node: Any, executor: Any, full_name: str, timeout: float) -> bool:
+    """Does the node ``full_name`` answer on its parameter service within ``timeout``?"""
+    from rcl_interfaces.srv import ListParameters
+
+    client = node.create_client(ListParameters, f"{full_name}/list_parameters")
+    try:
+        end = time.monotonic() + timeout
+        while not client.service_is_ready():
+            if time.monotonic() >= end:
+                return False
+            executor.spin_once(timeout_sec=0.05)
+        future = client.call_async(ListParameters.Request(depth=1))
+        while not future.done():
+            if time.monotonic() >= end:
+                return False
+            executor.spin_once(timeout_sec=0.05)
+        return True
+    finally:
+        node.destroy_client(client)
+
+
+class GraphCheck:
+    """Refuse (MechsimError, one line) to start simulator nodes whose names a live node of
+    the domain already uses, or a second /clock. Made before the models are built, so that
+    discovery (which starts with this probe's participant) runs meanwhile; :meth:`check` waits
+    for the rest of ``GRAPH_WAIT``, then looks."""
+
+    def __init__(self, context: Any) -> None:
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        self.context = context
+        self.started = time.monotonic()
+        self.probe = Node(f"graph_check_{os.getpid()}", namespace="/mechsim", context=context,
+                          start_parameter_services=False)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.probe)
+
+    def check(self, names: list[str], clock: bool, wait: float = GRAPH_WAIT) -> None:
+        probe, executor = self.probe, self.executor
+        domain = self.context.get_domain_id()
+        while time.monotonic() < self.started + wait:
+            executor.spin_once(timeout_sec=min(0.05, max(0.0, self.started + wait
+                                                         - time.monotonic())))
+        present = {(ns, n) for n, ns in probe.get_node_names_and_namespaces()}
+        for name in names:
+            full = f"/{name}/simulator"
+            if (f"/{name}", "simulator") in present and _alive(probe, executor, full,
+                                                                LIVENESS_TIMEOUT):
+                raise MechsimError(f"instance {name!r}: {full} is already running on ROS "
+                                   f"domain {domain}; stop it or give this instance another "
+                                   "name (--name, or `name:` in the scene)")
+        if clock:
+            for info in probe.get_publishers_info_by_topic("/clock"):
+                ns = info.node_namespace.rstrip("/")
+                full = f"{ns}/{info.node_name}"
+                if _alive(probe, executor, full, LIVENESS_TIMEOUT):
+                    raise MechsimError(f"/clock is already published on ROS domain {domain} "
+                                       f"by {full}: one clock per graph (stop that scene, run "
+                                       "the systems in one scene, or use another "
+                                       "ROS_DOMAIN_ID)")
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.probe.destroy_node()
+
+
+def _warm(scene: Scene) -> None:
+    """Build every instance's model and kernels now (cached for the nodes), while discovery
+    runs."""
+    from mechsim.systems import system_class
+
+    for inst in scene.systems:
+        _ = system_class(inst.system)(**inst.parameters).kernels
+
+
+# --- in one process -----------------------------------------------------------------------
 def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None = None,
               sinks: list[Any] | None = None, context: Any = None,
               progress: Callable[[float, float], None] | None = None,
-              diagnostics_period: float = 1.0) -> SceneRun:
+              diagnostics_period: float = 1.0, graph_wait: float | None = None) -> SceneRun:
     """Run every system of ``scene`` in this process until ``duration`` (simulated seconds)
-    or Ctrl-C / SIGTERM. ``fast``: as fast as possible instead of the scene's pacing."""
+    or Ctrl-C / SIGTERM. ``fast``: as fast as possible instead of the scene's pacing.
+    ``graph_wait``: discovery seconds before the graph check (0: no check); by default
+    ``GRAPH_WAIT`` when this call makes its own context (a command), none with a caller's
+    context (the caller, e.g. a test or a host application, owns its graph)."""
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
@@ -76,7 +179,9 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     if own_context:
         context = rclpy.context.Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    fast = scene.pacing == "fast" if fast is None else fast
+    if graph_wait is None:
+        graph_wait = GRAPH_WAIT if own_context else 0.0
+    fast = (scene.pacing == "fast" or scene.real_time_factor == 0) if fast is None else fast
     duration = duration if duration is not None else scene.duration
     sinks = list(sinks or [])
     nodes: list[Any] = []
@@ -85,6 +190,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
                            error_drift=scene.error_drift, period=3600.0, sinks=sinks,
                            discover=False)
     diag_sinks = [*sinks, DiagnosticsFeed(diag)]
+    main_thread = threading.current_thread() is threading.main_thread()
     previous_term = signal.getsignal(signal.SIGTERM)
 
     def on_term(signum: int, frame: Any) -> None:
@@ -95,11 +201,22 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     startup = 0.0
     t = 0.0
     try:
-        signal.signal(signal.SIGTERM, on_term)
+        if main_thread:
+            signal.signal(signal.SIGTERM, on_term)
+        graph = GraphCheck(context) if graph_wait > 0 else None
+        try:
+            _warm(scene)
+            if graph is not None:
+                graph.check([i.name for i in scene.systems], True, graph_wait)
+        finally:
+            if graph is not None:
+                graph.close()
         for i, inst in enumerate(scene.systems):
+            # Stepped by this loop (real_time_factor 0: read-only, the node never paces
+            # itself) and never past the duration.
             nodes.append(SimulatorNode(inst, context=context, publish_rate=scene.publish_rate,
                                        real_time_factor=0.0, publish_clock=(i == 0),
-                                       sinks=diag_sinks))
+                                       sinks=diag_sinks, end_time=duration))
         executor.add_node(diag)
         for n in nodes:
             executor.add_node(n)
@@ -135,7 +252,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     except (KeyboardInterrupt, _Stop):
         interrupted = True
     finally:
-        signal.signal(signal.SIGTERM, previous_term)
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous_term)
         try:
             diag.publish_now()
         except Exception:  # noqa: BLE001 - shutting down: the run's data matters more
@@ -157,40 +275,71 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     return run
 
 
-# --- one process per node ---------------------------------------------------------------------
+# --- one process per node -----------------------------------------------------------------
 def _spawn(args: list[str]) -> subprocess.Popen[bytes]:
     return subprocess.Popen([sys.executable, "-m", "mechsim.ros.launch", *args],
-                            env=dict(os.environ))
+                            env=dict(os.environ), start_new_session=True)
 
 
-def run_processes(scene_path: Path, scene: Scene, sets: list[str],
-                  duration: float | None) -> int:
-    """Each simulator node and the diagnostics node in its own process, paced in real time."""
-    extra = [a for s in sets for a in ("--set", s)]
-    procs = [_spawn(["--node", inst.name, str(scene_path), *extra])
-             for inst in scene.systems]
-    procs.append(_spawn(["--node", "diagnostics", str(scene_path), *extra]))
-    end = None if duration is None else time.monotonic() + duration / scene.real_time_factor
+def run_processes(target: str, scene: Scene, sets: list[str], duration: float | None, *,
+                  rate: float | None = None, fast: bool = False,
+                  name: str | None = None) -> int:
+    """Each simulator node and the diagnostics node in its own process. Simulators stop at
+    ``duration`` by themselves; Ctrl-C / SIGTERM stop all. Returns the first non-zero exit
+    status of a child, else 0."""
+    common = [target, "--parent", str(os.getpid()), *[a for s in sets for a in ("--set", s)]]
+    if rate is not None:
+        common += ["--rate", repr(float(rate))]
+    if fast:
+        common.append("--fast")
+    if duration is not None:
+        common += ["--duration", repr(float(duration))]
+    if name is not None:
+        common += ["--name", name]
+    previous_term = signal.getsignal(signal.SIGTERM)
+    stop_on_sigterm()
+    sims: dict[str, subprocess.Popen[bytes]] = {}
+    diag = None
+    status = 0
     try:
-        while end is None or time.monotonic() < end:
-            if all(p.poll() is not None for p in procs):
+        for inst in scene.systems:
+            sims[inst.name] = _spawn([*common, "--node", inst.name])
+        diag = _spawn([*common, "--diagnostics"])
+        while True:
+            running = [p for p in sims.values() if p.poll() is None]
+            codes = [p.returncode for p in sims.values() if p.returncode not in (None, 0)]
+            if diag.poll() not in (None, 0):
+                codes.append(diag.returncode)
+            if codes:
+                status = codes[0]
+                if status != 1:  # a refused start or an error: stop the rest
+                    break
+            if not running:
                 break
             time.sleep(0.1)
     except KeyboardInterrupt:
         pass
-    for p in procs:
-        if p.poll() is None:
-            p.send_signal(signal.SIGINT)
-    for p in procs:
-        try:
-            p.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            p.kill()
-    return 0
+    finally:
+        children = [*sims.values(), *([diag] if diag is not None else [])]
+        for p in children:
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        for p in children:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, previous_term)
+    return status
 
 
-def run_single_node(scene: Scene, which: str) -> int:
-    """Body of one process of ``run_processes``: one node, spun until SIGINT/SIGTERM."""
+def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
+                    duration: float | None = None) -> int:
+    """Body of one process of ``run_processes``: the simulator of instance ``which`` (or the
+    diagnostics node for None), until ``duration`` or SIGINT/SIGTERM. Exit status 1 if the
+    system failed, else 0."""
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
@@ -199,48 +348,90 @@ def run_single_node(scene: Scene, which: str) -> int:
 
     context = rclpy.context.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, lambda s, f: (_ for _ in ()).throw(KeyboardInterrupt()))
-    if which == "diagnostics":
-        from mechsim.ros.diagnostics import DiagnosticsNode
-        node: Any = DiagnosticsNode(context=context, warn_drift=scene.warn_drift,
-                                    error_drift=scene.error_drift)
-    else:
-        from mechsim.ros.simulator import SimulatorNode
-        names = [i.name for i in scene.systems]
-        if which not in names:
-            raise ParameterError("--node", f"no instance {which!r} in the scene")
-        idx = names.index(which)
-        node = SimulatorNode(scene.systems[idx], context=context,
-                             publish_rate=scene.publish_rate,
-                             real_time_factor=scene.real_time_factor, publish_clock=(idx == 0))
+    node: Any = None
     executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
     try:
-        executor.spin()
+        if which is None:
+            from mechsim.ros.diagnostics import DiagnosticsNode
+            node = DiagnosticsNode(context=context, warn_drift=scene.warn_drift,
+                                   error_drift=scene.error_drift)
+        else:
+            from mechsim.ros.simulator import SimulatorNode
+            names = [i.name for i in scene.systems]
+            if which not in names:
+                raise ParameterError("--node", f"no instance {which!r} in the scene")
+            idx = names.index(which)
+            graph = GraphCheck(context)
+            try:
+                _warm(scene)
+                graph.check([which], idx == 0)
+            finally:
+                graph.close()
+            rtf = 0.0 if fast or scene.pacing == "fast" else scene.real_time_factor
+            node = SimulatorNode(scene.systems[idx], context=context,
+                                 publish_rate=scene.publish_rate, real_time_factor=rtf,
+                                 publish_clock=(idx == 0), end_time=duration)
+        executor.add_node(node)
+        sim = which is not None
+        while not (sim and node.finished):
+            if sim and node.stepped and not node.paused:
+                # As fast as possible, serving services and parameters in between.
+                node.advance_to(node.t + 10.0 / node.publish_rate)
+                executor.spin_once(timeout_sec=0)
+            else:
+                executor.spin_once(timeout_sec=0.1)
     except KeyboardInterrupt:
         pass
     finally:
         executor.shutdown()
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         context.try_shutdown()
-    return 0
+    return 1 if which is not None and node is not None and node.failed else 0
 
 
 def _main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="python -m mechsim.ros.launch")
-    ap.add_argument("scene")
-    ap.add_argument("--node", required=True)
-    ap.add_argument("--set", action="append", default=[])
-    a = ap.parse_args(argv)
+    stop_on_sigterm()
     try:
-        scene = load_scene(a.scene)
-        apply_overrides(scene, a.set)
-        return run_single_node(scene, a.node)
+        ap = argparse.ArgumentParser(prog="python -m mechsim.ros.launch")
+        ap.add_argument("target", help="scene file or system id")
+        who = ap.add_mutually_exclusive_group(required=True)
+        who.add_argument("--node", help="instance name (`diagnostics`: the diagnostics node, "
+                         "unless an instance has that name)")
+        who.add_argument("--diagnostics", action="store_true")
+        ap.add_argument("--set", action="append", default=[])
+        ap.add_argument("--rate", type=float)
+        ap.add_argument("--fast", action="store_true")
+        ap.add_argument("--duration", type=float)
+        ap.add_argument("--name")
+        ap.add_argument("--parent", type=int, help="die with this process")
+        a = ap.parse_args(argv)
+        if a.parent is not None:
+            die_with_parent(a.parent)
+        from mechsim.params import DURATION, PUBLISH_RATE
+        from mechsim.scene import scene_from_target
+
+        scene = scene_from_target(a.target, a.set, a.name)
+        if a.rate is not None:
+            scene.publish_rate = float(PUBLISH_RATE.check(a.rate, "--rate"))
+        duration = float(DURATION.check(a.duration, "--duration")) \
+            if a.duration is not None else scene.duration
+        which = a.node
+        if a.diagnostics or (which == "diagnostics"
+                             and which not in [i.name for i in scene.systems]):
+            which = None
+        return run_single_node(scene, which, fast=a.fast, duration=duration)
     except MechsimError as e:
         print(f"mechsim: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # stopped (SIGINT/SIGTERM) while still starting up
         return 130
+    except RuntimeError as e:  # RosEnvironmentError and rclpy start-up failures
+        if stopping.is_set():  # the stop landed inside rclpy and came out converted
+            return 130
+        print(f"mechsim: error: {(str(e).splitlines() or [type(e).__name__])[0]}",
+              file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

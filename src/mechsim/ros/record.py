@@ -6,10 +6,14 @@ node publishes (state, energy, invariants, observables, /tf, /tf_static, /clock,
 published (per-topic counts equal ``SceneRun.messages``).
 
 Files. The bag directory must be new or empty; strftime fields in the path are expanded
-(default ``runs/<scene>_%Y%m%d-%H%M%S``). Ctrl-C / SIGTERM stop the run cleanly and the bag is
-completed (footer, summary, metadata.yaml). A write error (disk full, ...) stops the run and the
-partial bag is removed: an error bag is never left looking complete. After a hard kill, the
-directory lacks metadata.yaml; ``mechsim bag repair DIR`` completes it from the flushed chunks.
+(default ``runs/<scene>_%Y%m%d-%H%M%S``; the scene name can never make it leave ``runs/``).
+Ctrl-C / SIGTERM stop the run cleanly and the bag is completed (footer, summary,
+metadata.yaml); a stop that arrives while the outputs are being opened or closed is held until
+they are consistent. A recording is never deleted once it holds a message: on any error (disk
+full, a failed node, a bug) the outputs are closed and completed with what was recorded, and the
+error is reported with what was kept. Only an output that received nothing is removed. After a
+hard kill the directory lacks metadata.yaml; ``mechsim bag repair DIR`` completes it from the
+flushed chunks.
 """
 
 from __future__ import annotations
@@ -19,7 +23,8 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-from mechsim.errors import MechsimError
+from mechsim.errors import MechsimError, one_line
+from mechsim.ros.process import held_signals
 
 DEFAULT_BAG = "runs/{scene}_%Y%m%d-%H%M%S"
 
@@ -39,44 +44,117 @@ def rerun_sink(path: str) -> Any | None:
     return RerunSink(path)
 
 
+class _Counted:
+    """A sink passed through, counting the messages it was given (has the recording begun?)."""
+
+    def __init__(self, sink: Any) -> None:
+        self.sink = sink
+        self.count = 0
+
+    def wants(self, topic: str) -> bool:
+        wants = getattr(self.sink, "wants", None)
+        return True if wants is None else bool(wants(topic))
+
+    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        self.count += 1
+        self.sink.write(topic, type_name, msg, qos, ns)
+
+    def write_serialized(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int,
+                         data: bytes) -> None:
+        self.count += 1
+        if hasattr(self.sink, "write_serialized"):
+            self.sink.write_serialized(topic, type_name, msg, qos, ns, data)
+        else:
+            self.sink.write(topic, type_name, msg, qos, ns)
+
+
 @dataclass
 class Outputs:
-    """The recording sinks of one run (bag and/or rrd) and how to finish or drop them."""
+    """The recording sinks of one run (bag and/or rrd) and how to finish them."""
 
     bag: Any = None
     rrd: Any = None
     rrd_path: str | None = None
     notes: list[str] = field(default_factory=list)
+    _bag_counter: _Counted | None = None
 
     @property
     def sinks(self) -> list[Any]:
-        return [s for s in (self.bag, self.rrd) if s is not None]
+        if self.bag is not None and self._bag_counter is None:
+            self._bag_counter = _Counted(self.bag)
+        return [s for s in (self._bag_counter if self.bag is not None else None, self.rrd)
+                if s is not None]
+
+    @property
+    def recorded(self) -> int:
+        """Messages handed to the bag so far."""
+        return self._bag_counter.count if self._bag_counter is not None else 0
 
     def close(self) -> list[str]:
+        """Finish every output normally; lines describing them. A write error is raised (as
+        OSError or MechsimError) after every output was closed."""
         lines = []
+        error: BaseException | None = None
         if self.bag is not None:
             bag, self.bag = self.bag, None
-            stats = bag.close()
-            lines.append(f"bag {bag.path}: {stats.message_count} messages on "
-                         f"{len(stats.topics)} topics")
+            try:
+                stats = bag.close()
+                lines.append(f"bag {bag.path}: {stats.message_count} messages on "
+                             f"{len(stats.topics)} topics")
+            except Exception as e:  # noqa: BLE001 - the rrd is closed first, then raised
+                self.bag = bag
+                error = e
         if self.rrd is not None:
             rrd, self.rrd = self.rrd, None
-            if hasattr(rrd, "close"):
-                rrd.close()
-            lines.append(f"rrd {self.rrd_path}")
+            try:
+                if hasattr(rrd, "close"):
+                    rrd.close()
+                lines.append(f"rrd {self.rrd_path}")
+            except Exception as e:  # noqa: BLE001
+                error = error or e
+        if error is not None:
+            raise error
         return lines
 
-    def abort(self) -> None:
+    def finish_after_error(self) -> str:
+        """Close and complete every output after an error, keeping what was recorded (an
+        output that received nothing is removed). Returns what was kept, in one sentence."""
+        kept = []
         if self.bag is not None:
             bag, self.bag = self.bag, None
-            bag.abort()
+            kept.append(_complete_bag(bag, self.recorded))
         if self.rrd is not None:
             rrd, self.rrd = self.rrd, None
-            if hasattr(rrd, "close"):
-                try:
+            try:
+                if hasattr(rrd, "close"):
                     rrd.close()
-                except Exception:  # noqa: BLE001 - already failing; the bag error is reported
-                    pass
+                kept.append(f"rrd {self.rrd_path} closed with what was written")
+            except Exception:  # noqa: BLE001 - the first error is the one reported
+                kept.append(f"rrd {self.rrd_path} left as written")
+        return "; ".join(kept)
+
+
+def _complete_bag(bag: Any, recorded: int) -> str:
+    """Complete a bag after an error with what it holds; remove it only if it holds nothing."""
+    if recorded == 0:
+        try:
+            bag.abort()
+            return f"bag {bag.path}: nothing was recorded; removed"
+        except Exception:  # noqa: BLE001
+            return f"bag {bag.path}: nothing was recorded"
+    try:
+        stats = bag.close()
+        return f"bag {bag.path}: completed with the {stats.message_count} messages recorded"
+    except Exception:  # noqa: BLE001 - the writer failed: complete the file from its chunks
+        pass
+    try:
+        from mechsim.outputs.bag import repair_bag
+
+        r = repair_bag(bag.path)
+        return f"bag {bag.path}: completed with the {r.messages} messages written"
+    except Exception:  # noqa: BLE001 - e.g. still no space: leave it for `bag repair`
+        return (f"bag {bag.path}: kept as written (complete it with `mechsim bag repair "
+                f"{bag.path}`)")
 
 
 def scene_custom_data(scene: Any) -> dict[str, str]:
@@ -97,44 +175,78 @@ def scene_custom_data(scene: Any) -> dict[str, str]:
     return data
 
 
+def bag_path(template: str, scene: Any) -> str:
+    """The bag path for ``scene``: ``{scene}`` replaced by its (checked) name."""
+    from mechsim.params import check_text
+    from mechsim.scene import scene_name
+
+    check_text("--bag", template)
+    return template.replace("{scene}", scene_name(scene.name))
+
+
 def open_outputs(scene: Any, bag: str | None, rrd: str | None) -> Outputs:
     from mechsim.environment import import_rclpy
 
     import_rclpy()
     from mechsim.outputs.bag import BagWriter
+    from mechsim.params import check_text
 
     out = Outputs(rrd_path=rrd)
-    if bag is not None:
-        out.bag = BagWriter(bag.replace("{scene}", scene.name), scene_custom_data(scene))
+    path = bag_path(bag, scene) if bag is not None else None
+    if rrd is not None:
+        check_text("--rrd", rrd)
+    if path is not None:
+        out.bag = BagWriter(path, scene_custom_data(scene))
     if rrd is not None:
         try:
             out.rrd = rerun_sink(rrd)
         except BaseException:
-            out.abort()
+            out.finish_after_error()
             raise
     return out
+
+
+def _failure(where: str, e: BaseException, kept: str) -> MechsimError:
+    """One line: what failed and why, then what was kept."""
+    if isinstance(e, OSError):
+        name = f"{e.filename}" if e.filename else where
+        why = f"{name}: write failed ({e.strerror or e})"
+    elif isinstance(e, MechsimError):
+        why = str(e)
+    else:
+        why = f"the run failed ({type(e).__name__}: {(str(e).splitlines() or [''])[0]})"
+    return MechsimError(one_line(f"{why}; {kept}" if kept else why)[:1000])
 
 
 def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
                      bag: str | None, rrd: str | None = None,
                      progress: Any = None) -> tuple[Any, list[str]]:
     """``run_scene`` with the bag / rrd sinks attached; returns (SceneRun, output lines).
-    Write errors: the partial outputs are removed and MechsimError names the path."""
+    An error is a MechsimError (one line: the output, the reason, what was kept); Ctrl-C or
+    SIGTERM outside the run loop completes the outputs and is raised as KeyboardInterrupt."""
     from mechsim.ros.launch import run_scene
 
-    out = open_outputs(scene, bag, rrd)
-    where = f"bag {out.bag.path}" if out.bag is not None else f"rrd {rrd}"
+    out: Outputs | None = None
     try:
-        run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks, progress=progress)
-        lines = out.close()
-    except OSError as e:
-        out.abort()
-        raise MechsimError(f"{where}: write failed ({e.strerror or e}); partial output "
-                           "removed") from None
-    except MechsimError:
-        out.abort()
+        with held_signals():
+            out = open_outputs(scene, bag, rrd)
+        run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks,
+                        progress=progress)
+        with held_signals():
+            lines = out.close()
+    except KeyboardInterrupt:
+        if out is not None:
+            with held_signals():
+                try:
+                    out.close()
+                except Exception:  # noqa: BLE001 - stopping anyway; keep what can be kept
+                    out.finish_after_error()
         raise
-    except BaseException:
-        out.close()  # Ctrl-C outside the run loop: keep what was recorded, complete
-        raise
+    except Exception as e:
+        if out is None:
+            raise
+        where = f"bag {out.bag.path}" if out.bag is not None else f"rrd {rrd}"
+        with held_signals():
+            kept = out.finish_after_error()
+        raise _failure(where, e, kept) from None
     return run, lines

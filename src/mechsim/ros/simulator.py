@@ -10,27 +10,45 @@ Topics (stamped with simulation time + ``time_offset``, so /clock never starts a
   /clock            rosgraph_msgs/Clock      only when this node owns the clock
   /diagnostics      diagnostic_msgs/DiagnosticArray  only if integration fails
 Parameters: every model parameter (same names as scenes and --set), plus method, tolerance,
-publish_rate, real_time_factor (0: stepped by the caller, as fast as possible), and
-constraint_limit (hard limit on enforced constraint residuals, relative to max(1, max|q|)).
-Guards: a non-finite state, a failed step or an enforced constraint residual past the hard
-limit stops this system only (``_fail``): last good state kept, ERROR on /diagnostics.
+publish_rate, real_time_factor (0: stepped by the caller, as fast as possible; then read-only),
+and constraint_limit (hard limit on enforced constraint residuals, relative to max(1, max|q|)).
+Their ranges are the ones of ``mechsim.params`` (shared with the CLI and scene files).
+
+Runtime changes are transactions. A parameter set is validated completely before it is accepted:
+every value, the whole model built with the new values (its own checks), the method's
+compatibility with it (``choose_method``) and the new stepper; a structural change (a
+formulation, the bead's shape or curve, a number of masses: anything that changes the equations
+of motion) is first derived and compiled in a child process with a time limit
+(``mechsim.ros.prepare``). Any failure rejects the whole set with its reason
+(``SetParametersResult(successful=False)``) and nothing changes; an accepted set changes the
+model, stepper, kernels and outputs together. When each change takes effect:
+- a structural change restarts the system at t = 0 from the initial state of the new values;
+- another model parameter takes effect at once, from the current state; ``initial.*`` and
+  ``initial_rate.*`` are stored and take effect at the next reset (or structural change);
+- method and tolerance: a new stepper continues from the current state.
+Epochs: ``epoch`` counts the runs with one fixed model; a reset or an accepted model change
+starts a new one, so a consumer re-bases its reference values. On the topics a new epoch is a
+sample whose stamp is not later than the previous one: a reset restarts at t = 0, and after a
+model change that keeps the state the current sample is published again (same stamp, new
+parameters); system_info is republished with the new laws and scales.
+Guards: a non-finite state, a failed step (also an error from an extreme parameter value) or an
+enforced constraint residual past the hard limit stops this system only (``_fail``): last good
+state kept, ERROR on /diagnostics.
 Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
-Energy, invariants, observables and frames are computed only while something consumes them.
+Energy, invariants, observables and frames are computed only while something consumes them,
+in one call of the API's output evaluation (``mechsim.simulate.evaluate``) per block of samples.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.context import Context
 from rclpy.node import Node
@@ -39,12 +57,19 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from mechsim.errors import IntegrationError, MechsimError, ParameterError
+from mechsim.errors import IntegrationError, MechsimError, ParameterError, one_line
 from mechsim.integrators import METHODS, Stepper, make_stepper
 from mechsim.outputs import messages
 from mechsim.outputs.messages import MessageFactory, Sample
 from mechsim.outputs.sink import Sink
-from mechsim.params import Parameter
+from mechsim.params import (
+    CONSTRAINT_LIMIT,
+    PUBLISH_RATE,
+    REAL_TIME_FACTOR,
+    TOLERANCE,
+    Parameter,
+    shown,
+)
 from mechsim.ros.outlet import (
     CLOCK_QOS,
     DIAGNOSTICS_QOS,
@@ -53,27 +78,49 @@ from mechsim.ros.outlet import (
     TF_QOS,
     Outlet,
 )
-from mechsim.scene import Instance
+from mechsim.ros.parameters import descriptor
+from mechsim.ros.prepare import PREPARE_TIMEOUT, prepare_model
+from mechsim.scene import Instance, instance_name
+from mechsim.simulate import Outputs, evaluate
 from mechsim.systems import system_class
 from mechsim.systems.base import Model
 from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
 from tf2_msgs.msg import TFMessage
 
-_NODE_PARAMS = ("method", "tolerance", "publish_rate", "real_time_factor", "constraint_limit")
+#: Run settings a node exposes as ROS parameters, each with its one range.
+SETTINGS: dict[str, Parameter] = {p.name: p for p in (TOLERANCE, PUBLISH_RATE, REAL_TIME_FACTOR,
+                                                       CONSTRAINT_LIMIT)}
 # Projection keeps enforced constraint residuals at round-off, diagnostics says ERROR at
 # 1e-3: a residual of 1 % of the configuration's size means the state is garbage.
-CONSTRAINT_LIMIT = 1e-2
+CONSTRAINT_LIMIT_DEFAULT = float(CONSTRAINT_LIMIT.default)
+#: Samples integrated per call of the kernels (bounds the memory of a long advance).
+_BLOCK = 1000
 
 
-def _descriptor(p: Parameter) -> ParameterDescriptor:
-    text = p.description + (f" [{p.unit}]" if p.unit else "")
-    if p.choices:
-        text += f" (one of: {', '.join(p.choices)})"
-    d = ParameterDescriptor(description=text)
-    if p.kind is float and p.minimum is not None and p.maximum is not None:
-        d.floating_point_range = [FloatingPointRange(from_value=float(p.minimum),
-                                                     to_value=float(p.maximum), step=0.0)]
-    return d
+def _reason(e: BaseException) -> str:
+    """One line for an unexpected error (its type and first line, bounded)."""
+    first = (str(e).splitlines() or [""])[0]
+    return one_line(f"{type(e).__name__}: {first}")[:300]
+
+
+@dataclass
+class _Change:
+    """A validated parameter set, ready to commit (nothing in it can fail any more)."""
+
+    key: tuple[tuple[str, str], ...]
+    values: dict[str, Any]
+    method: str
+    tolerance: float
+    publish_rate: float
+    real_time_factor: float
+    constraint_limit: float
+    model: Model | None = None  # new model (values changed)
+    structural: bool = False  # new equations of motion: restart at t = 0
+    stepper: Stepper | None = None  # new stepper (method, tolerance or structure changed)
+
+
+def _key(params: list[RosParameter]) -> tuple[tuple[str, str], ...]:
+    return tuple((p.name, repr(p.value)) for p in params)
 
 
 class SimulatorNode(Node):
@@ -81,46 +128,56 @@ class SimulatorNode(Node):
                  publish_rate: float = 100.0, real_time_factor: float = 1.0,
                  publish_clock: bool = False, sinks: list[Sink] | None = None,
                  time_offset: float = messages.DEFAULT_TIME_OFFSET,
-                 constraint_limit: float = CONSTRAINT_LIMIT) -> None:
+                 constraint_limit: float = CONSTRAINT_LIMIT_DEFAULT,
+                 end_time: float | None = None,
+                 prepare_timeout: float = PREPARE_TIMEOUT) -> None:
+        """``real_time_factor`` 0: the caller steps the node (``advance_to``), which then never
+        paces itself (the parameter is read-only). ``end_time``: the node never integrates
+        past this simulation time (a scene's duration), whatever its pacing."""
+        # Same ranges as the CLI and scenes: a bad value is a ParameterError, before ROS.
+        publish_rate = float(PUBLISH_RATE.check(publish_rate, "publish_rate"))
+        real_time_factor = float(REAL_TIME_FACTOR.check(real_time_factor, "real_time_factor"))
+        constraint_limit = float(CONSTRAINT_LIMIT.check(constraint_limit, "constraint_limit"))
+        tolerance = float(TOLERANCE.check(instance.tolerance, "tolerance"))
+        instance_name("instance", instance.name)
         super().__init__("simulator", namespace=instance.name, context=context)
         self.instance = instance
         self.cls: type[Model] = system_class(instance.system)
         self.spec = {p.name: p for p in self.cls.parameter_spec()}
         self.values: dict[str, Any] = dict(self.cls(**instance.parameters).values)
         self.method = instance.method
-        self.tolerance = instance.tolerance
+        self.tolerance = tolerance
         self.publish_rate = publish_rate
         self.real_time_factor = real_time_factor
+        self.stepped = real_time_factor == 0
         self.publish_clock = publish_clock
         self.time_offset = time_offset
-        self.constraint_limit = float(constraint_limit)
+        self.constraint_limit = constraint_limit
+        self.end_time = end_time
+        self.prepare_timeout = prepare_timeout
         self.failed: str | None = None
         self.paused = False
         self.samples_published = 0
+        self.epoch = 0
         self.computed = {"energy": 0, "invariants": 0, "observables": 0, "frames": 0}
+        self._pending: _Change | None = None
 
         self.declare_parameter("system", instance.system, ParameterDescriptor(
             description="system id (see `mechsim systems`)", read_only=True))
         for name, p in self.spec.items():
-            self.declare_parameter(name, self.values[name], _descriptor(p))
+            later = " (takes effect at the next reset)" if name.startswith("initial") else ""
+            self.declare_parameter(name, self.values[name],
+                                   descriptor(p, description=p.description + later))
         self.declare_parameter("method", self.method, ParameterDescriptor(
             description=f"integrator ({', '.join(METHODS)})"))
-        self.declare_parameter("tolerance", float(self.tolerance), ParameterDescriptor(
-            description="integrator tolerance (relative and absolute)",
-            floating_point_range=[FloatingPointRange(from_value=1e-15, to_value=0.99)]))
-        self.declare_parameter("publish_rate", float(publish_rate), ParameterDescriptor(
-            description="samples per second of simulation time [Hz]",
-            floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10000.0)]))
-        self.declare_parameter("real_time_factor", float(real_time_factor), ParameterDescriptor(
-            description="simulated seconds per wall second; 0 = stepped by the caller",
-            floating_point_range=[FloatingPointRange(from_value=0.0, to_value=1e6)]))
+        for name, p in SETTINGS.items():
+            ro = name == "real_time_factor" and self.stepped
+            text = "0: stepped by the scene runner (read-only)" if ro else None
+            self.declare_parameter(name, float(getattr(self, name)),
+                                   descriptor(p, read_only=ro, description=text))
         self.declare_parameter("time_offset", float(time_offset), ParameterDescriptor(
             description="stamp of simulation time 0 [s] (ROS time 0 means uninitialised)",
             read_only=True))
-        self.declare_parameter("constraint_limit", self.constraint_limit, ParameterDescriptor(
-            description="hard limit on an enforced constraint residual, relative to "
-            "max(1, max|q|); past it the system stops",
-            floating_point_range=[FloatingPointRange(from_value=1e-12, to_value=1e6)]))
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -139,30 +196,41 @@ class SimulatorNode(Node):
 
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(SetBool, "~/pause", self._on_pause)
-        self._start()
+        model = self.cls(**self.values)
+        self._install(model, make_stepper(model, self.method, self.tolerance))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timer = None
-        if real_time_factor > 0:
+        if not self.stepped:
             self._start_realtime()
 
     # --- run state ------------------------------------------------------------------------
-    def _start(self) -> None:
-        """(Re)build the model and stepper from the current parameters, at t = 0."""
-        self.model: Model = self.cls(**self.values)
-        self.stepper: Stepper = make_stepper(self.model, self.method, self.tolerance)
-        self.factory = MessageFactory(self.model, self.instance.name, self.instance.origin,
+    def _install(self, model: Model, stepper: Stepper) -> None:
+        """Run ``model`` with ``stepper`` (at its initial state, t = 0)."""
+        self.model = model
+        self.stepper = stepper
+        self.factory = MessageFactory(model, self.instance.name, self.instance.origin,
                                       self.time_offset)
-        self.p = self.model.parameter_vector()
-        # Residuals the stepper enforces (projection): the hard-limit guard watches them.
-        self._constraints = [i for i, q in enumerate(self.model.invariants)
-                             if q.name.startswith("constraint_")] \
-            if self.model.structure.n_constraints > 0 else []
+        self.p = model.parameter_vector()
+        self._set_constraints()
         self.t = 0.0
         self.failed = None
-        n_y = self.stepper.y.size
-        self._last_y = self.stepper.y.copy().reshape(1, n_y)
         self._publish_static()
-        self._publish_sample(0.0, self.stepper.y)
+        self._emit(np.zeros(1), stepper.y.copy()[None, :])
+
+    def _set_constraints(self) -> None:
+        """Indices (among the invariants) of the residuals the stepper enforces: the
+        hard-limit guard watches them."""
+        names = [q.name for q in self.model.invariants]
+        self._constraints = [names.index(law.name) for law in self.model.laws()
+                             if law.is_constraint and law.name in names] \
+            if self.model.structure.n_constraints > 0 else []
+
+    def _start(self) -> None:
+        """(Re)build the model and stepper from the current parameters, at t = 0."""
+        model = self.cls(**self.values)
+        stepper = make_stepper(model, self.method, self.tolerance)
+        self.epoch += 1
+        self._install(model, stepper)
 
     def _publish_static(self) -> None:
         ns0 = messages.stamp_ns(0.0, self.time_offset)
@@ -173,82 +241,124 @@ class SimulatorNode(Node):
                                         [scales[law.key] for law in laws])
         self.outlet.publish(self.t_info, info, ns0)
         if any(f.static for f in self.model.frames):
-            fr = np.zeros((len(self.model.frames), 7))
-            self.model.kernels.frames(0.0, self.stepper.y, self.p, fr)
-            msg = TFMessage(transforms=self.factory.transforms(fr, ns0, static=True))
+            out = evaluate(self.model, np.zeros(1), self.stepper.y[None, :], self.p,
+                           ("frames",))
+            assert out.frames is not None
+            msg = TFMessage(transforms=self.factory.transforms(out.frames[0], ns0,
+                                                                 static=True))
             self.outlet.publish(self.t_tf_static, msg, ns0)
 
-    def _publish_sample(self, t: float, y: np.ndarray) -> None:
-        o, k, m, f = self.outlet, self.model.kernels, self.model, self.factory
-        n = len(m.coordinates)
+    def _wanted(self) -> tuple[str, ...]:
+        """The outputs something consumes now (asked once per block of samples)."""
+        o, m = self.outlet, self.model
+        want = []
+        if o.wanted(self.t_energy):
+            want.append("energy")
+        if m.invariants and o.wanted(self.t_inv):
+            want.append("invariants")
+        if m.observables and o.wanted(self.t_obs):
+            want.append("observables")
+        if any(not fr.static for fr in m.frames) and o.wanted(self.t_tf):
+            want.append("frames")
+        return tuple(want)
+
+    def _emit(self, times: np.ndarray, Y: np.ndarray) -> int:
+        """Check the rows of ``Y`` against the guards and publish them, in order, up to the
+        first bad one (which stops the system). Returns the number of rows published."""
+        at = self.model.layout
+        good = times.size
+        if not np.isfinite(Y).all():
+            good = int(np.argmin(np.all(np.isfinite(Y), axis=1)))
+        reason = None if good == times.size else f"non-finite state at t = {times[good]:.6g}"
+        want = self._wanted()
+        which = want + (("invariants",) if self._constraints and "invariants" not in want
+                        else ())
+        out = evaluate(self.model, times[:good], Y[:good], self.p, which) \
+            if good and which else Outputs()
+        inv = None
+        if out.invariants:
+            names = [q.name for q in self.model.invariants]
+            inv = out.invariants[names[0]][:, None] if len(names) == 1 else np.column_stack(
+                [out.invariants[name] for name in names])
+        if self._constraints and good and inv is not None:
+            r = inv[:, self._constraints]
+            limit = self.constraint_limit * np.maximum(1.0, np.max(np.abs(Y[:good, at.q]),
+                                                                   axis=1))
+            bad = ~np.all(np.isfinite(r) & (np.abs(r) <= limit[:, None]), axis=1)
+            if bad.any():
+                good = int(np.argmax(bad))
+                j = self._constraints[int(np.argmax(~(np.isfinite(r[good]) & (
+                    np.abs(r[good]) <= limit[good]))))]
+                name = self.model.invariants[j].name
+                reason = (f"constraint residual {name} = {inv[good, j]:.3g} past the hard "
+                          f"limit {limit[good]:.3g} at t = {times[good]:.6g} (projection "
+                          "cannot restore the constraint)")
+        for i in range(good):
+            self._publish_sample(float(times[i]), Y[i], out, inv, i, want)
+            self.t = float(times[i])
+        if reason is not None:
+            self._fail(reason)
+        return good
+
+    def _publish_sample(self, t: float, y: np.ndarray, out: Outputs, inv: np.ndarray | None,
+                        i: int, want: tuple[str, ...]) -> None:
+        o, f, at = self.outlet, self.factory, self.model.layout
         ns = messages.stamp_ns(t, self.time_offset)
         if self.publish_clock:
             o.publish(self.t_clock, messages.clock(ns), ns)
-        s = Sample(t, y[:n], y[n:2 * n], float(y[2 * n]), float(y[2 * n + 1]))
+        s = Sample(t, y[at.q], y[at.v], float(y[at.work_external]),
+                   float(y[at.work_dissipated]))
         o.publish(self.t_state, f.state(s, ns), ns)
-        if o.wanted(self.t_energy):
-            s.energy = np.zeros(3)
-            k.energy(t, y, self.p, s.energy)
+        if "energy" in want:
+            assert out.kinetic is not None and out.potential is not None
+            assert out.energy_function is not None
+            s.energy = np.array([out.kinetic[i], out.potential[i], out.energy_function[i]])
             self.computed["energy"] += 1
             o.publish(self.t_energy, f.energy(s, ns), ns)
-        if m.invariants and o.wanted(self.t_inv):
-            s.invariants = np.zeros(len(m.invariants))
-            k.invariants(t, y, self.p, s.invariants)
+        if "invariants" in want and inv is not None:
+            s.invariants = inv[i]
             self.computed["invariants"] += 1
             o.publish(self.t_inv, f.invariants(s, ns), ns)
-        if m.observables and o.wanted(self.t_obs):
-            s.observables = np.zeros(len(m.observables))
-            k.observables(t, y, self.p, s.observables)
+        if "observables" in want:
+            s.observables = np.array([out.observables[q.name][i]
+                                      for q in self.model.observables])
             self.computed["observables"] += 1
             o.publish(self.t_obs, f.observables(s, ns), ns)
-        if any(not fr.static for fr in m.frames) and o.wanted(self.t_tf):
-            s.frames = np.zeros((len(m.frames), 7))
-            k.frames(t, y, self.p, s.frames)
+        if "frames" in want and out.frames is not None:
+            s.frames = out.frames[i]
             self.computed["frames"] += 1
             o.publish(self.t_tf, f.tf(s, ns), ns)
         self.samples_published += 1
 
     def advance_to(self, t_target: float) -> int:
-        """Integrate to ``t_target`` (simulation time), publishing every sample on the way.
-        Returns the number of samples published. A failed or paused system publishes none."""
-        if self.failed or self.paused:
-            return 0
-        dt = 1.0 / self.publish_rate
-        n = int(math.floor((t_target - self.t) / dt + 1e-9))
-        if n <= 0:
-            return 0
-        times = self.t + dt * np.arange(1, n + 1)
-        try:
-            Y = self.stepper.advance(times)
-        except IntegrationError as e:
-            self._fail(str(e))
-            return 0
-        for i in range(n):
-            if not np.all(np.isfinite(Y[i])):
-                self._fail(f"non-finite state at t = {times[i]:.6g}")
-                return i
-            if self._constraints:
-                violation = self._constraint_violation(float(times[i]), Y[i])
-                if violation:
-                    self._fail(violation)
-                    return i
-            self._publish_sample(float(times[i]), Y[i])
-            self.t = float(times[i])
-        return n
+        """Integrate to ``t_target`` (simulation time; never past ``end_time``), publishing
+        every sample on the way. Returns the number of samples published. A failed or paused
+        system publishes none."""
+        if self.end_time is not None:
+            t_target = min(t_target, self.end_time)
+        published = 0
+        while not (self.failed or self.paused):
+            dt = 1.0 / self.publish_rate
+            n = min(int(math.floor((t_target - self.t) / dt + 1e-9)), _BLOCK)
+            if n <= 0:
+                break
+            times = self.t + dt * np.arange(1, n + 1)
+            try:
+                Y = self.stepper.advance(times)
+            except IntegrationError as e:
+                self._fail(str(e))
+                break
+            except Exception as e:  # noqa: BLE001 - e.g. numba errors from extreme values:
+                self._fail(f"integration failed: {_reason(e)}")  # this system only
+                break
+            published += self._emit(times, Y)
+        return published
 
-    def _constraint_violation(self, t: float, y: np.ndarray) -> str | None:
-        """Why ``y`` is off its constraint manifold past the hard limit, or None."""
-        inv = np.zeros(len(self.model.invariants))
-        self.model.kernels.invariants(t, y, self.p, inv)
-        n = len(self.model.coordinates)
-        limit = self.constraint_limit * max(1.0, float(np.max(np.abs(y[:n]))))
-        for i in self._constraints:
-            r = float(inv[i])
-            if not (math.isfinite(r) and abs(r) <= limit):
-                name = self.model.invariants[i].name
-                return (f"constraint residual {name} = {r:.3g} past the hard limit {limit:.3g} "
-                        f"at t = {t:.6g} (projection cannot restore the constraint)")
-        return None
+    @property
+    def finished(self) -> bool:
+        """No sample left before ``end_time``, or stopped by a failure."""
+        return bool(self.failed) or (self.end_time is not None and math.floor(
+            (self.end_time - self.t) * self.publish_rate + 1e-9) <= 0)
 
     def _fail(self, reason: str) -> None:
         """Stop this system cleanly: last good state kept, ERROR on /diagnostics, one log line."""
@@ -262,29 +372,39 @@ class SimulatorNode(Node):
         msg = DiagnosticArray(header=self.factory.header(ns), status=[status])
         self.outlet.publish(self.t_diag, msg, ns)
 
-    # --- real-time pacing -----------------------------------------------------------------
+    # --- real-time pacing (only when not stepped by the caller) ---------------------------
     def _start_realtime(self) -> None:
+        """(Re)start the one pacing timer from the current state."""
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+            self._timer = None
+        if self.stepped or self.real_time_factor <= 0:
+            return
         self._wall0 = time.monotonic()
         self._sim0 = self.t
         period = max(1.0 / (self.publish_rate * self.real_time_factor), 0.005)
-        if self._timer is not None:
-            self.destroy_timer(self._timer)
         self._timer = self.create_timer(period, self._on_tick, clock=self._steady)
 
     def _on_tick(self) -> None:
         target = self._sim0 + self.real_time_factor * (time.monotonic() - self._wall0)
-        self.advance_to(target)
+        # At most one block per tick, so services and parameters are served in between.
+        self.advance_to(min(target, self.t + _BLOCK / self.publish_rate))
 
     # --- services -------------------------------------------------------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        self._restart()
+        try:
+            self._restart()
+        except Exception as e:  # noqa: BLE001 - answered, never raised into the executor
+            response.success = False
+            response.message = f"{self.instance.name}: reset failed: {_reason(e)}"
+            return response
         response.success = True
         response.message = f"{self.instance.name} reset to t = 0"
         return response
 
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
         self.paused = bool(request.data)
-        if not self.paused and self.real_time_factor > 0:
+        if not self.paused:
             self._start_realtime()
         response.success = True
         response.message = "paused" if self.paused else "running"
@@ -292,77 +412,104 @@ class SimulatorNode(Node):
 
     def _restart(self) -> None:
         self._start()
-        if self.real_time_factor > 0:
-            self._start_realtime()
+        self._start_realtime()
 
-    # --- parameters -----------------------------------------------------------------------
+    # --- parameters: validate completely, then commit -----------------------------------
     def _validate_parameters(self, params: list[RosParameter]) -> SetParametersResult:
-        candidate = dict(self.values)
-        for prm in params:
-            name, value = prm.name, prm.value
-            try:
-                if name in self.spec:
-                    candidate[name] = self.spec[name].validate(value)
-                elif name == "method" and value not in METHODS:
-                    raise ParameterError(name, f"must be one of {', '.join(METHODS)}")
-                elif name in ("tolerance", "publish_rate", "constraint_limit") and not (
-                        isinstance(value, float) and math.isfinite(value) and value > 0):
-                    raise ParameterError(name, "must be a finite positive number")
-            except ParameterError as e:
-                return SetParametersResult(successful=False, reason=str(e))
-        if any(p.name in self.spec for p in params):
-            try:
-                model = self.cls(**candidate)
-                method = next((p.value for p in params if p.name == "method"), self.method)
-                if method != "auto":
-                    from mechsim.integrators import choose_method
-                    choose_method(model, method)
-            except MechsimError as e:
-                return SetParametersResult(successful=False, reason=str(e))
+        try:
+            change = self._plan(params)
+        except MechsimError as e:
+            return SetParametersResult(successful=False, reason=str(e))
+        except Exception as e:  # noqa: BLE001 - a rejected set, never an executor error
+            names = ", ".join(p.name for p in params)
+            return SetParametersResult(successful=False, reason=f"{names}: {_reason(e)}")
+        self._pending = change
         return SetParametersResult(successful=True)
 
-    def _apply_parameters(self, params: list[RosParameter]) -> None:
-        restart = False
-        changed_model = False
-        new_stepper = False
+    def _plan(self, params: list[RosParameter]) -> _Change:
+        """Everything the set would do, built and checked; raises MechsimError otherwise."""
+        values = dict(self.values)
+        settings = {name: float(getattr(self, name)) for name in SETTINGS}
+        method = self.method
         for prm in params:
-            if prm.name in self.spec:
-                self.values[prm.name] = self.spec[prm.name].validate(prm.value)
-                changed_model = True
-                if self.spec[prm.name].kind is str or prm.name.startswith("initial"):
-                    restart = prm.name == "formulation" or restart
-            elif prm.name == "method":
-                self.method = prm.value
-                new_stepper = True
-            elif prm.name == "tolerance":
-                self.tolerance = prm.value
-                new_stepper = True
-            elif prm.name == "constraint_limit":
-                self.constraint_limit = prm.value
-            elif prm.name == "publish_rate":
-                self.publish_rate = prm.value
-                if self.real_time_factor > 0:
-                    self._start_realtime()
-            elif prm.name == "real_time_factor":
-                self.real_time_factor = prm.value
-                if prm.value > 0:
-                    self._start_realtime()
-                elif self._timer is not None:
-                    self.destroy_timer(self._timer)
-                    self._timer = None
-        if restart:
-            self._restart()
-        elif changed_model:
-            # Same structure: keep the state, swap the parameter vector. Initial values take
-            # effect at the next reset.
-            self.model = self.cls(**self.values)
-            self.factory.model = self.model
-            self.p = self.model.parameter_vector()
-            self.stepper.set_model(self.model)
+            name, value = prm.name, prm.value
+            if name in self.spec:
+                values[name] = self.spec[name].validate(value)
+            elif name == "method":
+                if not isinstance(value, str) or value not in METHODS:
+                    raise ParameterError(name, f"must be one of {', '.join(METHODS)} (got "
+                                         f"{shown(value)})")
+                method = value
+            elif name in SETTINGS:
+                settings[name] = float(SETTINGS[name].validate(value))
+                if name == "real_time_factor" and settings[name] == 0:
+                    raise ParameterError(name, "must be > 0 for a node that paces itself "
+                                         "(0 means stepped by a runner; ~/pause stops it)")
+        change = _Change(_key(params), values, method, settings["tolerance"],
+                         settings["publish_rate"], settings["real_time_factor"],
+                         settings["constraint_limit"])
+        model = self.model
+        if values != self.values:
+            model = self.cls(**values)  # every check of the model (cheap: no derivation yet)
+            if any(self.spec[k].kind is not float and values[k] != self.values[k]
+                   for k in values):
+                # New equations of motion, possibly: derived and compiled in a child process
+                # with a time limit, never unbounded in this executor.
+                prepare_model(self.instance.system, values, method, change.tolerance,
+                              self.prepare_timeout)
+            change.model = model
+            change.structural = (model.kernels is not self.model.kernels
+                                  or model.initial_y().size != self.stepper.y.size)
+        try:
+            if change.structural:
+                change.stepper = make_stepper(model, method, change.tolerance)
+            elif change.model is not None or method != self.method \
+                    or change.tolerance != self.tolerance:
+                # Continues from the current state (an initial value waits for a reset).
+                change.stepper = make_stepper(model, method, change.tolerance, t0=self.t,
+                                              y0=self.stepper.y.copy())
+        except MechsimError:
+            raise
+        except Exception as e:  # noqa: BLE001 - e.g. a division by zero at extreme values
+            names = ", ".join(p.name for p in params)
+            raise MechsimError(f"{names}: cannot integrate with these values "
+                               f"({_reason(e)})") from None
+        return change
+
+    def _apply_parameters(self, params: list[RosParameter]) -> None:
+        change, self._pending = self._pending, None
+        if change is None or change.key != _key(params):
+            return  # not the set just validated (cannot happen with rclpy's order)
+        try:
+            self._commit(change)
+        except Exception as e:  # noqa: BLE001 - never out of the executor: this system stops
+            self._fail(f"applying {', '.join(p.name for p in params)} failed: {_reason(e)}")
+
+    def _commit(self, c: _Change) -> None:
+        repace = (c.publish_rate != self.publish_rate
+                  or c.real_time_factor != self.real_time_factor)
+        self.values, self.method, self.tolerance = c.values, c.method, c.tolerance
+        self.publish_rate, self.real_time_factor = c.publish_rate, c.real_time_factor
+        self.constraint_limit = c.constraint_limit
+        if c.structural:
+            assert c.model is not None and c.stepper is not None
+            self.epoch += 1
+            self._install(c.model, c.stepper)
+            self._start_realtime()
+            return
+        if c.model is not None:
+            self.model = c.model
+            self.factory.model = c.model
+            self.p = c.model.parameter_vector()
+            self._set_constraints()
+            self.epoch += 1
+        if c.stepper is not None:
+            self.stepper = c.stepper
+        if c.model is not None or c.stepper is not None:
             self._publish_static()
-            self._publish_sample(self.t, self.stepper.y)  # same stamp: diagnostics' new epoch
-        if new_stepper and not restart:
-            # Continue from the current state with the new method or tolerance.
-            self.stepper = make_stepper(self.model, self.method, self.tolerance, t0=self.t,
-                                        y0=self.stepper.y.copy())
-            self._publish_static()
+        if c.model is not None:
+            # The current sample again, with the new parameters and the same stamp: a stamp
+            # not later than the previous one is the diagnostics node's signal of a new epoch.
+            self._emit(np.array([self.t]), self.stepper.y.copy()[None, :])
+        if repace:
+            self._start_realtime()

@@ -37,9 +37,12 @@ form A's failure as numerical (L188) is wrong (see above).
 
 from __future__ import annotations
 
+import ast
 import io
 import math
+import operator
 import tokenize
+from collections.abc import Callable
 
 import numpy as np
 import sympy as sp
@@ -58,12 +61,90 @@ _FUNCTIONS = {name: getattr(sp, name) for name in (
 _FUNCTIONS.update({"pi": sp.pi, "E": sp.E, "abs": sp.Abs})
 _OPERATORS = {"+", "-", "*", "/", "**", "^", "(", ")"}
 
+# Bounds checked before sympy sees a curve (sympy evaluates constant parts exactly or with
+# mpmath's unbounded exponents: 9**9**9 or exp(exp(exp(1e6))) would not finish).
+MAX_CURVE_CHARS = 200
+MAX_CURVE_DEPTH = 40  # nesting of operations and calls
+MAX_LITERAL = 1e6  # magnitude of any number written in the expression
+MAX_POWER_DEPTH = 2  # powers nested in powers, e.g. (x**2)**3
+MAX_CONSTANT_EXPONENT = 100.0  # |n| of x**n when n is a constant
+
+_BINARY: dict[type, Callable[[float, float], float]] = {
+    ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+    ast.Div: operator.truediv, ast.Pow: operator.pow}
+_MATH = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
+         "sqrt": math.sqrt, "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh,
+         "atan": math.atan, "asin": math.asin, "acos": math.acos, "asinh": math.asinh,
+         "acosh": math.acosh, "atanh": math.atanh, "abs": abs}
+
+
+def _bounded(node: ast.AST, text: str, depth: int = 0, powers: int = 0) -> float | None:
+    """Check one node of a curve's syntax tree against the bounds above; return its value in
+    floating point if it is constant (no x), else None. ParameterError("curve", ...) if a
+    bound is broken or a constant part is not a finite real number."""
+    if depth > MAX_CURVE_DEPTH:
+        raise ParameterError("curve", f"nested deeper than {MAX_CURVE_DEPTH} levels")
+    try:
+        if isinstance(node, ast.Expression):
+            return _bounded(node.body, text, depth, powers)
+        if isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
+                and not isinstance(node.value, bool):
+            if abs(node.value) > MAX_LITERAL:
+                raise ParameterError("curve", f"number {node.value:g} larger than "
+                                     f"{MAX_LITERAL:g} in magnitude")
+            return float(node.value)
+        if isinstance(node, ast.Name):
+            if node.id == "x":
+                return None
+            if node.id in ("pi", "E"):
+                return math.pi if node.id == "pi" else math.e
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.UAdd | ast.USub):
+            v = _bounded(node.operand, text, depth + 1, powers)
+            return None if v is None else (-v if isinstance(node.op, ast.USub) else v)
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            if isinstance(node.op, ast.Pow):
+                powers += 1
+                if powers > MAX_POWER_DEPTH:
+                    raise ParameterError("curve", f"powers nested more than "
+                                         f"{MAX_POWER_DEPTH} deep")
+                if any(isinstance(n, ast.BinOp) and isinstance(n.op, ast.Pow)
+                       for n in ast.walk(node.right)):
+                    raise ParameterError("curve", "a power in an exponent (a**b**c) is not "
+                                         "allowed")
+            a = _bounded(node.left, text, depth + 1, powers)
+            b = _bounded(node.right, text, depth + 1, powers)
+            if isinstance(node.op, ast.Pow) and b is not None \
+                    and abs(b) > MAX_CONSTANT_EXPONENT:
+                raise ParameterError("curve", f"exponent {b:g} larger than "
+                                     f"{MAX_CONSTANT_EXPONENT:g} in magnitude")
+            if a is None or b is None:
+                return None
+            value = _BINARY[type(node.op)](a, b)
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                and node.func.id in _MATH and len(node.args) == 1 and not node.keywords:
+            v = _bounded(node.args[0], text, depth + 1, powers)
+            if v is None:
+                return None
+            value = _MATH[node.func.id](v)
+        else:
+            raise ParameterError("curve", f"cannot read {text!r} as an expression in x")
+    except (OverflowError, ZeroDivisionError, ValueError, TypeError) as e:
+        if isinstance(e, ParameterError):
+            raise
+        raise ParameterError("curve", "a constant part is not a finite real number") from None
+    if not (isinstance(value, float | int) and math.isfinite(value)):
+        raise ParameterError("curve", "a constant part is not a finite real number")
+    return float(value)
+
 
 def parse_curve(text: str) -> sp.Expr:
     """z = f(x) from a string: numbers, x, + − * / ** ^ ( ) and the functions in _FUNCTIONS.
 
-    Every token is checked against that whitelist before sympy sees the text, so nothing but
-    arithmetic can run. Raises ParameterError("curve", reason) with a one-line reason."""
+    Every token is checked against that whitelist, and the syntax tree against the bounds
+    above, before sympy sees the text, so nothing but bounded arithmetic can run. Raises
+    ParameterError("curve", reason) with a one-line reason."""
+    if len(text) > MAX_CURVE_CHARS:
+        raise ParameterError("curve", f"longer than {MAX_CURVE_CHARS} characters")
     x = sp.Symbol("x", real=True)
     try:
         tokens = list(tokenize.generate_tokens(io.StringIO(text).readline))
@@ -80,14 +161,35 @@ def parse_curve(text: str) -> sp.Expr:
             continue
         raise ParameterError("curve", f"{tok.string!r} is not allowed (use x, numbers, "
                              "+ - * / ** ( ) and " + ", ".join(sorted(_FUNCTIONS)) + ")")
+    source = text.replace("^", "**")
     try:
-        expr = sp.sympify(text.replace("^", "**"), locals={"x": x, **_FUNCTIONS},
-                          rational=False)
+        tree = ast.parse(source.strip(), mode="eval")
+    except (SyntaxError, ValueError, RecursionError):
+        raise ParameterError("curve", f"cannot read {text!r} as an expression in x") from None
+    _bounded(tree, text)
+    try:
+        expr = sp.sympify(source, locals={"x": x, **_FUNCTIONS}, rational=False)
     except (sp.SympifyError, SyntaxError, TypeError, ValueError, ZeroDivisionError):
         raise ParameterError("curve", f"cannot read {text!r} as an expression in x") from None
     if not isinstance(expr, sp.Expr) or expr.free_symbols - {x}:
         raise ParameterError("curve", f"must be an expression in x only (got {text!r})")
     return expr
+
+
+def _numeric(expr: sp.Expr) -> Callable[[float], float]:
+    """``expr`` (in x) as a function of a float, evaluated in floating point: an overflow is
+    an error or inf, never mpmath's unbounded exponents."""
+    x = sp.Symbol("x", real=True)
+    f = sp.lambdify(x, expr, modules=[{"DiracDelta": lambda *a: 0.0,
+                                       "Heaviside": lambda a, *h: float(a > 0)}, "math"])
+
+    def value(x0: float) -> float:
+        try:
+            v = f(x0)
+            return float(v) if not isinstance(v, complex) else math.nan
+        except (ArithmeticError, ValueError, TypeError, NameError):
+            return math.nan
+    return value
 
 
 class BeadOnWire(LagrangianModel):
@@ -121,8 +223,7 @@ class BeadOnWire(LagrangianModel):
             x = sp.Symbol("x", real=True)
             x0 = self.value("initial.x")
             for label, e in (("f", f), ("f′", f.diff(x)), ("f″", f.diff(x, 2))):
-                val = complex(e.subs(x, x0).evalf())
-                if not (math.isfinite(val.real) and abs(val.imag) < 1e-12):
+                if not math.isfinite(_numeric(e)(x0)):
                     raise ParameterError("curve", f"{label}(x) is not finite and real at "
                                          f"initial.x = {x0:g}")
         if shape == "cycloid":
@@ -265,7 +366,7 @@ class BeadOnWire(LagrangianModel):
             return c * x * x, 2 * c * x
         xs = sp.Symbol("x", real=True)
         f = parse_curve(str(self.values["curve"]))
-        return float(f.subs(xs, x)), float(f.diff(xs).subs(xs, x))
+        return _numeric(f)(x), _numeric(f.diff(xs))(x)
 
     def laws(self) -> tuple[Law, ...]:
         if self.formulation == "naive":

@@ -1,0 +1,62 @@
+"""Process plumbing shared by the launcher, the recorder and helper processes: a child that dies
+with its parent, SIGTERM taking the same clean path as Ctrl-C, and stops held while files are
+being created or completed. Standard library only."""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+_PR_SET_PDEATHSIG = 1
+
+#: Set once a stop signal arrived (a stop that rclpy converted into another exception on its
+#: way out is still recognised as a stop).
+stopping = threading.Event()
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Make this process receive SIGTERM when its parent dies (Linux ``PR_SET_PDEATHSIG``, also
+    after a SIGKILL of the parent); if the parent is already gone, SIGTERM now."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the parent's own handler still stops us
+        pass
+    if os.getppid() != parent_pid:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+def stop_on_sigterm() -> None:
+    """SIGTERM raises KeyboardInterrupt from now on (main thread only), so every stop takes the
+    same clean path as Ctrl-C: outputs completed, nodes destroyed."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _interrupt)
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    stopping.set()
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def held_signals() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM for the block (files being created or completed) and raise
+    KeyboardInterrupt after it if one came. Main thread only (elsewhere: no effect)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    previous = {s: signal.signal(s, lambda n, f: got.append(n))
+                for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if got:
+        raise KeyboardInterrupt
