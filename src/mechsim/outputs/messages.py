@@ -23,8 +23,13 @@ from tf2_msgs.msg import TFMessage
 DEFAULT_TIME_OFFSET = 1.0
 
 
+def stamps_ns(t: np.ndarray, offset: float) -> np.ndarray:
+    """Stamps (int64 nanoseconds, rounded half to even) of simulation times ``t``."""
+    return np.rint((np.asarray(t, dtype=float) + offset) * 1e9).astype(np.int64)
+
+
 def stamp_ns(t: float, offset: float) -> int:
-    return int(round((t + offset) * 1e9))
+    return int(stamps_ns(np.array([t]), offset)[0])
 
 
 def to_time(ns: int) -> Time:

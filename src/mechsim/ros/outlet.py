@@ -4,9 +4,11 @@ Rerun logger). In-process sinks see every message, so a recording cannot drop on
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -66,6 +68,36 @@ class Outlet:
             if wants is None or wants(topic):
                 return True
         return self.channels[topic].publisher.get_subscription_count() > 0
+
+    def publish_chunk(self, topic: str, ns: np.ndarray, rows: np.ndarray,
+                      message: Callable[[int], Any]) -> None:
+        """Messages of ``topic`` for a chunk of samples, already encoded (row i: the CDR bytes
+        of sample i, stamped ``ns[i]``). The same bytes are published (only if something
+        subscribes) and handed to batch sinks (``write_batch``: the recorder); a sink that
+        takes messages gets ``message(i)``, built only for the topics it wants."""
+        ch = self.channels[topic]
+        payloads: list[bytes] | None = None
+        if ch.publisher.get_subscription_count() > 0:
+            payloads = [r.tobytes() for r in rows]
+            publish = ch.publisher.publish
+            for data in payloads:
+                publish(data)
+        self.counts[topic] += len(ns)
+        stamps: list[int] | None = None
+        for sink in self.sinks:
+            batch = getattr(sink, "write_batch", None)
+            if batch is not None:
+                if payloads is None:
+                    payloads = [r.tobytes() for r in rows]
+                if stamps is None:
+                    stamps = ns.tolist()
+                batch(topic, ch.type_name, ch.qos, stamps, payloads)
+                continue
+            wants = getattr(sink, "wants", None)
+            if wants is not None and not wants(topic):
+                continue
+            for i in range(len(ns)):
+                sink.write(topic, ch.type_name, message(i), ch.qos, int(ns[i]))
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
         ch = self.channels[topic]
