@@ -69,35 +69,40 @@ class Outlet:
                 return True
         return self.channels[topic].publisher.get_subscription_count() > 0
 
-    def publish_chunk(self, topic: str, ns: np.ndarray, rows: np.ndarray,
-                      message: Callable[[int], Any]) -> None:
-        """Messages of ``topic`` for a chunk of samples, already encoded (row i: the CDR bytes
-        of sample i, stamped ``ns[i]``). The same bytes are published (only if something
-        subscribes) and handed to batch sinks (``write_batch``: the recorder); a sink that
-        takes messages gets ``message(i)``, built only for the topics it wants."""
-        ch = self.channels[topic]
-        payloads: list[bytes] | None = None
-        if ch.publisher.get_subscription_count() > 0:
-            payloads = [r.tobytes() for r in rows]
-            publish = ch.publisher.publish
-            for data in payloads:
-                publish(data)
-        self.counts[topic] += len(ns)
+    def publish_chunk(self, ns: np.ndarray,
+                      topics: list[tuple[str, np.ndarray, Callable[[int], Any]]]) -> None:
+        """The messages of a chunk of samples stamped ``ns``, already encoded: for each
+        (topic, rows, message), row i holds the CDR bytes of sample i. The same bytes are
+        published (only on topics something subscribes to) and handed to batch sinks
+        (``write_batch``: the recorder), a topic at a time; a sink that takes messages gets
+        ``message(i)``, built only for the topics it wants, sample by sample in time order."""
         stamps: list[int] | None = None
-        for sink in self.sinks:
-            batch = getattr(sink, "write_batch", None)
-            if batch is not None:
+        batch_sinks = [s for s in self.sinks if hasattr(s, "write_batch")]
+        for topic, rows, _ in topics:
+            ch = self.channels[topic]
+            payloads: list[bytes] | None = None
+            if ch.publisher.get_subscription_count() > 0:
+                payloads = [r.tobytes() for r in rows]
+                publish = ch.publisher.publish
+                for data in payloads:
+                    publish(data)
+            self.counts[topic] += len(ns)
+            for sink in batch_sinks:
                 if payloads is None:
                     payloads = [r.tobytes() for r in rows]
                 if stamps is None:
                     stamps = ns.tolist()
-                batch(topic, ch.type_name, ch.qos, stamps, payloads)
+                sink.write_batch(topic, ch.type_name, ch.qos, stamps, payloads)
+        for sink in self.sinks:
+            if sink in batch_sinks:
                 continue
             wants = getattr(sink, "wants", None)
-            if wants is not None and not wants(topic):
-                continue
+            chosen = [(topic, message) for topic, _, message in topics
+                      if wants is None or wants(topic)]
             for i in range(len(ns)):
-                sink.write(topic, ch.type_name, message(i), ch.qos, int(ns[i]))
+                for topic, message in chosen:
+                    sink.write(topic, self.channels[topic].type_name, message(i),
+                               self.channels[topic].qos, int(ns[i]))
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
         ch = self.channels[topic]

@@ -336,11 +336,11 @@ class SimulatorNode(Node):
                           None if c.frames is None else c.frames[i])
 
         enc = self.encoder
+        topics: list[tuple[str, np.ndarray, Callable[[int], Any]]] = []
         if self.publish_clock:
-            o.publish_chunk(self.t_clock, ns, enc.encode("clock", c),
-                            lambda i: messages.clock(int(ns[i])))
-        o.publish_chunk(self.t_state, ns, enc.encode("state", c),
-                        lambda i: f.state(sample(i), int(ns[i])))
+            topics.append((self.t_clock, enc.encode("clock", c),
+                           lambda i: messages.clock(int(ns[i]))))
+        topics.append((self.t_state, enc.encode("state", c), _builder(f.state, sample, ns)))
         for key, topic, build in (("energy", self.t_energy, f.energy),
                                   ("invariants", self.t_inv, f.invariants),
                                   ("observables", self.t_obs, f.observables),
@@ -348,7 +348,8 @@ class SimulatorNode(Node):
             if getattr(c, "frames" if key == "tf" else key) is None:
                 continue
             self.computed["frames" if key == "tf" else key] += n
-            o.publish_chunk(topic, ns, enc.encode(key, c), _builder(build, sample, ns))
+            topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
+        o.publish_chunk(ns, topics)
         self.samples_published += n
 
     def advance_to(self, t_target: float) -> int:
