@@ -23,8 +23,13 @@ from tf2_msgs.msg import TFMessage
 DEFAULT_TIME_OFFSET = 1.0
 
 
+def stamps_ns(t: np.ndarray, offset: float) -> np.ndarray:
+    """Stamps (int64 nanoseconds, rounded half to even) of simulation times ``t``."""
+    return np.rint((np.asarray(t, dtype=float) + offset) * 1e9).astype(np.int64)
+
+
 def stamp_ns(t: float, offset: float) -> int:
-    return int(round((t + offset) * 1e9))
+    return int(stamps_ns(np.array([t]), offset)[0])
 
 
 def to_time(ns: int) -> Time:
@@ -97,22 +102,31 @@ class MessageFactory:
                             units=list(self.observable_units),
                             values=[float(x) for x in s.observables])
 
+    def placed(self, frames: np.ndarray) -> np.ndarray:
+        """Frames as published, for one sample (frames, 7) or many (samples, frames, 7):
+        frames whose parent is the world moved by the instance's origin, quaternions
+        normalised (a zero quaternion left as it is)."""
+        out = np.array(frames, dtype=float)
+        world = [k for k, f in enumerate(self.model.frames) if f.parent == "world"]
+        out[..., world, :3] += np.asarray(self.origin, dtype=float)
+        norm = np.sqrt(np.sum(out[..., 3:] * out[..., 3:], axis=-1, keepdims=True))
+        out[..., 3:] /= np.where(norm == 0.0, 1.0, norm)
+        return out
+
     def transforms(self, frames: np.ndarray, ns: int, static: bool) -> list[TransformStamped]:
         out = []
+        placed = self.placed(frames)
         for k, spec in enumerate(self.model.frames):
             if spec.static != static:
                 continue
-            x, y, z, qx, qy, qz, qw = (float(c) for c in frames[k])
-            if spec.parent == "world":
-                x, y, z = x + self.origin[0], y + self.origin[1], z + self.origin[2]
-            norm = (qx * qx + qy * qy + qz * qz + qw * qw) ** 0.5 or 1.0
+            x, y, z, qx, qy, qz, qw = (float(c) for c in placed[k])
             t = TransformStamped()
             t.header = self.header(ns, self.frame_id(spec.parent))
             t.child_frame_id = self.frame_id(spec.child)
             t.transform.translation.x, t.transform.translation.y = x, y
             t.transform.translation.z = z
-            t.transform.rotation.x, t.transform.rotation.y = qx / norm, qy / norm
-            t.transform.rotation.z, t.transform.rotation.w = qz / norm, qw / norm
+            t.transform.rotation.x, t.transform.rotation.y = qx, qy
+            t.transform.rotation.z, t.transform.rotation.w = qz, qw
             out.append(t)
         return out
 
@@ -137,3 +151,79 @@ class MessageFactory:
 
 def clock(ns: int) -> Clock:
     return Clock(clock=to_time(ns))
+
+
+@dataclass
+class Chunk:
+    """Consecutive samples of one system: row i of every array is sample i (arrays None where
+    nobody asked for them)."""
+
+    ns: np.ndarray  # int64 stamps
+    q: np.ndarray  # (N, n)
+    v: np.ndarray  # (N, n)
+    work: np.ndarray  # (N, 2): work_external, work_dissipated
+    energy: np.ndarray | None = None  # (N, 3): kinetic, potential, energy_function
+    invariants: np.ndarray | None = None  # (N, invariants)
+    observables: np.ndarray | None = None  # (N, observables)
+    frames: np.ndarray | None = None  # (N, frames, 7), as the model computes them
+
+
+class ChunkEncoder:
+    """The CDR payloads of a chunk, per topic, as :class:`MessageFactory` would fill the
+    messages (see ``mechsim.outputs.cdr``): the layouts are made once from the factory's own
+    messages of a prototype sample, then only numbers and stamps change."""
+
+    def __init__(self, factory: MessageFactory) -> None:
+        from mechsim.outputs.cdr import Layout
+
+        self.factory = f = factory
+        m = f.model
+        n = len(m.coordinates)
+        s = Sample(0.0, np.zeros(n), np.zeros(n), 0.0, 0.0, np.zeros(3),
+                   np.zeros(len(m.invariants)), np.zeros(len(m.observables)),
+                   np.tile([0.0, 0, 0, 0, 0, 0, 1], (len(m.frames), 1)))
+        self.state = Layout("sensor_msgs/msg/JointState", f.state(s, 0))
+        self.q = self.state.block([f"position.{i}" for i in range(n)])
+        self.v = self.state.block([f"velocity.{i}" for i in range(n)])
+        self.energy = Layout("mechsim_msgs/msg/Energy", f.energy(s, 0))
+        self.energy_terms = self.energy.block(
+            ["kinetic", "potential", "total", "energy_function", "work_external",
+             "work_dissipated"])
+        self.invariants = Layout("mechsim_msgs/msg/NamedScalars", f.invariants(s, 0))
+        self.invariant_values = self.invariants.block(
+            [f"values.{i}" for i in range(len(m.invariants))])
+        self.observables = Layout("mechsim_msgs/msg/NamedScalars", f.observables(s, 0))
+        self.observable_values = self.observables.block(
+            [f"values.{i}" for i in range(len(m.observables))])
+        self.dynamic = [k for k, fr in enumerate(m.frames) if not fr.static]
+        self.tf = Layout("tf2_msgs/msg/TFMessage", f.tf(s, 0))
+        self.tf_values = self.tf.block(
+            [f"transforms.{j}.transform.{part}.{c}" for j in range(len(self.dynamic))
+             for part, c in [("translation", "x"), ("translation", "y"),
+                             ("translation", "z"), ("rotation", "x"), ("rotation", "y"),
+                             ("rotation", "z"), ("rotation", "w")]])
+        self.clock = Layout("rosgraph_msgs/msg/Clock", clock(0))
+
+    def encode(self, topic: str, c: Chunk) -> np.ndarray:
+        """(N, size) bytes of ``topic`` ("state", "energy", "invariants", "observables",
+        "tf", "clock") for the chunk."""
+        if topic == "state":
+            return self.state.encode(c.ns, [(self.q, c.q), (self.v, c.v)])
+        if topic == "energy":
+            assert c.energy is not None
+            e = c.energy
+            terms = np.column_stack([e[:, 0], e[:, 1], e[:, 0] + e[:, 1], e[:, 2], c.work])
+            return self.energy.encode(c.ns, [(self.energy_terms, terms)])
+        if topic == "invariants":
+            assert c.invariants is not None
+            return self.invariants.encode(c.ns, [(self.invariant_values, c.invariants)])
+        if topic == "observables":
+            assert c.observables is not None
+            return self.observables.encode(c.ns, [(self.observable_values, c.observables)])
+        if topic == "tf":
+            assert c.frames is not None
+            placed = self.factory.placed(c.frames)[:, self.dynamic, :]
+            return self.tf.encode(c.ns, [(self.tf_values, placed.reshape(len(c.ns), -1))])
+        if topic == "clock":
+            return self.clock.encode(c.ns)
+        raise KeyError(topic)

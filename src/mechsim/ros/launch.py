@@ -21,6 +21,7 @@ so a child stopped while starting exits quietly).
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import signal
 import subprocess
@@ -42,6 +43,8 @@ if TYPE_CHECKING:
 #: the project's profile (Fast DDS's default, 3 s, made discovery take 0.1-3.0 s; with 0.5 s a
 #: probe found a running node within 0.8 s in 8 of 8 tries).
 GRAPH_WAIT = 1.0
+#: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go).
+FAST_CHUNK = 500
 #: Seconds a node found in the graph has to answer before it counts as gone (killed).
 LIVENESS_TIMEOUT = 2.0
 
@@ -229,18 +232,27 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         next_spin = wall0
         k = 0
         while duration is None or t < duration - 1e-12:
-            k += 1
-            t_next = k * dt if duration is None else min(k * dt, duration)
-            if not fast:
-                wait = wall0 + t_next / scene.real_time_factor - time.monotonic()
+            if fast:
+                # A chunk of samples per call (compiled stepping, evaluation and encoding of
+                # the whole chunk), ending at the next diagnostics report.
+                k_next = k + FAST_CHUNK
+            else:
+                # As many samples as the wall clock has made due (at least the next one,
+                # waited for): latency within one sample period, however slow a chunk.
+                wait = wall0 + (k + 1) * dt / scene.real_time_factor - time.monotonic()
                 while wait > 0:
                     executor.spin_once(timeout_sec=min(wait, 0.05))
-                    wait = wall0 + t_next / scene.real_time_factor - time.monotonic()
+                    wait = wall0 + (k + 1) * dt / scene.real_time_factor - time.monotonic()
+                due = (time.monotonic() - wall0) * scene.real_time_factor / dt
+                k_next = max(k + 1, int(math.floor(due + 1e-9)))
+            k_next = min(k_next, int(math.floor(next_diag / dt + 1e-9)))
+            k_next = max(k_next, k + 1)
+            t_next = k_next * dt if duration is None else min(k_next * dt, duration)
             for n in nodes:
                 n.advance_to(t_next)
-            t = t_next
-            # Services and parameter requests are served every 20 ms of wall time: building
-            # the executor's wait set costs ~0.5 ms, more than a sample, so not every tick.
+            k, t = k_next, t_next
+            # Services and parameter requests are served between chunks, every 20 ms of
+            # wall time at most (building the executor's wait set costs ~0.5 ms).
             now = time.monotonic()
             if now >= next_spin:
                 executor.spin_once(timeout_sec=0)
@@ -377,7 +389,7 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
         while not (sim and node.finished):
             if sim and node.stepped and not node.paused:
                 # As fast as possible, serving services and parameters in between.
-                node.advance_to(node.t + 10.0 / node.publish_rate)
+                node.advance_to(node.t + FAST_CHUNK / node.publish_rate)
                 executor.spin_once(timeout_sec=0)
             else:
                 executor.spin_once(timeout_sec=0.1)

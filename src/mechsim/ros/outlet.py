@@ -4,9 +4,11 @@ Rerun logger). In-process sinks see every message, so a recording cannot drop on
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -66,6 +68,41 @@ class Outlet:
             if wants is None or wants(topic):
                 return True
         return self.channels[topic].publisher.get_subscription_count() > 0
+
+    def publish_chunk(self, ns: np.ndarray,
+                      topics: list[tuple[str, np.ndarray, Callable[[int], Any]]]) -> None:
+        """The messages of a chunk of samples stamped ``ns``, already encoded: for each
+        (topic, rows, message), row i holds the CDR bytes of sample i. The same bytes are
+        published (only on topics something subscribes to) and handed to batch sinks
+        (``write_batch``: the recorder), a topic at a time; a sink that takes messages gets
+        ``message(i)``, built only for the topics it wants, sample by sample in time order."""
+        stamps: list[int] | None = None
+        batch_sinks = [s for s in self.sinks if hasattr(s, "write_batch")]
+        for topic, rows, _ in topics:
+            ch = self.channels[topic]
+            payloads: list[bytes] | None = None
+            if ch.publisher.get_subscription_count() > 0:
+                payloads = [r.tobytes() for r in rows]
+                publish = ch.publisher.publish
+                for data in payloads:
+                    publish(data)
+            self.counts[topic] += len(ns)
+            for sink in batch_sinks:
+                if payloads is None:
+                    payloads = [r.tobytes() for r in rows]
+                if stamps is None:
+                    stamps = ns.tolist()
+                sink.write_batch(topic, ch.type_name, ch.qos, stamps, payloads)
+        for sink in self.sinks:
+            if sink in batch_sinks:
+                continue
+            wants = getattr(sink, "wants", None)
+            chosen = [(topic, message) for topic, _, message in topics
+                      if wants is None or wants(topic)]
+            for i in range(len(ns)):
+                for topic, message in chosen:
+                    sink.write(topic, self.channels[topic].type_name, message(i),
+                               self.channels[topic].qos, int(ns[i]))
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
         ch = self.channels[topic]

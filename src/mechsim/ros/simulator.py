@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,7 +61,7 @@ from std_srvs.srv import SetBool, Trigger
 from mechsim.errors import IntegrationError, MechsimError, ParameterError, one_line
 from mechsim.integrators import METHODS, Stepper, make_stepper
 from mechsim.outputs import messages
-from mechsim.outputs.messages import MessageFactory, Sample
+from mechsim.outputs.messages import Chunk, ChunkEncoder, MessageFactory, Sample
 from mechsim.outputs.sink import Sink
 from mechsim.params import (
     CONSTRAINT_LIMIT,
@@ -101,6 +102,12 @@ def _reason(e: BaseException) -> str:
     """One line for an unexpected error (its type and first line, bounded)."""
     first = (str(e).splitlines() or [""])[0]
     return one_line(f"{type(e).__name__}: {first}")[:300]
+
+
+def _builder(build: Callable[[Sample, int], Any], sample: Callable[[int], Sample],
+             ns: np.ndarray) -> Callable[[int], Any]:
+    """The message of sample i, built only for a sink that takes messages."""
+    return lambda i: build(sample(i), int(ns[i]))
 
 
 @dataclass
@@ -210,6 +217,7 @@ class SimulatorNode(Node):
         self.stepper = stepper
         self.factory = MessageFactory(model, self.instance.name, self.instance.origin,
                                       self.time_offset)
+        self.encoder = ChunkEncoder(self.factory)
         self.p = model.parameter_vector()
         self._set_constraints()
         self.t = 0.0
@@ -293,42 +301,56 @@ class SimulatorNode(Node):
                 reason = (f"constraint residual {name} = {inv[good, j]:.3g} past the hard "
                           f"limit {limit[good]:.3g} at t = {times[good]:.6g} (projection "
                           "cannot restore the constraint)")
-        for i in range(good):
-            self._publish_sample(float(times[i]), Y[i], out, inv, i, want)
-            self.t = float(times[i])
+        if good:
+            self._publish_chunk(times[:good], Y[:good], out, inv, want)
+            self.t = float(times[good - 1])
         if reason is not None:
             self._fail(reason)
         return good
 
-    def _publish_sample(self, t: float, y: np.ndarray, out: Outputs, inv: np.ndarray | None,
-                        i: int, want: tuple[str, ...]) -> None:
-        o, f, at = self.outlet, self.factory, self.model.layout
-        ns = messages.stamp_ns(t, self.time_offset)
-        if self.publish_clock:
-            o.publish(self.t_clock, messages.clock(ns), ns)
-        s = Sample(t, y[at.q], y[at.v], float(y[at.work_external]),
-                   float(y[at.work_dissipated]))
-        o.publish(self.t_state, f.state(s, ns), ns)
+    def _publish_chunk(self, times: np.ndarray, Y: np.ndarray, out: Outputs,
+                       inv: np.ndarray | None, want: tuple[str, ...]) -> None:
+        """Every topic of the samples ``times`` (rows of ``Y``): each encoded for the whole
+        chunk at once (``ChunkEncoder``), then published and recorded (``publish_chunk``)."""
+        o, f, at, m = self.outlet, self.factory, self.model.layout, self.model
+        n = times.size
+        ns = messages.stamps_ns(times, self.time_offset)
+        c = Chunk(ns, Y[:, at.q], Y[:, at.v], Y[:, [at.work_external, at.work_dissipated]])
         if "energy" in want:
             assert out.kinetic is not None and out.potential is not None
             assert out.energy_function is not None
-            s.energy = np.array([out.kinetic[i], out.potential[i], out.energy_function[i]])
-            self.computed["energy"] += 1
-            o.publish(self.t_energy, f.energy(s, ns), ns)
+            c.energy = np.column_stack([out.kinetic, out.potential, out.energy_function])
         if "invariants" in want and inv is not None:
-            s.invariants = inv[i]
-            self.computed["invariants"] += 1
-            o.publish(self.t_inv, f.invariants(s, ns), ns)
+            c.invariants = inv
         if "observables" in want:
-            s.observables = np.array([out.observables[q.name][i]
-                                      for q in self.model.observables])
-            self.computed["observables"] += 1
-            o.publish(self.t_obs, f.observables(s, ns), ns)
+            c.observables = np.column_stack([out.observables[q.name] for q in m.observables])
         if "frames" in want and out.frames is not None:
-            s.frames = out.frames[i]
-            self.computed["frames"] += 1
-            o.publish(self.t_tf, f.tf(s, ns), ns)
-        self.samples_published += 1
+            c.frames = out.frames
+
+        def sample(i: int) -> Sample:
+            return Sample(float(times[i]), c.q[i], c.v[i], float(c.work[i, 0]),
+                          float(c.work[i, 1]),
+                          None if c.energy is None else c.energy[i],
+                          None if c.invariants is None else c.invariants[i],
+                          None if c.observables is None else c.observables[i],
+                          None if c.frames is None else c.frames[i])
+
+        enc = self.encoder
+        topics: list[tuple[str, np.ndarray, Callable[[int], Any]]] = []
+        if self.publish_clock:
+            topics.append((self.t_clock, enc.encode("clock", c),
+                           lambda i: messages.clock(int(ns[i]))))
+        topics.append((self.t_state, enc.encode("state", c), _builder(f.state, sample, ns)))
+        for key, topic, build in (("energy", self.t_energy, f.energy),
+                                  ("invariants", self.t_inv, f.invariants),
+                                  ("observables", self.t_obs, f.observables),
+                                  ("tf", self.t_tf, f.tf)):
+            if getattr(c, "frames" if key == "tf" else key) is None:
+                continue
+            self.computed["frames" if key == "tf" else key] += n
+            topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
+        o.publish_chunk(ns, topics)
+        self.samples_published += n
 
     def advance_to(self, t_target: float) -> int:
         """Integrate to ``t_target`` (simulation time; never past ``end_time``), publishing
@@ -500,6 +522,7 @@ class SimulatorNode(Node):
         if c.model is not None:
             self.model = c.model
             self.factory.model = c.model
+            self.encoder = ChunkEncoder(self.factory)
             self.p = c.model.parameter_vector()
             self._set_constraints()
             self.epoch += 1

@@ -52,6 +52,9 @@ SCHEMA_ENCODING = "ros2msg"
 FLUSH_SIM_NS = 1_000_000_000
 FLUSH_WALL_S = 1.0
 CHUNK_SIZE = 512 * 1024
+#: Items (a message, or a batch of up to a chunk of samples) queued for the writer thread at
+#: most; a producer faster than the disk waits (memory stays bounded however long the run).
+QUEUE_ITEMS = 64
 _STOP = object()
 
 
@@ -114,7 +117,7 @@ class BagWriter:
         self.file_name = storage_file_name(self.path)
         self.stats = BagStats(custom_data={k: str(v) for k, v in (custom_data or {}).items()})
         self._types: dict[str, str] = {}
-        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=QUEUE_ITEMS)
         self.error: Exception | None = None
         self._closed = False
         self._finished = False
@@ -147,6 +150,19 @@ class BagWriter:
             for key, value in system_info_custom(msg).items():
                 self._queue.put(("custom", key, value))
         self._queue.put((topic, ns, data))
+
+    def write_batch(self, topic: str, type_name: str, qos: Any, ns: list[int],
+                    payloads: list[bytes]) -> None:
+        """Messages of one topic (not system_info) already serialized, in time order: one
+        hand-off to the writer thread for the whole batch."""
+        if self.error is not None:
+            raise self.error
+        if self._closed or not payloads:
+            return
+        if topic not in self._types:
+            self._types[topic] = type_name
+            self._queue.put(("channel", topic, type_name, qos_dict(qos)))
+        self._queue.put(("batch", topic, ns, payloads))
 
     def set_custom(self, key: str, value: Any) -> None:
         self._queue.put(("custom", key, str(value)))
@@ -244,15 +260,22 @@ class BagWriter:
             if item[0] == "custom":
                 self.stats.custom_data[item[1]] = item[2]
                 continue
-            topic, ns, data = item
-            w.add_message(channels[topic], log_time=ns, data=data, publish_time=ns)
-            self.stats.add(topic, ns)
+            if item[0] == "batch":
+                _, topic, stamps, payloads = item
+            else:
+                topic, ns, data = item
+                stamps, payloads = (ns,), (data,)
+            channel = channels[topic]
+            for ns, data in zip(stamps, payloads, strict=True):
+                w.add_message(channel, log_time=ns, data=data, publish_time=ns)
+                self.stats.add(topic, ns)
             if last_flush_ns is None:
-                last_flush_ns = ns
+                last_flush_ns = stamps[0]
             now = time.monotonic()
-            if ns - last_flush_ns >= FLUSH_SIM_NS or now - last_flush_wall >= FLUSH_WALL_S:
+            if stamps[-1] - last_flush_ns >= FLUSH_SIM_NS or \
+                    now - last_flush_wall >= FLUSH_WALL_S:
                 w.flush()  # closes the chunk in progress and flushes the stream
-                last_flush_ns, last_flush_wall = ns, now
+                last_flush_ns, last_flush_wall = stamps[-1], now
         meta = bag_metadata(self.stats, self.file_name)
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
         w.finish()
