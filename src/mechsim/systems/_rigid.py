@@ -34,7 +34,13 @@ from functools import cached_property
 
 import numpy as np
 
-from mechsim.systems._rotation import quat_mul, quat_rotate, quat_rotate_inverse
+from mechsim.systems._rotation import (
+    ROTATION_KERNELS,
+    quat_mul,
+    quat_product,
+    rotate,
+    rotate_inverse,
+)
 from mechsim.systems.base import Quantity, Structure
 from mechsim.systems.direct import DirectModel
 
@@ -136,52 +142,40 @@ RB_N_EXTRA = 10
 RB_SIZE = RB_EXTRA + RB_N_EXTRA
 
 
-def rb_omega(y, w):
-    """Body angular velocity ω = 2 q* ⊗ q̇ / |q|² (vector part)."""
+def rb_omega(y):
+    """Body angular velocity ω = 2 q* ⊗ q̇ / |q|² (vector part), as a tuple."""
     x, yy, z, s = y[0], y[1], y[2], y[3]
     dx, dy, dz, ds = y[4], y[5], y[6], y[7]
-    n2 = x * x + yy * yy + z * z + s * s
-    w[0] = 2.0 * (s * dx - x * ds - yy * dz + z * dy) / n2
-    w[1] = 2.0 * (s * dy - yy * ds - z * dx + x * dz) / n2
-    w[2] = 2.0 * (s * dz - z * ds - x * dy + yy * dx) / n2
+    f = 2.0 / (x * x + yy * yy + z * z + s * s)
+    return (f * (s * dx - x * ds - yy * dz + z * dy),
+            f * (s * dy - yy * ds - z * dx + x * dz),
+            f * (s * dz - z * ds - x * dy + yy * dx))
 
 
-def rb_unit(y, q):
+def rb_unit(y):
+    """The attitude q/|q| as a tuple."""
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
-    for i in range(4):
-        q[i] = y[i] / n
+    return (y[0] / n, y[1] / n, y[2] / n, y[3] / n)
 
 
-def rb_torque(q, p, out):
+def rb_torque(q, p):
     """Body torque: constant N₀ plus gravity at the CM, c × (Rᵀ (0, 0, −M g))."""
-    down = np.zeros(3)
-    down[2] = -p[RB_MG]
-    g = np.empty(3)
-    quat_rotate_inverse(q, down, g)
+    g = rotate_inverse(q, (0.0, 0.0, -p[RB_MG]))
     c1, c2, c3 = p[RB_C1], p[RB_C2], p[RB_C3]
-    out[0] = p[RB_N1] + c2 * g[2] - c3 * g[1]
-    out[1] = p[RB_N2] + c3 * g[0] - c1 * g[2]
-    out[2] = p[RB_N3] + c1 * g[1] - c2 * g[0]
+    return (p[RB_N1] + c2 * g[2] - c3 * g[1],
+            p[RB_N2] + c3 * g[0] - c1 * g[2],
+            p[RB_N3] + c1 * g[1] - c2 * g[0])
 
 
 def rhs(t, y, p, dy):
-    w = np.empty(3)
-    rb_omega(y, w)
-    q = np.empty(4)
-    rb_unit(y, q)
-    tq = np.empty(3)
-    rb_torque(q, p, tq)
+    w = rb_omega(y)
+    tq = rb_torque(rb_unit(y), p)
     i1, i2, i3 = p[RB_I1], p[RB_I2], p[RB_I3]
-    wd = np.zeros(4)
-    wd[0] = ((i2 - i3) * w[1] * w[2] + tq[0]) / i1
-    wd[1] = ((i3 - i1) * w[2] * w[0] + tq[1]) / i2
-    wd[2] = ((i1 - i2) * w[0] * w[1] + tq[2]) / i3
-    wq = np.zeros(4)
-    wq[0], wq[1], wq[2] = w[0], w[1], w[2]
-    a = np.empty(4)
-    b = np.empty(4)
-    quat_mul(y[4:8], wq, a)
-    quat_mul(y[0:4], wd, b)
+    wd = (((i2 - i3) * w[1] * w[2] + tq[0]) / i1,
+          ((i3 - i1) * w[2] * w[0] + tq[1]) / i2,
+          ((i1 - i2) * w[0] * w[1] + tq[2]) / i3, 0.0)
+    a = quat_product((y[4], y[5], y[6], y[7]), (w[0], w[1], w[2], 0.0))
+    b = quat_product((y[0], y[1], y[2], y[3]), wd)
     for i in range(4):
         dy[i] = y[4 + i]
         dy[4 + i] = 0.5 * (a[i] + b[i])
@@ -190,8 +184,10 @@ def rhs(t, y, p, dy):
 
 
 def project(t, y, p):
+    """q ← q/|q|, q̇ ← q̇/|q| − (q·q̇) q: onto |q| = 1, q·q̇ = 0 with ω = 2 q* ⊗ q̇ / |q|²
+    unchanged (scaling q alone would scale ω, and with it the energy, by |q|)."""
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
-    for i in range(4):
+    for i in range(8):
         y[i] /= n
     d = y[0] * y[4] + y[1] * y[5] + y[2] * y[6] + y[3] * y[7]
     for i in range(4):
@@ -199,33 +195,25 @@ def project(t, y, p):
 
 
 def energy(t, y, p, out):
-    w = np.empty(3)
-    rb_omega(y, w)
-    q = np.empty(4)
-    rb_unit(y, q)
+    w = rb_omega(y)
+    cw = rotate(rb_unit(y), (p[RB_C1], p[RB_C2], p[RB_C3]))
     out[0] = 0.5 * (p[RB_I1] * w[0] ** 2 + p[RB_I2] * w[1] ** 2 + p[RB_I3] * w[2] ** 2)
-    c = np.empty(3)
-    c[0], c[1], c[2] = p[RB_C1], p[RB_C2], p[RB_C3]
-    cw = np.empty(3)
-    quat_rotate(q, c, cw)
     out[1] = p[RB_MG] * cw[2]
     out[2] = out[0] + out[1]
 
 
-def rb_momentum(y, p, body, world):
-    """Angular momentum L = I ω (about the CM or the fixed point): body and world components."""
-    w = np.empty(3)
-    rb_omega(y, w)
-    body[0] = p[RB_I1] * w[0]
-    body[1] = p[RB_I2] * w[1]
-    body[2] = p[RB_I3] * w[2]
-    q = np.empty(4)
-    rb_unit(y, q)
-    quat_rotate(q, body, world)
+def rb_momentum(y, p):
+    """Angular momentum L = I ω (about the CM or the fixed point): body components, then
+    world components, as one tuple of six."""
+    w = rb_omega(y)
+    body = (p[RB_I1] * w[0], p[RB_I2] * w[1], p[RB_I3] * w[2])
+    world = rotate(rb_unit(y), body)
+    return (body[0], body[1], body[2], world[0], world[1], world[2])
 
 
-RIGID_KERNELS = (quat_mul, quat_rotate, quat_rotate_inverse, rb_omega, rb_unit, rb_torque, rhs,
-                 project, energy, rb_momentum)
+#: The shared kernel functions (no arrays are made in any: every helper returns a tuple).
+RIGID_KERNELS = (*ROTATION_KERNELS, rb_omega, rb_unit, rb_torque, rhs, project, energy,
+                 rb_momentum)
 
 
 @dataclass(frozen=True)
