@@ -16,7 +16,8 @@ Two parts:
    four quaternion components as coordinates and their rates as velocities: ω = 2 q* ⊗ q̇ and
    q̈ = ½ q̇ ⊗ ω + ½ q ⊗ ω̇. The unit norm is a constraint (|q| − 1, published as
    ``constraint_unit_norm``), restored after every step by projection: q ← q/|q|,
-   q̇ ← q̇ − (q·q̇) q. No Euler angles are integrated, so there is no gimbal singularity.
+   q̇ ← q̇/|q| − (q·q̇) q, which leaves ω unchanged. No Euler angles are integrated, so there
+   is no gimbal singularity. The kernel functions make no arrays (helpers return tuples).
    Torque: a constant body-frame torque N₀ (its work ∫ω·N₀ dt is W_ext) plus uniform gravity
    acting at the centre of mass c (body components, relative to the fixed point), which enters
    through V = M g (R c)·ẑ. The inertia and torque data are not parameters but derived from
@@ -24,6 +25,10 @@ Two parts:
    parameter vector (fixed indices RB_*, then up to RB_N_EXTRA numbers of the subclass's own;
    its numeric parameters follow from RB_SIZE on), so the kernel is compiled once for every
    body and the same constants hold in Python and in the kernel module.
+
+3. The torque-free motion in closed form (``free_rotation``: Jacobi elliptic functions for ω,
+   the precession angle about the fixed L for the attitude), which ``QuaternionRigidBody``
+   offers as ``propagate`` (method ``exact``) whenever no torque acts.
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ import numpy as np
 
 from mechsim.systems._rotation import (
     ROTATION_KERNELS,
+    quat_from_rows,
     quat_mul,
     quat_product,
     rotate,
@@ -216,6 +222,167 @@ RIGID_KERNELS = (*ROTATION_KERNELS, rb_omega, rb_unit, rb_torque, rhs, project, 
                  rb_momentum)
 
 
+# --- the torque-free motion in closed form ----------------------------------------------------
+
+
+def _quat_z(angle: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Quaternions (x, y, z, w) of rotations by ``angle`` about z, as four arrays."""
+    zero = np.zeros_like(angle)
+    return (zero, zero, np.sin(0.5 * angle), np.cos(0.5 * angle))
+
+
+def _quat_x(angle: np.ndarray) -> tuple[np.ndarray, ...]:
+    zero = np.zeros_like(angle)
+    return (np.sin(0.5 * angle), zero, zero, np.cos(0.5 * angle))
+
+
+def _conjugate(q: tuple | np.ndarray) -> tuple:
+    return (-q[0], -q[1], -q[2], q[3])
+
+
+def jacobi_elliptic(u: np.ndarray, m: float, m1: float) -> tuple[np.ndarray, ...]:
+    """sn, cn, dn of u for the parameter m given with its complement m1 = 1 − m, each accurate
+    on its own (near the separatrix m1 is small and 1 − m would keep few of its digits; scipy's
+    ``ellipj`` takes m alone). Arithmetic–geometric mean and descending recursion for the
+    amplitude (Abramowitz & Stegun 16.4), with b₀ = √m1."""
+    u = np.asarray(u, dtype=float)
+    if m1 == 0.0:  # on the separatrix: the limit m = 1
+        return np.tanh(u), 1.0 / np.cosh(u), 1.0 / np.cosh(u)
+    a, b, c = 1.0, math.sqrt(m1), math.sqrt(m)
+    ratios = []
+    while abs(c) > 1e-17 * a and len(ratios) < 60:
+        a, b, c = 0.5 * (a + b), math.sqrt(a * b), 0.5 * (a - b)
+        ratios.append(c / a)
+    phi = (2.0 ** len(ratios)) * a * u
+    prev = phi
+    for r in reversed(ratios):
+        prev = phi
+        phi = 0.5 * (phi + np.arcsin(r * np.sin(phi)))
+    sn, cn = np.sin(phi), np.cos(phi)
+    dn = cn / np.cos(prev - phi) if ratios else np.ones_like(u)
+    return sn, cn, dn
+
+
+def elliptic_f(phi: float, m1: float) -> float:
+    """The incomplete integral F(φ | m) for φ ∈ [−π, π] from m1 = 1 − m: sin φ R_F(cos²φ,
+    cos²φ + m1 sin²φ, 1) (Carlson), and F(φ) = 2K − F(π − φ) beyond π/2."""
+    from scipy.special import elliprf
+
+    if abs(phi) > 0.5 * math.pi:
+        whole = 2.0 * float(elliprf(0.0, m1, 1.0))
+        return math.copysign(whole - elliptic_f(math.pi - abs(phi), m1), phi)
+    s, c = math.sin(phi), math.cos(phi)
+    return s * float(elliprf(c * c, c * c + m1 * s * s, 1.0))
+
+
+def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,
+                  t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Attitude q(t) (rows (x, y, z, w), world_R_body) and body ω(t) (rows) of a torque-free
+    rigid body with principal moments ``moments`` from q(0) = q0, ω(0) = w0; ``t`` increasing,
+    ≥ 0.
+
+    ω(t) (Landau & Lifshitz, Mechanics §37; catalog 003 §7.7 [SUPPLEMENT]): with the moments
+    relabelled so that the polhode circles axis c (the largest moment if |L|² > 2E I_mid, else
+    the smallest), b the intermediate and a the other extreme axis,
+    ω_a = A_a cn u, ω_b = ±A_b sn u, ω_c = ±A_c dn u, u = ν t + u₀ (``jacobi_elliptic``), with
+    A_a² = (2E I_c − L²)/(I_a(I_c − I_a)), A_b² = (2E I_c − L²)/(I_b(I_c − I_b)),
+    A_c² = (L² − 2E I_a)/(I_c(I_c − I_a)), ν² = (I_c − I_b)(L² − 2E I_a)/(I_a I_b I_c),
+    m = (I_b − I_a)(2E I_c − L²)/((I_c − I_b)(L² − 2E I_a)). The differences 2E I_c − L² and
+    L² − 2E I_a, which vanish near steady spins and decide the side of the separatrix, are
+    summed from same-signed terms (no cancellation); the sign of ω_b follows the sense in which
+    Euler's equations turn (ω_a, ω_b), u₀ = F(am₀ | m); m and 1 − m are each computed from
+    the ω components, so that both stay accurate near the separatrix. A body of revolution is
+    the case m = 0 (uniform precession of ω about the symmetry axis); a spin about a principal
+    axis (ω̇ = 0) is uniform rotation.
+
+    Attitude: L is fixed in space; in a frame with L along z the body's z-x-z Euler angles
+    taken about body axis a are θ = ∠(L, a), ψ = atan2(L_i, L_j) (i, j, a cyclic), continuous
+    because L_c keeps its sign, and φ̇ = |L|(2E − I_a ω_a²)/(|L|² − I_a² ω_a²) (L&L eq. 37.14
+    about axis a; the denominator I_b²ω_b² + I_c²ω_c² stays away from zero), integrated by
+    Gauss–Legendre quadrature on pieces of a tenth of 1/ν (round-off for this smooth integrand).
+    """
+    from mechsim.systems._oscillator import cumulative_integral
+
+    t = np.asarray(t, dtype=float)
+    I = np.asarray(moments, dtype=float)
+    w0 = np.asarray(w0, dtype=float)
+    q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
+    Lb = I * w0
+    lam = float(np.linalg.norm(Lb))
+    w_dot = np.cross(Lb, w0) / I
+    if lam == 0.0 or not np.any(w_dot):
+        # at rest, or spinning about a principal axis: ω constant, q(t) = q0 ⊗ exp(ω t / 2)
+        speed = float(np.linalg.norm(w0))
+        axis = w0 / speed if speed > 0 else np.array([0.0, 0.0, 1.0])
+        half = 0.5 * speed * t
+        turn = (axis[0] * np.sin(half), axis[1] * np.sin(half), axis[2] * np.sin(half),
+                np.cos(half))
+        Q = np.stack(quat_product(tuple(q0), turn), axis=1)
+        return Q, np.repeat(w0[None, :], t.size, axis=0)
+    order = np.argsort(I, kind="stable")
+    mid = int(order[1])
+    # which axis the polhode circles: sign of |L|² − 2E I_mid, summed without cancellation
+    side = float(np.sum(I * w0 * w0 * (I - I[mid])))
+    c, a = (int(order[2]), int(order[0])) if side >= 0.0 else (int(order[0]), int(order[2]))
+    b = mid
+    Ia, Ib, Ic = I[a], I[b], I[c]
+    wa, wb, wc = w0[a], w0[b], w0[c]
+    d_c = Ia * wa * wa * (Ic - Ia) + Ib * wb * wb * (Ic - Ib)  # 2E I_c − L²
+    d_a = Ib * wb * wb * (Ib - Ia) + Ic * wc * wc * (Ic - Ia)  # L² − 2E I_a
+    amp_a = math.sqrt(d_c / (Ia * (Ic - Ia)))
+    amp_b = math.sqrt(d_c / (Ib * (Ic - Ib))) if Ic != Ib else 0.0
+    amp_c = math.sqrt(d_a / (Ic * (Ic - Ia)))
+    nu = math.sqrt((Ic - Ib) * d_a / (Ia * Ib * Ic))
+    m = min(max((Ib - Ia) * d_c / ((Ic - Ib) * d_a), 0.0), 1.0) if Ic != Ib else 0.0
+    # 1 − m = (I_c − I_a)(L² − 2E I_b)/((I_c − I_b)(L² − 2E I_a)), the separatrix distance
+    # summed from the ω components (not 1 − m, which would lose its digits near m = 1)
+    near = Ia * wa * wa * (Ia - Ib) + Ic * wc * wc * (Ic - Ib)
+    m1 = min(max((Ic - Ia) * near / ((Ic - Ib) * d_a), 0.0), 1.0) if Ic != Ib else 1.0
+    x0 = min(max(wa / amp_a, -1.0), 1.0) if amp_a > 0 else 1.0
+    y0 = min(max(wb / amp_b, -1.0), 1.0) if amp_b > 0 else 0.0
+    sense = x0 * (w_dot[b] / amp_b if amp_b > 0 else 0.0) - y0 * (w_dot[a] / amp_a)
+    s_b = 1.0 if sense >= 0.0 else -1.0
+    s_c = 1.0 if wc >= 0.0 else -1.0
+    u0 = elliptic_f(math.atan2(s_b * y0, x0), m1)
+
+    def omega(s: np.ndarray) -> np.ndarray:
+        sn, cn, dn = jacobi_elliptic(nu * s + u0, m, m1)
+        w = np.empty((3,) + np.shape(s))
+        w[a], w[b], w[c] = amp_a * cn, s_b * amp_b * sn, s_c * amp_c * dn
+        return w
+
+    def precession_rate(s: np.ndarray) -> np.ndarray:
+        w = omega(s)
+        j, k = (a + 1) % 3, (a + 2) % 3
+        num = I[j] * w[j] ** 2 + I[k] * w[k] ** 2
+        den = (I[j] * w[j]) ** 2 + (I[k] * w[k]) ** 2
+        return lam * num / den
+
+    W = omega(t)
+    phi = cumulative_integral(precession_rate, 0.0, t, 0.1 / nu)
+
+    def attitude(w: np.ndarray, phi_: np.ndarray) -> tuple:
+        """Quaternions of L-frame_R_body from the Euler angles about axis a."""
+        i, j = (a + 1) % 3, (a + 2) % 3
+        n = I[:, None] * w.reshape(3, -1) / lam
+        theta = np.arctan2(np.hypot(n[i], n[j]), n[a])
+        # L_c keeps its sign: flip both arguments when c = j and L_c < 0, so that ψ never
+        # meets the branch cut of atan2
+        flip = -1.0 if (c == j and n[c][0] < 0.0) else 1.0
+        psi = np.arctan2(flip * n[i], flip * n[j]) + (math.pi if flip < 0 else 0.0)
+        perm = np.zeros((3, 3))
+        perm[0, i] = perm[1, j] = perm[2, a] = 1.0  # v_(i, j, a) = P v
+        p = np.empty(4)
+        quat_from_rows(perm, p)  # the quaternion of Pᵀ
+        q = quat_product(quat_product(_quat_z(phi_), _quat_x(theta)), _quat_z(psi))
+        return quat_product(q, _conjugate(p))
+
+    start = attitude(w0[:, None].copy(), np.zeros(1))
+    g = quat_product(tuple(q0), _conjugate(tuple(x[0] for x in start)))
+    Q = np.stack(quat_product(g, attitude(W, phi)), axis=1)
+    return Q, W.T.copy()
+
+
 @dataclass(frozen=True)
 class RigidData:
     """Principal moments, constant body torque N₀, CM position c (body, from the pivot), M g,
@@ -278,3 +445,22 @@ class QuaternionRigidBody(DirectModel):
         qd = np.empty(4)
         quat_mul(q, wq, qd)
         return np.asarray(q, dtype=float), 0.5 * qd
+
+    def torque_free(self) -> bool:
+        """No constant torque and no weight acting off the pivot."""
+        d = self.rigid_data()
+        return not any(d.torque) and not (d.weight and any(d.center_of_mass))
+
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """The torque-free motion in closed form (``free_rotation``): rows [q, q̇ = ½ q ⊗ ω,
+        work terms of y0]; None when a torque acts."""
+        if not self.torque_free():
+            return None
+        t = np.asarray(t, dtype=float)
+        Q, W = free_rotation(self.rigid_data().moments, y0[:4], np.array(rb_omega(y0)),
+                             t - t0)
+        Qd = 0.5 * np.stack(quat_product(Q.T, (W[:, 0], W[:, 1], W[:, 2], 0.0 * W[:, 0])),
+                            axis=1)
+        rows = np.repeat(np.asarray(y0, dtype=float)[None, :], t.size, axis=0)
+        rows[:, :4], rows[:, 4:8] = Q, Qd
+        return rows

@@ -19,6 +19,8 @@ Conventions:
   work ∫ω·N dt is the external work of the energy balance.
 - Attitude: a unit quaternion with its rates as velocities, renormalised by projection after
   every step (see ``_rigid``); no Euler angles are integrated, so nothing is singular.
+- Without a torque the motion has a closed form (method ``exact``): ω from Jacobi's elliptic
+  functions, the attitude from the precession about the fixed L (``_rigid.free_rotation``).
 
 Document typos corrected (catalog 003 §7.2–7.7): m_α missing in Σ m_α r_α = 0 (1537) and in the
 (3,2) entry of the explicit tensor (1580); a_j a_i for α_j α_i and I_ij for I_ii in the
@@ -200,9 +202,6 @@ class RigidBody(QuaternionRigidBody):
         return q, np.array([self.value(f"initial.omega_{i}") for i in (1, 2, 3)])
 
     # --- outputs -------------------------------------------------------------------------
-    def torque_free(self) -> bool:
-        return not any(self.value(f"torque.{a}") for a in "xyz")
-
     @property
     def invariants(self) -> tuple[Quantity, ...]:
         out: tuple[Quantity, ...] = ()
