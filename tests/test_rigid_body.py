@@ -236,3 +236,135 @@ def test_parameter_validation() -> None:
         mechsim.load_system("rigid_body", **{"size.x": -1.0})
     with pytest.raises(ParameterError, match="^tip_position.x:"):
         mechsim.load_system("rigid_body", tip_mass=1.0, **{"tip_position.x": 0.0})
+
+
+# --- exact (closed-form) torque-free motion ----------------------------------------------------
+
+
+def test_jacobi_functions_against_mpmath() -> None:
+    """sn, cn, dn and F(φ | m) from (m, 1 − m), near the separatrix too, against mpmath."""
+    mpmath = pytest.importorskip("mpmath")
+    mpmath.mp.dps = 40
+    u = np.array([0.3, 2.0, 7.5, 40.0])
+    for m1 in (1.0, 0.7, 0.1, 1.9e-5, 1e-12):
+        m = mpmath.mpf(1) - mpmath.mpf(m1)
+        sn, cn, dn = rg.jacobi_elliptic(u, float(m), m1)
+        for name, got in (("sn", sn), ("cn", cn), ("dn", dn)):
+            ref = np.array([float(mpmath.ellipfun(name, x, m=m)) for x in u])
+            assert np.max(np.abs(got - ref)) < 3e-14, (name, m1)
+        for phi in (0.2, 1.4, -2.5, 3.0):
+            assert rg.elliptic_f(phi, m1) == pytest.approx(float(mpmath.ellipf(phi, m)),
+                                                           rel=1e-14, abs=1e-15)
+    sn, cn, dn = rg.jacobi_elliptic(u, 1.0, 0.0)  # on the separatrix: tanh, sech
+    assert np.allclose(sn, np.tanh(u), rtol=1e-15) and np.allclose(cn, 1 / np.cosh(u))
+
+
+def _exact_vs_radau15(model: mechsim.systems.base.Model, scales: float) -> float:
+    """Largest difference (q absolute, q̇ relative to its largest value) between the closed
+    form and radau15 at 1e-14 at ten times over ``scales`` time scales."""
+    from mechsim.integrators import make_stepper
+
+    t = np.linspace(0.0, scales * model.time_scale(), 11)[1:]
+    exact = make_stepper(model, "exact").advance(t)
+    ref = make_stepper(model, "radau15", 1e-14).advance(t)
+    scale = float(np.max(np.abs(ref[:, 4:8])))
+    return max(float(np.max(np.abs(exact[:, :4] - ref[:, :4]))),
+               float(np.max(np.abs(exact[:, 4:8] - ref[:, 4:8]))) / scale)
+
+
+@pytest.mark.parametrize("values", [
+    {"initial.omega_1": 3.0, "initial.omega_2": 0.5, "initial.omega_3": 0.2,
+     "initial.theta": 1.0},  # polhode about the smallest moment (|L|² < 2E I₂)
+    {"initial.omega_1": 0.1, "initial.omega_2": 0.5, "initial.omega_3": 3.0,
+     "initial.theta": 1.0},  # about the largest (|L|² > 2E I₂)
+    {"initial.omega_1": 1.0, "initial.omega_2": 2.0, "initial.omega_3": 1.5, "tip_mass": 0.3,
+     "tip_position.y": 0.1, "initial.phi": 2.0},  # principal axes turned from the shape's
+    {"shape": "cylinder", "initial.omega_1": 1.0, "initial.omega_2": 2.0,
+     "initial.omega_3": 3.0},  # body of revolution: m = 0
+    {"shape": "sphere", "initial.theta": 0.4},  # steady rotation
+    {"initial.omega_1": 0.0, "initial.omega_2": 4.0, "initial.omega_3": 0.0},  # steady, unstable
+])
+def test_exact_solution_agrees_with_the_integrator(values: dict) -> None:
+    m = mechsim.load_system("rigid_body", **values)
+    assert m.has_closed_form()
+    assert _exact_vs_radau15(m, 10.0) < 1e-13
+
+
+def test_exact_solution_near_the_separatrix(flip: mechsim.SimulationResult) -> None:
+    """The default body (1 − m ≈ 2e-5): at round-off up to the first flip; through the flips
+    every error is amplified (by the same ~1e3 in the integrators, which then disagree with
+    each other as much), and the exact run still tracks the rotation-matrix reference."""
+    m = flip.model
+    assert _exact_vs_radau15(m, 4.0) < 1e-13
+    assert _exact_vs_radau15(m, 10.0) < 1e-10
+    exact = mechsim.simulate(m, 30.0, 0.25, method="exact")
+    assert exact.method == "exact"
+    w_ref, R_ref = reference(m, exact.t)
+    w = np.stack([exact.observables[f"omega_{i}"] for i in (1, 2, 3)], axis=1)
+    assert np.max(np.abs(w - w_ref)) < 2e-5 and np.max(np.abs(w - w_ref)[exact.t < 4]) < 1e-9
+    R = Rotation.from_quat(exact.outputs.frames[:, 0, 3:]).as_matrix()
+    assert np.max(np.abs(R - R_ref)) < 2e-5
+    # the invariants hold to round-off at every sample, flips included
+    L0 = exact.observables["angular_momentum"][0]
+    for a in "xyz":
+        inv = exact.invariants[f"angular_momentum_{a}"]
+        assert np.max(np.abs(inv - inv[0])) < 1e-13 * L0
+    assert np.max(np.abs(exact.total / exact.total[0] - 1)) < 1e-13
+
+
+def test_no_closed_form_under_a_torque() -> None:
+    m = mechsim.load_system("rigid_body", **{"torque.x": 0.002})
+    assert not m.has_closed_form()
+    with pytest.raises(ParameterError, match="^method:"):
+        mechsim.simulate(m, 1.0, 0.1, method="exact")
+
+
+def test_kernels_make_no_arrays() -> None:
+    """Every kernel function of both rigid-body systems runs without a heap allocation: counted
+    with numba's runtime statistics (enabled by NUMBA_NRT_STATS in a fresh interpreter) against
+    a function that only reads its arguments (whose unboxing is all a Python call costs)."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import numpy as np
+        from numba import njit
+        from numba.core.runtime import rtsys
+        import mechsim
+
+        @njit
+        def bare(t, y, p, out):
+            out.flat[0] = y[0] + p[0]
+
+        @njit
+        def bare3(t, y, p):
+            y[0] = y[0] + p[0]
+
+        def count(f, *args):
+            f(*args)
+            before = rtsys.get_allocation_stats().alloc
+            for _ in range(20):
+                f(*args)
+            return rtsys.get_allocation_stats().alloc - before
+
+        for sid in ("rigid_body", "symmetric_top"):
+            m = mechsim.load_system(sid)
+            k, y, p = m.kernels, m.initial_y(), m.parameter_vector()
+            outs = {"rhs": np.zeros(y.size), "energy": np.zeros(3),
+                    "invariants": np.zeros(len(m.invariants)),
+                    "observables": np.zeros(len(m.observables)),
+                    "frames": np.zeros((len(m.frames), 7))}
+            for name, out in outs.items():
+                base = count(bare, 0.0, y, p, out)
+                print(sid, name, count(getattr(k, name), 0.0, y, p, out) - base)
+            z = y.copy()
+            print(sid, "project", count(k.project, 0.0, z, p) - count(bare3, 0.0, z, p))
+    """)
+    env = {**os.environ, "NUMBA_NRT_STATS": "1"}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                         text=True, timeout=600, check=True).stdout.split("\n")
+    counts = {" ".join(line.split()[:2]): int(line.split()[2]) for line in out if line}
+    assert len(counts) == 12
+    assert all(v == 0 for v in counts.values()), counts

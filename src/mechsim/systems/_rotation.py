@@ -14,39 +14,53 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 
-
-def quat_mul(a, b, out):
-    """out = a ⊗ b (Hamilton product, (x, y, z, w) storage); out may not alias a or b."""
+def quat_product(a, b):
+    """a ⊗ b (Hamilton product, (x, y, z, w) storage) as a tuple; a, b arrays or tuples."""
     ax, ay, az, aw = a[0], a[1], a[2], a[3]
     bx, by, bz, bw = b[0], b[1], b[2], b[3]
-    out[0] = aw * bx + ax * bw + ay * bz - az * by
-    out[1] = aw * by - ax * bz + ay * bw + az * bx
-    out[2] = aw * bz + ax * by - ay * bx + az * bw
-    out[3] = aw * bw - ax * bx - ay * by - az * bz
+    return (aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz)
 
 
-def quat_rotate(q, v, out):
-    """out = R(q) v for a unit quaternion q (out may not alias v)."""
+def rotate(q, v):
+    """R(q) v for a unit quaternion q, as a tuple (no arrays made: kernel-safe)."""
     x, y, z, w = q[0], q[1], q[2], q[3]
     # t = 2 q_vec × v; v' = v + w t + q_vec × t
     tx = 2.0 * (y * v[2] - z * v[1])
     ty = 2.0 * (z * v[0] - x * v[2])
     tz = 2.0 * (x * v[1] - y * v[0])
-    out[0] = v[0] + w * tx + (y * tz - z * ty)
-    out[1] = v[1] + w * ty + (z * tx - x * tz)
-    out[2] = v[2] + w * tz + (x * ty - y * tx)
+    return (v[0] + w * tx + (y * tz - z * ty),
+            v[1] + w * ty + (z * tx - x * tz),
+            v[2] + w * tz + (x * ty - y * tx))
+
+
+def rotate_inverse(q, v):
+    """R(q)ᵀ v for a unit quaternion q, as a tuple: the rotation of the conjugate."""
+    return rotate((-q[0], -q[1], -q[2], q[3]), v)
+
+
+def quat_mul(a, b, out):
+    """out = a ⊗ b; out may not alias a or b."""
+    r = quat_product(a, b)
+    for i in range(4):
+        out[i] = r[i]
+
+
+def quat_rotate(q, v, out):
+    """out = R(q) v for a unit quaternion q (out may not alias v)."""
+    r = rotate(q, v)
+    for i in range(3):
+        out[i] = r[i]
 
 
 def quat_rotate_inverse(q, v, out):
     """out = R(q)ᵀ v for a unit quaternion q (out may not alias v)."""
-    qc = np.empty(4)
-    qc[0] = -q[0]
-    qc[1] = -q[1]
-    qc[2] = -q[2]
-    qc[3] = q[3]
-    quat_rotate(qc, v, out)
+    r = rotate_inverse(q, v)
+    for i in range(3):
+        out[i] = r[i]
 
 
 def quat_from_rows(e, out):
@@ -91,8 +105,8 @@ def quat_from_rows(e, out):
         out[i] /= n
 
 
-def quat_from_euler_zxz(phi, theta, psi, out):
-    """q = q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ): the body frame of z-x-z Euler angles (φ, θ, ψ).
+def euler_zxz_quat(phi, theta, psi):
+    """q = q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ) as a tuple: the body frame of z-x-z Euler angles.
 
     This is world_R_body = R_z(φ) R_x(θ) R_z(ψ) = λᵀ, the transpose of the passive
     λ = λ_ψ λ_θ λ_φ of seed 003 §7.6 (which maps world components to body components).
@@ -102,14 +116,18 @@ def quat_from_euler_zxz(phi, theta, psi, out):
     c3, s3 = math.cos(0.5 * psi), math.sin(0.5 * psi)
     # q_z(φ) ⊗ q_x(θ) = (c1 s2, s1 s2, s1 c2, c1 c2); then ⊗ q_z(ψ) = (0, 0, s3, c3).
     ax, ay, az, aw = c1 * s2, s1 * s2, s1 * c2, c1 * c2
-    out[0] = ax * c3 + ay * s3
-    out[1] = ay * c3 - ax * s3
-    out[2] = az * c3 + aw * s3
-    out[3] = aw * c3 - az * s3
+    return (ax * c3 + ay * s3, ay * c3 - ax * s3, az * c3 + aw * s3, aw * c3 - az * s3)
 
 
-def euler_zxz_from_quat(q, out):
-    """(φ, θ, ψ) of a unit quaternion, z-x-z as in quat_from_euler_zxz; θ ∈ [0, π].
+def quat_from_euler_zxz(phi, theta, psi, out):
+    """out = ``euler_zxz_quat(φ, θ, ψ)``."""
+    r = euler_zxz_quat(phi, theta, psi)
+    for i in range(4):
+        out[i] = r[i]
+
+
+def euler_zxz_angles(q):
+    """(φ, θ, ψ) of a unit quaternion, z-x-z as in ``euler_zxz_quat``; θ ∈ [0, π].
 
     At θ = 0 or π only φ ± ψ is defined: the whole angle goes to φ and ψ = 0 there.
     """
@@ -119,19 +137,26 @@ def euler_zxz_from_quat(q, out):
     b = math.sqrt(x * x + y * y)  # sin(θ/2)
     theta = 2.0 * math.atan2(b, a)
     if b < 1e-12 * a:
-        out[0] = 2.0 * math.atan2(z, w)
-        out[1] = theta
-        out[2] = 0.0
-        return
+        return (2.0 * math.atan2(z, w), theta, 0.0)
     if a < 1e-12 * b:
-        out[0] = 2.0 * math.atan2(y, x)
-        out[1] = theta
-        out[2] = 0.0
-        return
+        return (2.0 * math.atan2(y, x), theta, 0.0)
     sum_half = math.atan2(z, w)  # (φ + ψ)/2
     diff_half = math.atan2(y, x)  # (φ − ψ)/2
     phi = sum_half + diff_half
     psi = sum_half - diff_half
-    out[0] = math.atan2(math.sin(phi), math.cos(phi))
-    out[1] = theta
-    out[2] = math.atan2(math.sin(psi), math.cos(psi))
+    return (math.atan2(math.sin(phi), math.cos(phi)), theta,
+            math.atan2(math.sin(psi), math.cos(psi)))
+
+
+def euler_zxz_from_quat(q, out):
+    """out = ``euler_zxz_angles(q)``."""
+    r = euler_zxz_angles(q)
+    for i in range(3):
+        out[i] = r[i]
+
+
+#: The helpers a rigid-body kernel module lists in its ``kernel_functions`` (each calls only
+#: these; ``quat_from_rows`` is listed by the modules that call it).
+ROTATION_KERNELS = (quat_product, rotate, rotate_inverse, quat_mul, quat_rotate,
+                    quat_rotate_inverse, euler_zxz_quat, quat_from_euler_zxz, euler_zxz_angles,
+                    euler_zxz_from_quat)

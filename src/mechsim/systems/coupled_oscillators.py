@@ -39,7 +39,7 @@ import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, positive
-from mechsim.systems._oscillator import free_solution
+from mechsim.systems._oscillator import free_solution, state_rows
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
@@ -147,15 +147,24 @@ class CoupledOscillators(LagrangianModel):
         return mode_shapes(self.count)
 
     def exact_solution(self, t: np.ndarray) -> np.ndarray:
-        """x_j(t), shape (len(t), N): superposition of normal modes."""
+        """x_j(t), shape (len(t), N), from the initial state (``propagate``)."""
         t = np.asarray(t, dtype=float)
-        x0, v0 = self.initial_state()
+        rows = self.propagate(0.0, self.initial_y(), t.ravel())
+        return rows[:, : self.count].reshape(t.shape + (self.count,))
+
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Superposition of the normal modes, each η_r = u_r·x a free oscillator at ω_r from
+        its state at t₀ (nothing drives or dissipates: the work terms stay as they are)."""
+        t = np.asarray(t, dtype=float)
+        n = self.count
+        x0, v0 = np.asarray(y0[:n], dtype=float), np.asarray(y0[n:2 * n], dtype=float)
         u, w = self.mode_shapes(), self.mode_frequencies()
-        out = np.zeros(t.shape + (self.count,))
-        for r in range(self.count):
-            eta, _ = free_solution(t, float(u[r] @ x0), float(u[r] @ v0), float(w[r]))
-            out += eta[..., None] * u[r]
-        return out
+        x, v = np.zeros((t.size, n)), np.zeros((t.size, n))
+        for r in range(n):
+            eta, deta = free_solution(t - t0, float(u[r] @ x0), float(u[r] @ v0), float(w[r]))
+            x += eta[:, None] * u[r]
+            v += deta[:, None] * u[r]
+        return state_rows(y0, [*x.T, *v.T])
 
     def weak_coupling_ratio(self) -> float:
         """ε = κ₁₂ / 2κ (line 2094)."""

@@ -19,6 +19,8 @@ Conventions:
   work ∫ω·N dt is the external work of the energy balance.
 - Attitude: a unit quaternion with its rates as velocities, renormalised by projection after
   every step (see ``_rigid``); no Euler angles are integrated, so nothing is singular.
+- Without a torque the motion has a closed form (method ``exact``): ω from Jacobi's elliptic
+  functions, the attitude from the precession about the fixed L (``_rigid.free_rotation``).
 
 Document typos corrected (catalog 003 §7.2–7.7): m_α missing in Σ m_α r_α = 0 (1537) and in the
 (3,2) entry of the explicit tensor (1580); a_j a_i for α_j α_i and I_ij for I_ii in the
@@ -50,7 +52,7 @@ from mechsim.systems._rigid import (
     rb_unit,
     sphere_inertia,
 )
-from mechsim.systems._rotation import quat_from_euler_zxz, quat_from_rows, quat_rotate
+from mechsim.systems._rotation import quat_from_euler_zxz, quat_from_rows, rotate
 from mechsim.systems.base import FrameSpec, Quantity, Visual
 
 # --- kernel functions -------------------------------------------------------------------------
@@ -61,39 +63,29 @@ def invariants(t, y, p, out):
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
     out[out.size - 1] = n - 1.0
     if out.size > 1:
-        body = np.empty(3)
-        world = np.empty(3)
-        rb_momentum(y, p, body, world)
-        w = np.empty(3)
-        rb_omega(y, w)
-        out[0] = world[0]
-        out[1] = world[1]
-        out[2] = world[2]
-        L = math.sqrt(body[0] ** 2 + body[1] ** 2 + body[2] ** 2)
-        out[3] = (w[0] * body[0] + w[1] * body[1] + w[2] * body[2]) / L if L > 0 else 0.0
+        L = rb_momentum(y, p)
+        w = rb_omega(y)
+        out[0] = L[3]
+        out[1] = L[4]
+        out[2] = L[5]
+        size = math.sqrt(L[0] ** 2 + L[1] ** 2 + L[2] ** 2)
+        out[3] = (w[0] * L[0] + w[1] * L[1] + w[2] * L[2]) / size if size > 0 else 0.0
 
 
 def observables(t, y, p, out):
-    w = np.empty(3)
-    rb_omega(y, w)
-    body = np.empty(3)
-    world = np.empty(3)
-    rb_momentum(y, p, body, world)
-    q = np.empty(4)
-    rb_unit(y, q)
-    ws = np.empty(3)
-    quat_rotate(q, w, ws)
+    w = rb_omega(y)
+    L = rb_momentum(y, p)
+    ws = rotate(rb_unit(y), w)
     for i in range(3):
         out[i] = w[i]
-        out[3 + i] = body[i]
+        out[3 + i] = L[i]
         out[6 + i] = ws[i]
     out[9] = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
-    out[10] = math.sqrt(body[0] ** 2 + body[1] ** 2 + body[2] ** 2)
+    out[10] = math.sqrt(L[0] ** 2 + L[1] ** 2 + L[2] ** 2)
 
 
 def frames(t, y, p, out):
-    q = np.empty(4)
-    rb_unit(y, q)
+    q = rb_unit(y)
     for k in range(3):
         out[0, k] = 0.0
     for k in range(4):
@@ -210,9 +202,6 @@ class RigidBody(QuaternionRigidBody):
         return q, np.array([self.value(f"initial.omega_{i}") for i in (1, 2, 3)])
 
     # --- outputs -------------------------------------------------------------------------
-    def torque_free(self) -> bool:
-        return not any(self.value(f"torque.{a}") for a in "xyz")
-
     @property
     def invariants(self) -> tuple[Quantity, ...]:
         out: tuple[Quantity, ...] = ()

@@ -23,7 +23,9 @@ Formulations:
 - ``quaternion`` (default): Euler's equations about the support point with the attitude as a
   unit quaternion (``_rigid.QuaternionRigidBody``); gravity acts as the torque R x̂₃ × (−Mg ẑ).
   Nothing is singular at θ = 0 (sleeping top). Euler angles and their rates are observables;
-  exactly at θ = 0 only φ + ψ is defined: φ̇ = 0 and ψ̇ = ω₃ are published there.
+  exactly at θ = 0 only φ + ψ is defined: φ̇ = 0 and ψ̇ = ω₃ are published there. With
+  gravity 0 the motion is uniform precession, in closed form (method ``exact``,
+  ``_rigid.free_rotation``).
 - ``euler_angles``: the Lagrangian L = ½I₁(θ̇² + φ̇² sin²θ) + ½I₃(ψ̇ + φ̇ cosθ)² − MgR cosθ
   (seed 003 line 1874, seed 002 eq. 10.38) given to the engine; singular at sin θ = 0, so it
   refuses initial θ within 0.01 rad of 0 or π. Both publish the same invariants p_φ, p_ψ and
@@ -55,7 +57,7 @@ from mechsim.systems._rigid import (
     rb_omega,
     rb_unit,
 )
-from mechsim.systems._rotation import euler_zxz_from_quat, quat_from_euler_zxz, quat_rotate
+from mechsim.systems._rotation import euler_zxz_angles, euler_zxz_quat, quat_from_euler_zxz, rotate
 from mechsim.systems.base import FrameSpec, Model, Quantity, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
@@ -66,57 +68,37 @@ P_CM_DISTANCE = RB_SIZE + 2
 
 
 def invariants(t, y, p, out):
-    body = np.empty(3)
-    world = np.empty(3)
-    rb_momentum(y, p, body, world)
-    out[0] = world[2]
-    out[1] = body[2]
+    L = rb_momentum(y, p)
+    out[0] = L[5]
+    out[1] = L[2]
     out[2] = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]) - 1.0
 
 
-def top_euler(y, ang, rates, w):
-    """Euler angles (φ, θ, ψ), their rates and body ω from the state."""
-    q = np.empty(4)
-    rb_unit(y, q)
-    rb_omega(y, w)
-    euler_zxz_from_quat(q, ang)
+def top_euler(y):
+    """Euler angles (φ, θ, ψ) and their rates (φ̇, θ̇, ψ̇) from the state, as one tuple."""
+    ang = euler_zxz_angles(rb_unit(y))
+    w = rb_omega(y)
     s, c = math.sin(ang[1]), math.cos(ang[1])
     sp_, cp = math.sin(ang[2]), math.cos(ang[2])
-    rates[1] = w[0] * cp - w[1] * sp_
-    if abs(s) > 1e-12:
-        rates[0] = (w[0] * sp_ + w[1] * cp) / s
-    else:
-        rates[0] = 0.0
-    rates[2] = w[2] - rates[0] * c
+    dphi = (w[0] * sp_ + w[1] * cp) / s if abs(s) > 1e-12 else 0.0
+    return (ang[0], ang[1], ang[2], dphi, w[0] * cp - w[1] * sp_, w[2] - dphi * c)
 
 
 def observables(t, y, p, out):
-    ang = np.empty(3)
-    rates = np.empty(3)
-    w = np.empty(3)
-    top_euler(y, ang, rates, w)
+    e = top_euler(y)
+    w = rb_omega(y)
+    a = rotate(rb_unit(y), (0.0, 0.0, 1.0))
+    for i in range(6):
+        out[i] = e[i]
     for i in range(3):
-        out[i] = ang[i]
-        out[3 + i] = rates[i]
         out[6 + i] = w[i]
-    q = np.empty(4)
-    rb_unit(y, q)
-    z = np.zeros(3)
-    z[2] = 1.0
-    a = np.empty(3)
-    quat_rotate(q, z, a)
-    out[9] = a[0]
-    out[10] = a[1]
-    out[11] = a[2]
+        out[9 + i] = a[i]
 
 
 def frames(t, y, p, out):
-    q = np.empty(4)
-    rb_unit(y, q)
-    ang = np.empty(3)
-    euler_zxz_from_quat(q, ang)
-    nodes = np.empty(4)
-    quat_from_euler_zxz(ang[0], ang[1], 0.0, nodes)
+    q = rb_unit(y)
+    ang = euler_zxz_angles(q)
+    nodes = euler_zxz_quat(ang[0], ang[1], 0.0)
     for k in range(3):
         out[0, k] = 0.0
         out[1, k] = 0.0
@@ -312,8 +294,7 @@ class SymmetricTop(Model):
 
 
 class _QuaternionTop(SymmetricTop, QuaternionRigidBody):
-    kernel_functions = (*RIGID_KERNELS, euler_zxz_from_quat, quat_from_euler_zxz, invariants,
-                        top_euler, observables, frames)
+    kernel_functions = (*RIGID_KERNELS, invariants, top_euler, observables, frames)
 
     def rigid_data(self) -> RigidData:
         I1, I3, _ = self._consts()
