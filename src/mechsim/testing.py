@@ -150,6 +150,7 @@ class Running:
     namespaces: list[str]
     nodes: list[Any] = field(default_factory=list)
     process: subprocess.Popen[bytes] | None = None
+    log: Path | None = None
 
 
 class Graph:
@@ -218,11 +219,13 @@ class Graph:
     def _start_process(self, target: str, scene: Any, parameters: dict[str, Any],
                        publish_rate: float) -> Running:
         sets = [a for k, v in parameters.items() for a in ("--set", f"{k}={v}")]
-        proc = subprocess.Popen([sys.executable, "-m", "mechsim.cli", "run", target,
-                                 "--duration", "1e9", "--rate", repr(publish_rate), *sets],
-                                env=dict(os.environ), cwd=self.workdir,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        run = Running([i.name for i in scene.systems], process=proc)
+        log = self.workdir / f"mechsim-run-{len(self._running)}.log"
+        with open(log, "wb") as sink:  # the child's messages, quoted if a wait fails
+            proc = subprocess.Popen([sys.executable, "-m", "mechsim.cli", "run", target,
+                                     "--duration", "1e9", "--rate", repr(publish_rate), *sets],
+                                    env=dict(os.environ), cwd=self.workdir,
+                                    stdout=sink, stderr=subprocess.STDOUT)
+        run = Running([i.name for i in scene.systems], process=proc, log=log)
         self._running.append(run)
         return run
 
@@ -231,12 +234,17 @@ class Graph:
         end = time.monotonic() + timeout
         while not done():
             if time.monotonic() > end:
-                pytest.fail(f"timed out: {what}")
+                pytest.fail(f"timed out: {what}{self._child_logs()}")
             for run in self._running:
                 if run.process is not None and run.process.poll() is not None:
                     pytest.fail(f"child process of {run.namespaces} exited with "
-                                f"{run.process.returncode}")
+                                f"{run.process.returncode}{self._child_logs()}")
             self._probe_ex.spin_once(timeout_sec=0.05)
+
+    def _child_logs(self) -> str:
+        tails = [f"\n--- {r.log.name}:\n" + r.log.read_text(errors="replace")[-2000:]
+                 for r in self._running if r.log is not None and r.log.is_file()]
+        return "".join(tails)
 
     def topic_type(self, topic: str, timeout: float = DEFAULT_TIMEOUT) -> str:
         """The type of ``topic`` once something publishes it."""
