@@ -135,8 +135,7 @@ def test_exact_method_matches_integration(run: mechsim.SimulationResult) -> None
 
 def test_long_run_conservation() -> None:
     mod = model(**{"initial_rate.q_2": 0.3})
-    run = mechsim.simulate(mod, 3000.0, 0.5, tolerance=1e-13)
-    assert run.method == "yoshida8"
+    run = mechsim.simulate(mod, 3000.0, 0.5, tolerance=1e-13, method="yoshida8")
     e0 = run.total[0]
     assert np.max(np.abs(run.total - e0)) < 1e-10 * e0
     for r in (1, 2, 3):
