@@ -143,14 +143,15 @@ def loop_source() -> str:
     """The step's stage sums as straight-line numba source (coefficients as literals, zero
     entries left out): about 15 % faster than loops over the dense tableau. The shared loops
     module (``kernels.py``) is built with this text in place of its stubs."""
-    out = ["@njit(cache=True)", "def _dop853_stages(ks, t0, y0, h, K, ytmp, p):",
+    out = ["@njit(cache=True, error_model=\"numpy\")",
+           "def _dop853_stages(ks, t0, y0, h, K, ytmp, p):",
            '    """Stages 2 … 12 from (t0, y0) into K[1 … 11]; ytmp ends as stage 12\'s y."""',
            "    n = y0.size", "    rhs = ks.rhs", "    pp = p.ctypes", "    yp = ytmp.ctypes"]
     for s in range(1, N_STAGES):
         out += ["    for i in range(n):",
                 f"        ytmp[i] = y0[i] + h * ({_sum(STAGES[s], range(s))})",
                 f"    rhs(t0 + {float(NODES[s])!r} * h, yp, pp, K[{s}].ctypes)"]
-    out += ["", "", "@njit(cache=True)",
+    out += ["", "", "@njit(cache=True, error_model=\"numpy\")",
             "def _dop853_dense_stages(ks, t0, y0, h, K, ytmp, p):",
             '    """Stages 14 … 16 (dense output only) into K[13 … 15]."""',
             "    n = y0.size", "    rhs = ks.rhs", "    pp = p.ctypes", "    yp = ytmp.ctypes"]
@@ -158,11 +159,11 @@ def loop_source() -> str:
         out += ["    for i in range(n):",
                 f"        ytmp[i] = y0[i] + h * ({_sum(STAGES[s], range(s))})",
                 f"    rhs(t0 + {float(NODES[s])!r} * h, yp, pp, K[{s}].ctypes)"]
-    out += ["", "", "@njit(cache=True)", "def _dop853_increment(K, i):",
+    out += ["", "", "@njit(cache=True, error_model=\"numpy\")", "def _dop853_increment(K, i):",
             '    """(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j) of component i."""',
             f"    return ({_sum(WEIGHTS, range(N_STAGES))}, "
             f"{_sum(ERROR_5, range(N_STAGES + 1))}, {_sum(ERROR_3, range(N_STAGES + 1))})"]
-    out += ["", "", "@njit(cache=True)", "def _dop853_dense_sums(K, i):",
+    out += ["", "", "@njit(cache=True, error_model=\"numpy\")", "def _dop853_dense_sums(K, i):",
             '    """Σ_j D[r][j] k_j of component i, r = 0 … 3."""',
             "    return (" + ", ".join(_sum(DENSE[r], range(N_STAGES_EXTENDED))
                                      for r in range(4)) + ")"]

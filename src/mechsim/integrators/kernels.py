@@ -69,7 +69,7 @@ def _dop853_dense_sums(K, i):
 # <<< stubs
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _rms_norm(x, scale):
     s = 0.0
     for i in range(x.size):
@@ -78,7 +78,7 @@ def _rms_norm(x, scale):
     return math.sqrt(s / x.size)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dop853_initial_step(ks, t, y, p, f0, rtol, atol):
     """First step size (Hairer's starting-step algorithm, as in ``dop853.f``)."""
     n = y.size
@@ -102,7 +102,7 @@ def dop853_initial_step(ks, t, y, p, f0, rtol, atol):
     return min(100.0 * h0, h1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dop853_restart(ks, state, y, p, K, rtol, atol, g_old, keep_dense):
     """Start (or restart after an event) at the state's time and y: project y, f(t, y) into
     K[12] (the next step's first stage), the first step, the event functions into g_old; the
@@ -127,7 +127,7 @@ def dop853_restart(ks, state, y, p, K, rtol, atol, g_old, keep_dense):
         ks.event(t, y, p, g_old)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _dense_eval(F, y_old, x, out):
     n = y_old.size
     for i in range(n):
@@ -141,7 +141,7 @@ def _dense_eval(F, y_old, x, out):
         out[i] = acc + y_old[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _dense_prepare(ks, s, y, y_old, K, F, p):
     """Extra stages and interpolation coefficients for the last accepted step (t_old, t]."""
     n = y.size
@@ -161,7 +161,7 @@ def _dense_prepare(ks, s, y, y_old, K, F, p):
     s.dense_ready = 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _dense_output(ks, s, y, y_old, K, F, p, t, out):
     """The state at t in the last accepted step (t_old, t_new] from its dense output,
     projected onto the constraints."""
@@ -172,7 +172,7 @@ def _dense_output(ks, s, y, y_old, K, F, p, t, out):
         ks.project(t, out, p)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _crossed(g0, g1, direction):
     """A sign change from g0 to g1 in ``direction`` (+1 rising, -1 falling, 0 either)."""
     if direction >= 0 and g0 < 0.0 <= g1:
@@ -186,7 +186,7 @@ DENSE_DOP853 = 0
 DENSE_RADAU = 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, out):
     """The state at t inside the step that started at (t0, y0) with length h (unprojected)."""
     if mode == DENSE_DOP853:
@@ -196,7 +196,7 @@ def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, out):
         _radau_state_at((t - t0) / h, ks.n_q, y0, F0, F, h, comp, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _event_at(ks, mode, t, F, F0, y0, comp, t0, h, p, ytmp, g, i):
     """Event function ``i`` at time t inside the last step (state projected)."""
     _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, ytmp)
@@ -206,7 +206,7 @@ def _event_at(ks, mode, t, F, F0, y0, comp, t0, h, p, ytmp, g, i):
     return g[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _locate_event(ks, mode, F, F0, y0, comp, t0, h, p, i, a, fa, b, fb):
     """Root of event ``i`` bracketed by (a, fa) and (b, fb), fb on the far side of the sign
     change or zero: Illinois false position, bisecting when the bracket shrinks slowly.
@@ -247,7 +247,7 @@ def _locate_event(ks, mode, F, F0, y0, comp, t0, h, p, i, a, fa, b, fb):
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
                    g_old, ev_dir, comp):
     """Advance until every time in ``t_out`` (increasing, >= the start of the last step) is
@@ -408,7 +408,7 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
     return Status.OK, k
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _add_compensated(x, inc, comp, lo, hi):
     """x[lo:hi] += inc[lo:hi] with Kahan compensation carried in comp[lo:hi]."""
     for i in range(lo, hi):
@@ -443,7 +443,7 @@ def _composition_step(nq, accel, t, y, p, a, kick, drift, q, d, comp):
     _add_compensated(y, d, comp, 0, 2 * nq)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def composition_advance(ks, state, y, p, n_out, n_sub, h, weights, Y_out, a, comp):
     """Fixed-step symmetric composition of velocity Verlet for separable systems.
     ``state``: a ``FIXED_STATE`` record; ``a`` holds accel_q(q) on entry and on exit;
@@ -497,7 +497,7 @@ _GL_A = np.array([[5.0 / 36.0, 2.0 / 9.0 - _S15 / 15.0, 5.0 / 36.0 - _S15 / 30.0
 _GL_B = np.array([5.0 / 18.0, 4.0 / 9.0, 5.0 / 18.0])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def gauss_advance(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp):
     """Three-stage Gauss–Legendre collocation (order 6, symplectic) on the canonical
     variables z = [q, p, work terms] of a conservative system, fixed step ``h``, stage
@@ -591,7 +591,7 @@ _RADAU_SHIFT = np.array([[math.comb(j + 1, k + 1) for k in range(7)] for j in ra
                         dtype=np.float64)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_state_at(s, n, y0, F0, b, dt, comp, ys):
     """y at t₀ + s·dt from the expansion F(s) = F₀ + Σ_k b_k s^(k+1) of the second derivatives
     of q and the first derivatives of the work terms (compensation of y₀ included)."""
@@ -608,7 +608,7 @@ def _radau_state_at(s, n, y0, F0, b, dt, comp, ys):
             ys[j] = y0[j] + (comp[j] + s * dt * (y0[n + j] + s * dt * (0.5 * F0[j] + s * ix)))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_g_from_b(b, g):
     """The divided differences g of the expansion b (g = (Cᵀ)⁻¹ b, upper triangular)."""
     m = b.shape[1]
@@ -620,7 +620,7 @@ def _radau_g_from_b(b, g):
             g[k, j] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_predict(b, g, e, q):
     """Move the expansion of the step just taken to the next one, of q times its length:
     F(1 + q s') − F(1) = Σ_k q^(k+1) Σ_{i≥k} C(i+1, k+1) b_i s'^(k+1), plus the correction the
@@ -642,7 +642,7 @@ def _radau_predict(b, g, e, q):
     _radau_g_from_b(b, g)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _kahan(x, comp, i, inc):
     """x[i] += inc, with the low-order bits lost kept in comp[i] and added next time."""
     d = inc + comp[i]
@@ -651,7 +651,7 @@ def _kahan(x, comp, i, inc):
     x[i] = xn
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
                     g_old, ev_dir, tau):
     """Adaptive 15th-order Gauss–Radau predictor–corrector on q̈ = f(t, q, q̇) (the scheme of
@@ -861,7 +861,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     return Status.OK, k
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def evaluate_outputs(ks, ts, Y, p, want_energy, want_inv, want_obs, want_frames,
                      E_out, I_out, O_out, F_out):
     """Energy terms, invariants, observables and frames at each sample, only those wanted."""
