@@ -271,7 +271,9 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
             diag.publish_now()
         except Exception:  # noqa: BLE001 - shutting down: the run's data matters more
             pass
-        run = SceneRun(scene=scene, sim_time=t, wall_time=time.monotonic() - start,
+        # The time of the last published sample (a stop may land inside a chunk).
+        reached = max([t, *(n.t for n in nodes if not n.failed)])
+        run = SceneRun(scene=scene, sim_time=reached, wall_time=time.monotonic() - start,
                        startup_time=startup,
                        samples={n.instance.name: n.samples_published for n in nodes},
                        messages={}, summary=diag.summary(),

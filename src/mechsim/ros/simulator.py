@@ -81,6 +81,7 @@ from mechsim.ros.outlet import (
 )
 from mechsim.ros.parameters import descriptor
 from mechsim.ros.prepare import PREPARE_TIMEOUT, prepare_model
+from mechsim.ros.process import held_signals
 from mechsim.scene import Instance, instance_name
 from mechsim.simulate import Outputs, evaluate
 from mechsim.systems import system_class
@@ -301,9 +302,10 @@ class SimulatorNode(Node):
                 reason = (f"constraint residual {name} = {inv[good, j]:.3g} past the hard "
                           f"limit {limit[good]:.3g} at t = {times[good]:.6g} (projection "
                           "cannot restore the constraint)")
-        if good:
-            self._publish_chunk(times[:good], Y[:good], out, inv, want)
-            self.t = float(times[good - 1])
+        if good:  # a stop waits for the chunk: what was published and self.t agree
+            with held_signals():
+                self._publish_chunk(times[:good], Y[:good], out, inv, want)
+                self.t = float(times[good - 1])
         if reason is not None:
             self._fail(reason)
         return good
