@@ -21,6 +21,7 @@ run: bootstrap
 # Per-run ROS_DOMAIN_ID from the shell's PID, in 1..101 (0 is everyone's default;
 # 102..214 are unusable), unless the caller set one. Exit 5 (no tests collected) is a pass.
 test: bootstrap
+	@$(VENV)/bin/ruff check src tests tools
 	@export FASTDDS_DEFAULT_PROFILES_FILE="$(PROFILE)"; \
 	export ROS_DOMAIN_ID="$${ROS_DOMAIN_ID:-$$(( $$$$ % 101 + 1 ))}"; \
 	echo "make test: ROS_DOMAIN_ID=$$ROS_DOMAIN_ID"; \
