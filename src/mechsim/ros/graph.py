@@ -179,7 +179,8 @@ def set_parameter(node_name: str, name: str, raw: str, timeout: float = 5.0) -> 
                                                                           value=value)]),
                        timeout, f"{target}/set_parameters").results[0]
     if not result.successful:
-        raise ParameterError(name, result.reason or "rejected by the node")
+        reason = result.reason or "rejected by the node"
+        raise ParameterError(name, reason.removeprefix(f"{name}: "))
     return _from_value(value)
 
 
