@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import os
 import re
+import select
 import signal
 import subprocess
 import sys
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -108,10 +109,27 @@ def test_sigkill_one_node_of_a_multiprocess_scene(ros_context: Any, ros_env: dic
                 p.kill()
 
 
+_STARTED: list[subprocess.Popen[str]] = []
+
+
+@pytest.fixture(autouse=True)
+def _no_recorder_outlives_its_test() -> Iterator[None]:
+    """A recorder of 1e6 s left running by a failed assertion would load the machine for the
+    rest of the run: kill whatever a test started and did not stop."""
+    yield
+    while _STARTED:
+        proc = _STARTED.pop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=60)
+
+
 def _record(bag: Path, env: dict[str, str], *extra: str) -> subprocess.Popen[str]:
-    return subprocess.Popen([PY, "-m", "mechsim.cli", "record", "pendulum", "--duration", "1e6",
+    proc = subprocess.Popen([PY, "-m", "mechsim.cli", "record", "pendulum", "--duration", "1e6",
                              "--bag", str(bag), *extra], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
+    _STARTED.append(proc)
+    return proc
 
 
 def _wait_recording(bag: Path, proc: subprocess.Popen[str], timeout: float = 60) -> None:
@@ -197,6 +215,14 @@ while True:  # answer "count" with the messages handled so far; stop at "quit"
 """
 
 
+def _line(proc: subprocess.Popen[str], timeout: float = 120.0) -> str:
+    """The child's next line, waited for with a generous deadline (never forever)."""
+    assert proc.stdout is not None
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    assert ready, f"no line from the child within {timeout:g} s"
+    return proc.stdout.readline().strip()
+
+
 def test_slow_subscriber_does_not_block_publisher(ros_context: Any, ros_env: dict[str, str]
                                                   ) -> None:
     """A subscriber in another process that takes 50 ms per message (reliable, depth 10): the
@@ -213,7 +239,7 @@ def test_slow_subscriber_does_not_block_publisher(ros_context: Any, ros_env: dic
                             stdout=subprocess.PIPE, text=True)
     try:
         assert slow.stdout is not None and slow.stdin is not None
-        assert slow.stdout.readline().strip() == "matched"
+        assert _line(slow) == "matched"
         from rclpy.executors import SingleThreadedExecutor
 
         ex = SingleThreadedExecutor(context=ros_context)
@@ -223,7 +249,7 @@ def test_slow_subscriber_does_not_block_publisher(ros_context: Any, ros_env: dic
         assert node.advance_to(3.0) == 3000
         slow.stdin.write("count\n")
         slow.stdin.flush()
-        handled = int(slow.stdout.readline().strip())
+        handled = int(_line(slow))
         assert 0 <= handled < 3000 - 10, handled
         slow.stdin.write("quit\n")
         slow.stdin.flush()

@@ -71,7 +71,10 @@ def session_domain_id() -> int:
 def pytest_configure(config: pytest.Config) -> None:
     """Before collection (so before any test module imports rclpy): the loopback profile and
     the session's domain id, also for child processes started with ``os.environ``."""
+    if os.environ.get("_MECHSIM_DOMAIN_SET_BY") == str(os.getpid()):
+        return  # this process is configured already (the plugin loaded twice)
     configure_ros_environment(session_domain_id())
+    os.environ["_MECHSIM_DOMAIN_SET_BY"] = str(os.getpid())
 
 
 def pytest_report_header(config: pytest.Config) -> str:
