@@ -109,18 +109,23 @@ def list_parameters(node_name: str, timeout: float = 5.0) -> list[ParameterInfo]
             for n, v, ds in zip(names, values, descs, strict=True)]
 
 
-def get_parameter(node_name: str, name: str, timeout: float = 5.0) -> Any:
+def _current(node: Any, ex: Any, target: str, name: str, timeout: float) -> Any:
+    """The ParameterValue of ``name`` on node ``target``; ParameterError if it has none."""
     from rcl_interfaces.msg import ParameterType
     from rcl_interfaces.srv import GetParameters
 
-    target = full_name(node_name)
-    with graph_node("param_client") as (node, ex):
-        g = _client(node, ex, GetParameters, f"{target}/get_parameters", timeout)
-        values = _call(ex, g, GetParameters.Request(names=[name]), timeout,
-                       f"{target}/get_parameters").values
+    g = _client(node, ex, GetParameters, f"{target}/get_parameters", timeout)
+    values = _call(ex, g, GetParameters.Request(names=[name]), timeout,
+                   f"{target}/get_parameters").values
     if not values or values[0].type == ParameterType.PARAMETER_NOT_SET:
         raise ParameterError(name, f"not a parameter of {target}")
-    return _from_value(values[0])
+    return values[0]
+
+
+def get_parameter(node_name: str, name: str, timeout: float = 5.0) -> Any:
+    target = full_name(node_name)
+    with graph_node("param_client") as (node, ex):
+        return _from_value(_current(node, ex, target, name, timeout))
 
 
 def _to_value(raw: str, current: Any) -> Any:
@@ -163,17 +168,11 @@ def set_parameter(node_name: str, name: str, raw: str, timeout: float = 5.0) -> 
     """Set one parameter; returns the value now in force. A rejected set raises
     ParameterError with the node's reason."""
     from rcl_interfaces.msg import Parameter
-    from rcl_interfaces.msg import ParameterType as T
-    from rcl_interfaces.srv import GetParameters, SetParameters
+    from rcl_interfaces.srv import SetParameters
 
     target = full_name(node_name)
     with graph_node("param_client") as (node, ex):
-        g = _client(node, ex, GetParameters, f"{target}/get_parameters", timeout)
-        current = _call(ex, g, GetParameters.Request(names=[name]), timeout,
-                        f"{target}/get_parameters").values
-        if not current or current[0].type == T.PARAMETER_NOT_SET:
-            raise ParameterError(name, f"not a parameter of {target}")
-        value = _to_value(raw, current[0])
+        value = _to_value(raw, _current(node, ex, target, name, timeout))
         s = _client(node, ex, SetParameters, f"{target}/set_parameters", timeout)
         result = _call(ex, s, SetParameters.Request(parameters=[Parameter(name=name,
                                                                           value=value)]),
