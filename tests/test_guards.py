@@ -41,9 +41,15 @@ class Injector:
     def _node(self) -> Any:
         from mechsim.ros.simulator import SimulatorNode
 
+        def live(o: Any) -> bool:  # nodes of earlier tests may outlive their context
+            try:
+                return bool(o.context.ok())
+            except ReferenceError:
+                return False
+
         nodes = [o for o in gc.get_objects()
                  if isinstance(o, SimulatorNode) and o.instance.name == self.victim
-                 and o.failed is None and o.context.ok()]
+                 and o.failed is None and live(o)]
         assert len(nodes) == 1
         return nodes[0]
 
