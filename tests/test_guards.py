@@ -41,15 +41,14 @@ class Injector:
     def _node(self) -> Any:
         from mechsim.ros.simulator import SimulatorNode
 
-        def live(o: Any) -> bool:  # nodes of earlier tests may outlive their context
+        def victim(o: Any) -> bool:  # gc also holds dead weak proxies of earlier tests
             try:
-                return bool(o.context.ok())
+                return (isinstance(o, SimulatorNode) and o.instance.name == self.victim
+                        and o.failed is None and bool(o.context.ok()))
             except ReferenceError:
                 return False
 
-        nodes = [o for o in gc.get_objects()
-                 if isinstance(o, SimulatorNode) and o.instance.name == self.victim
-                 and o.failed is None and live(o)]
+        nodes = [o for o in gc.get_objects() if victim(o)]
         assert len(nodes) == 1
         return nodes[0]
 
