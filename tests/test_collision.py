@@ -41,10 +41,10 @@ def test_contact_event_and_laws_across_the_impulse(runs: dict) -> None:
         # no overlap at any sample, and the spheres separate after the contact
         gap = r.observables["gap"]
         assert gap.min() > -1e-12 and gap[-1] > 30.0
-        T0 = 0.5 * m.value("mass_1") * m.value("initial_speed") ** 2
+        T0 = 0.5 * m.value("mass_1") * m.value("initial.speed") ** 2
         assert np.max(np.abs(r.total - T0)) < 1e-14 * T0
         assert np.max(np.abs(r.balance_residual)) < 1e-14 * T0
-        p0 = m.value("mass_1") * m.value("initial_speed")
+        p0 = m.value("mass_1") * m.value("initial.speed")
         inv = r.invariants
         assert np.max(np.abs(inv["momentum_x"] - p0)) < 1e-14 * p0
         assert np.max(np.abs(inv["momentum_y"])) < 1e-14 * p0
@@ -52,12 +52,12 @@ def test_contact_event_and_laws_across_the_impulse(runs: dict) -> None:
         assert abs(L0 + p0 * m.value("impact_parameter")) < 1e-14
         assert np.max(np.abs(inv["angular_momentum"] - L0)) < 1e-13  # |r||p| ~ 40 at the end
         mu = m.value("mass_1") * m.value("mass_2") / (m.value("mass_1") + m.value("mass_2"))
-        Tcm = 0.5 * mu * m.value("initial_speed") ** 2  # T₀′ = ½μu₁² (line 1249 fixed)
+        Tcm = 0.5 * mu * m.value("initial.speed") ** 2  # T₀′ = ½μu₁² (line 1249 fixed)
         assert np.max(np.abs(inv["internal_kinetic_energy"] - Tcm)) < 1e-14 * Tcm
         # the CM frame moves uniformly at V = m₁u₁/M
         names = [f.child for f in m.frames]
         cm = r.outputs.frames[:, names.index("cm"), :2]
-        V = m.value("mass_1") * m.value("initial_speed") / (m.value("mass_1") + m.value("mass_2"))
+        V = m.value("mass_1") * m.value("initial.speed") / (m.value("mass_1") + m.value("mass_2"))
         np.testing.assert_allclose(cm[:, 0] - cm[0, 0], V * r.t, atol=1e-12)
         assert np.max(np.abs(cm[:, 1] - cm[0, 1])) < 1e-13
         # CM-frame velocities: u₁′ = v₁′ = m₂u₁/M, u₂′ = v₂′ = V (eq. 5.2, line 1130)
@@ -181,9 +181,9 @@ def test_miss_goes_straight() -> None:
 
 
 def test_parameter_validation() -> None:
-    with pytest.raises(ParameterError, match="^initial_distance: must be > radius_1"):
-        load(initial_distance=0.2)
-    with pytest.raises(ParameterError, match="^initial_distance: must be > impact_parameter"):
+    with pytest.raises(ParameterError, match="^initial.distance: must be > radius_1"):
+        load(**{"initial.distance": 0.2})
+    with pytest.raises(ParameterError, match="^initial.distance: must be > impact_parameter"):
         load(impact_parameter=2.0)
     with pytest.raises(ParameterError, match="^radius_2: must be > 0"):
         load(radius_2=0.0)

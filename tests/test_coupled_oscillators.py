@@ -75,7 +75,7 @@ def test_modal_solution_and_mode_energies() -> None:
 
 
 def test_pure_mode_stays_pure() -> None:
-    mod = model(count=4, initial_mode=3, coupling_constant=1.0)
+    mod = model(count=4, **{"initial.mode": 3}, coupling_constant=1.0)
     r = mechsim.simulate(mod, 10.0, 0.1, tolerance=1e-12)
     assert r.invariants["mode_energy_3"][0] == pytest.approx(r.total[0], rel=1e-14)
     for i in (1, 2, 4):
@@ -90,7 +90,7 @@ def test_beats_and_transfer_time() -> None:
     of x₁ vanishes at t* = π/(ω₁ − ω₂) ≈ π/(2εω₀): x₁ = 0 and ẋ₁ = −DΔ cos(Σt*) with
     Σ, Δ = (ω₁ ± ω₂)/2, so mass 1 keeps only an O(ε²) share of the energy."""
     k, kc, m, D = 4.0, 0.2, 1.0, 0.3
-    mod = model(spring_constant=k, coupling_constant=kc, mass=m, initial_amplitude=D)
+    mod = model(spring_constant=k, coupling_constant=kc, mass=m, **{"initial.amplitude": D})
     wa, ws = math.sqrt((k + 2 * kc) / m), math.sqrt(k / m)
     t_star = math.pi / (wa - ws)
     assert mod.transfer_time() == pytest.approx(t_star, rel=1e-14)
@@ -138,7 +138,7 @@ def test_frames() -> None:
 
 @pytest.mark.parametrize("kw,field", [({"count": 0}, "count"), ({"count": 2.5}, "count"),
                                       ({"count": 13}, "count"),
-                                      ({"count": 3, "initial_mode": 4}, "initial_mode"),
+                                      ({"count": 3, "initial.mode": 4}, "initial.mode"),
                                       ({"coupling_constant": -1.0}, "coupling_constant")])
 def test_parameter_validation(kw: dict, field: str) -> None:
     with pytest.raises(ParameterError) as err:

@@ -161,3 +161,15 @@ def test_registered_system_runs_through_the_node_graph(spring_particle: None,
     x, z, _, _ = closed_form(t)
     np.testing.assert_allclose([p.x for _, p in poses], x, atol=1e-6)
     np.testing.assert_allclose([p.z for _, p in poses], z, atol=1e-6)
+
+
+def test_initial_conditions_follow_one_rule() -> None:
+    """The README's rule: everything that sets the initial state is `initial.<name>` or
+    `initial_rate.<name>` (no `initial_speed`-style names)."""
+    from mechsim.systems import system_class, system_ids
+
+    bad = [f"{sid}: {p.name}" for sid in system_ids()
+           for p in system_class(sid).parameter_spec()
+           if p.name.startswith("initial") and not p.name.startswith(("initial.",
+                                                                       "initial_rate."))]
+    assert not bad, bad

@@ -136,7 +136,7 @@ def test_document_orbit_integral_gives_the_rutherford_angle() -> None:
         theta = float(mp.pi - 2 * Theta)
         assert abs(theta - 2 * math.atan(k / (2 * E * b))) < 1e-14
         assert abs(theta - float(m.deflection(b))) < 1e-14
-        mb = m.with_values(impact_parameter=b, initial_distance=30.0)
+        mb = m.with_values(impact_parameter=b, **{"initial.distance": 30.0})
         r = mechsim.simulate(mb, 1.0, 1.0, tolerance=1e-12, method="dop853")
         assert np.max(np.abs(r.observables["asymptotic_cm_angle"] - theta)) < 1e-10
 
@@ -199,7 +199,7 @@ def test_hard_sphere_beam() -> None:
 
 
 def test_rutherford_beam() -> None:
-    m = load(initial_distance=1000.0, mass_1=1.0, mass_2=4.0)
+    m = load(**{"initial.distance": 1000.0}, mass_1=1.0, mass_2=4.0)
     B = beam(m, count=2000, bins=20)
     k, E = m.force_constant(), m.cm_energy()
     b = B.impact_parameters
@@ -235,10 +235,10 @@ def test_parameter_validation() -> None:
         load(target="soft")
     with pytest.raises(ParameterError, match="^charge_2: must be nonzero and of the sign"):
         load(charge_2=-1e-5)
-    with pytest.raises(ParameterError, match="^initial_distance: must be > the closest"):
-        load(initial_distance=1.0)
-    with pytest.raises(ParameterError, match="^initial_distance: must be > sphere_radius"):
-        load(target="hard_sphere", initial_distance=1.5)
+    with pytest.raises(ParameterError, match="^initial.distance: must be > the closest"):
+        load(**{"initial.distance": 1.0})
+    with pytest.raises(ParameterError, match="^initial.distance: must be > sphere_radius"):
+        load(target="hard_sphere", **{"initial.distance": 1.5})
     with pytest.raises(ParameterError, match="^energy: must be > 0"):
         load(energy=0.0)
     with pytest.raises(ParameterError, match="^spacing: must be log or area"):

@@ -988,7 +988,7 @@ def coupled_oscillators(count: int = 2, t_end: float = 100.0, n_samples: int = 2
     U /= np.linalg.norm(U, axis=1)[:, None]
     w = np.sqrt((k + 4 * kc * np.sin(r * math.pi / (2 * n)) ** 2) / m)
     x0 = np.zeros(n)
-    x0[0] = D  # mechsim's initial_mode 0: only mass 1 displaced
+    x0[0] = D  # mechsim's initial.mode 0: only mass 1 displaced
     y0 = np.concatenate([x0, np.zeros(n)])
     lap = np.zeros((n, n))  # path-graph Laplacian: one coupling spring per neighbour pair
     for i in range(n - 1):
@@ -1010,7 +1010,7 @@ def coupled_oscillators(count: int = 2, t_end: float = 100.0, n_samples: int = 2
 
     return Problem(f"coupled_oscillators_{n}", "coupled_oscillators",
                    {"count": n, "mass": m, "spring_constant": k, "coupling_constant": kc,
-                    "initial_mode": 0, "initial_amplitude": D}, t_end, n_samples,
+                    "initial.mode": 0, "initial.amplitude": D}, t_end, n_samples,
                    f"{n} coupled oscillators, m = {m}, κ = {k}, κ₁₂ = {kc}, mass 1 displaced "
                    f"by {D} m; {t_end:g} s", _coupled_deriv, np.array([k / m, kc / m]), y0,
                    reference, "closed form (normal modes)", 2 * math.pi / float(w.max()),

@@ -69,7 +69,7 @@ def beam(model: Scattering, count: int = 2000, bins: int = 20,
          tolerance: float = 1e-10) -> Beam:
     """Run a beam of ``count`` rings of impact parameter in ``b_range`` (default: [0, a] for the
     hard sphere; the b of θ = 170° … 10° for the Coulomb centre), one trajectory per ring edge,
-    each through the model's compiled DOP853 loop from |r| = ``initial_distance`` until the
+    each through the model's compiled DOP853 loop from |r| = ``initial.distance`` until the
     projectile is beyond 1.2 × that distance again, and histogram dσ = 2πb db over the
     measured CM angle θ (direction of the final ṙ) and LAB angle ψ (of the final v₁ = V +
     (m₂/M)ṙ, with |ṙ| brought to its value at infinity by energy conservation for the Coulomb
@@ -94,7 +94,7 @@ def beam(model: Scattering, count: int = 2000, bins: int = 20,
     weights = np.pi * np.diff(bs**2)
     m1, m2 = model.value("mass_1"), model.value("mass_2")
     M = m1 + m2
-    u, D = model.speed(), model.value("initial_distance")
+    u, D = model.speed(), model.value("initial.distance")
     k, mu = model.force_constant(), model.reduced_mass()
     scale = model.force_constant() / model.cm_energy() if coulomb \
         else model.value("sphere_radius")

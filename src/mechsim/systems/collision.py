@@ -12,7 +12,7 @@ along the line of centres (frictionless spheres), which conserves momentum, kine
 angular momentum exactly across the jump.
 
 Conventions: motion in the world x–y plane (z = 0), which is the LAB frame; particle 2 starts at
-the origin, particle 1 at distance ``initial_distance`` on the line y = b (b ≥ 0 above the axis).
+the origin, particle 1 at distance ``initial.distance`` on the line y = b (b ≥ 0 above the axis).
 Formulations: ``lab`` (coordinates x_1, y_1, x_2, y_2) and ``cm`` (centre of mass cm_x, cm_y
 and relative position x, y of r = r₁ − r₂; T = ½MṘ² + ½μṙ²). Frames: ``cm`` (the CM frame,
 translating at the constant V = m₁u₁/M), ``particle_1`` and ``particle_2`` as children of ``cm``
@@ -65,27 +65,27 @@ class Collision(LagrangianModel):
         positive("mass_2", 1.0, "kg", "mass m₂ of the struck particle (at rest in the LAB)"),
         positive("radius_1", 0.1, "m", "radius R₁ of sphere 1"),
         positive("radius_2", 0.15, "m", "radius R₂ of sphere 2"),
-        positive("initial_speed", 1.0, "m/s", "LAB speed u₁ of particle 1 (along +x)"),
+        positive("initial.speed", 1.0, "m/s", "LAB speed u₁ of particle 1 (along +x)"),
         nonnegative("impact_parameter", 0.15, "m", "impact parameter b: distance of particle "
                     "2's centre from the line of u₁ (a collision needs b < R₁ + R₂)"),
-        positive("initial_distance", 1.0, "m", "initial distance |r₁ − r₂| of the centres"),
+        positive("initial.distance", 1.0, "m", "initial distance |r₁ − r₂| of the centres"),
     )
 
     def check(self) -> None:
         a = self.value("radius_1") + self.value("radius_2")
-        d = self.value("initial_distance")
+        d = self.value("initial.distance")
         if d <= a:
-            raise ParameterError("initial_distance", f"must be > radius_1 + radius_2 = {a:g} "
+            raise ParameterError("initial.distance", f"must be > radius_1 + radius_2 = {a:g} "
                                  "(the spheres must not overlap)")
         if d <= self.value("impact_parameter"):
-            raise ParameterError("initial_distance", "must be > impact_parameter")
+            raise ParameterError("initial.distance", "must be > impact_parameter")
 
     def declare(self, b: LagrangianBuilder) -> None:
         m1, m2 = b.param("mass_1"), b.param("mass_2")
         M = m1 + m2
         mu = m1 * m2 / M
         a = b.param("radius_1") + b.param("radius_2")
-        u = b.param("initial_speed")
+        u = b.param("initial.speed")
         if self.formulation == "lab":
             x1, dx1 = b.coordinate("x_1", "m")
             y1, dy1 = b.coordinate("y_1", "m")
@@ -131,9 +131,9 @@ class Collision(LagrangianModel):
 
     # --- state ----------------------------------------------------------------------------------
     def _lab_initial(self) -> tuple[np.ndarray, ...]:
-        d, bb = self.value("initial_distance"), self.value("impact_parameter")
+        d, bb = self.value("initial.distance"), self.value("impact_parameter")
         r1 = np.array([-math.sqrt(d * d - bb * bb), bb])
-        return r1, np.zeros(2), np.array([self.value("initial_speed"), 0.0]), np.zeros(2)
+        return r1, np.zeros(2), np.array([self.value("initial.speed"), 0.0]), np.zeros(2)
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         r1, r2, v1, v2 = self._lab_initial()
@@ -155,7 +155,7 @@ class Collision(LagrangianModel):
         return y
 
     def time_scale(self) -> float:
-        return (self.value("radius_1") + self.value("radius_2")) / self.value("initial_speed")
+        return (self.value("radius_1") + self.value("radius_2")) / self.value("initial.speed")
 
     def visuals(self) -> tuple[Visual, ...]:
         return (Visual("sphere", "particle_1", radius=self.value("radius_1"), color=(255, 170, 60)),
@@ -171,11 +171,11 @@ class Collision(LagrangianModel):
     def contact_time(self) -> float:
         """Relative motion is x = −√(d² − b²) + u₁t at height b: touches at x = −√(a² − b²)."""
         a = self.value("radius_1") + self.value("radius_2")
-        d, bb = self.value("initial_distance"), self.value("impact_parameter")
+        d, bb = self.value("initial.distance"), self.value("impact_parameter")
         if bb >= a:
             return math.inf
         return (math.sqrt(d * d - bb * bb) - math.sqrt(a * a - bb * bb)) / self.value(
-            "initial_speed")
+            "initial.speed")
 
     def cm_angle(self) -> float:
         """θ = 2 arccos(b/(R₁ + R₂)) (reflection at the contact normal; seed 003 line 1343)."""

@@ -18,8 +18,8 @@ oscillators' own energies ½ m ẋ_j² + ½ κ x_j² (observables ``oscillator_e
 energy in beats. The document's claim (line 2088) that n/2 frequencies lie above
 ω₀ = √((κ + κ₁₂)/m) belongs to a chain with walls at both ends, not to this one.
 
-Initial conditions: ``initial_mode`` = 0 gives the document's x₁(0) = D = ``initial_amplitude``,
-all other x and ẋ zero (line 2121); ``initial_mode`` = r starts in pure mode r with the largest
+Initial conditions: ``initial.mode`` = 0 gives the document's x₁(0) = D = ``initial.amplitude``,
+all other x and ẋ zero (line 2121); ``initial.mode`` = r starts in pure mode r with the largest
 displacement D.
 
 Document typos corrected (catalog 003 §8.1–8.4): e^{±iωt} for e^{−ωt} (2028–2050); the η₁
@@ -71,9 +71,9 @@ class CoupledOscillators(LagrangianModel):
         positive("spring_constant", 4.0, "N/m", "spring κ tying each mass to its anchor"),
         nonnegative("coupling_constant", 0.4, "N/m", "spring κ₁₂ between neighbours"),
         positive("spacing", 1.0, "m", "equilibrium distance between neighbours (display)"),
-        Parameter("initial_mode", 0, "", "0: only mass 1 displaced (x₁ = D); r ≥ 1: pure "
+        Parameter("initial.mode", 0, "", "0: only mass 1 displaced (x₁ = D); r ≥ 1: pure "
                   "normal mode r (ascending frequency)", minimum=0, maximum=MAX_COUNT),
-        Parameter("initial_amplitude", 0.2, "m", "initial displacement D"),
+        Parameter("initial.amplitude", 0.2, "m", "initial displacement D"),
     )
 
     @property
@@ -81,9 +81,9 @@ class CoupledOscillators(LagrangianModel):
         return int(self.values["count"])
 
     def check(self) -> None:
-        if int(self.values["initial_mode"]) > self.count:
-            raise ParameterError("initial_mode", f"must be ≤ count = {self.count} "
-                                 f"(got {self.values['initial_mode']})")
+        if int(self.values["initial.mode"]) > self.count:
+            raise ParameterError("initial.mode", f"must be ≤ count = {self.count} "
+                                 f"(got {self.values['initial.mode']})")
 
     def declare(self, b: LagrangianBuilder) -> None:
         n = self.count
@@ -110,8 +110,8 @@ class CoupledOscillators(LagrangianModel):
             b.frame(f"mass_{j + 1}", "chain", (j * s + xs[j], 0, 0))
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        n, D = self.count, self.value("initial_amplitude")
-        r = int(self.values["initial_mode"])
+        n, D = self.count, self.value("initial.amplitude")
+        r = int(self.values["initial.mode"])
         x = np.zeros(n)
         if r == 0:
             x[0] = D

@@ -21,7 +21,7 @@ T = ½MṘ² + ½μṙ² (the two-body reduction of seed 003 §4.1, as in ``cent
 the target is at rest and the projectile comes in along +x with kinetic energy T₀ (``energy``) on
 the line y = b (``impact_parameter``); so V = m₁u₁/M, the relative speed at infinity is u₁ and
 the CM energy is E = T₀′ = ½μu₁² = (m₂/M) T₀.
-The run starts at |r| = ``initial_distance``: for the Coulomb centre on the exact hyperbola whose
+The run starts at |r| = ``initial.distance``: for the Coulomb centre on the exact hyperbola whose
 incoming asymptote is that line (from E, L and the Laplace–Runge–Lenz vector), so the long range
 of 1/r does not bias the deflection; the target sits at the world origin at t = 0. Motion in the
 world x–y plane (LAB); frames ``cm`` (translating at V) and ``particle_1``, ``particle_2`` in it.
@@ -81,7 +81,7 @@ class Scattering(LagrangianModel):
         number("charge_1", 1e-5, "C", "projectile charge q₁ (coulomb)"),
         number("charge_2", 1e-5, "C", "target charge q₂, same sign as q₁ (coulomb)"),
         nonnegative("impact_parameter", 1.0, "m", "impact parameter b"),
-        positive("initial_distance", 10.0, "m", "initial distance |r₁ − r₂| of projectile and "
+        positive("initial.distance", 10.0, "m", "initial distance |r₁ − r₂| of projectile and "
                  "target"),
     )
 
@@ -90,7 +90,7 @@ class Scattering(LagrangianModel):
         return str(self.values["target"])
 
     def check(self) -> None:
-        d, b = self.value("initial_distance"), self.value("impact_parameter")
+        d, b = self.value("initial.distance"), self.value("impact_parameter")
         if self.target == "coulomb":
             if not self.force_constant() > 0.0:
                 raise ParameterError("charge_2", "must be nonzero and of the sign of charge_1 "
@@ -99,11 +99,11 @@ class Scattering(LagrangianModel):
                 raise ParameterError("charge_2", "k = q₁q₂/(4πε₀) / energy out of range")
             rmin = coulomb_closest_approach(b, self.force_constant(), self.cm_energy())
             if not d > rmin:
-                raise ParameterError("initial_distance", f"must be > the closest approach "
+                raise ParameterError("initial.distance", f"must be > the closest approach "
                                      f"r_min = {rmin:.6g} m")
         else:
             if not d > max(b, self.value("sphere_radius")):
-                raise ParameterError("initial_distance", "must be > sphere_radius and > "
+                raise ParameterError("initial.distance", "must be > sphere_radius and > "
                                      "impact_parameter")
 
     # --- derived constants ----------------------------------------------------------------------
@@ -173,7 +173,7 @@ class Scattering(LagrangianModel):
     # --- state ----------------------------------------------------------------------------------
     def relative_state(self, b: float) -> tuple[np.ndarray, np.ndarray]:
         """Relative position and velocity at t = 0 for impact parameter ``b``."""
-        d, u = self.value("initial_distance"), self.speed()
+        d, u = self.value("initial.distance"), self.speed()
         if self.target == "coulomb":
             return coulomb_incoming_state(self.reduced_mass(), self.force_constant(), u, b, d)
         return np.array([-math.sqrt(d * d - b * b), b]), np.array([u, 0.0])
