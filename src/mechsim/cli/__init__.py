@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 
 from mechsim.errors import MechsimError
@@ -27,6 +28,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # Ctrl-C stops a command even where it was started with SIGINT ignored (a background job
+    # of a script, a test runner's worker): Python only installs its handler if not.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:  # Ctrl-C while the parser's modules import is a quiet 130 too
         a = build_parser().parse_args(argv)
         return int(a.func(a))

@@ -41,8 +41,9 @@ if TYPE_CHECKING:
 #: Seconds of discovery before the graph is checked for duplicate names and /clock. A new
 #: participant learns of the running ones from their periodic announcements, every 0.5 s with
 #: the project's profile (Fast DDS's default, 3 s, made discovery take 0.1-3.0 s; with 0.5 s a
-#: probe found a running node within 0.8 s in 8 of 8 tries).
-GRAPH_WAIT = 1.0
+#: probe found a running node within 0.8 s in 8 of 8 tries on a quiet machine; 2 s leaves
+#: room for a loaded one).
+GRAPH_WAIT = 2.0
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go).
 FAST_CHUNK = 500
 #: Seconds a node found in the graph has to answer before it counts as gone (killed).
