@@ -487,3 +487,39 @@ def test_node_process_stopped_while_starting_is_quiet(ros_env: dict[str, str],
     _, err = proc.communicate(timeout=120)
     assert "Traceback" not in err and "error" not in err, err
     assert proc.returncode in (0, 130, -signal.SIGTERM), (proc.returncode, err)
+
+
+def test_a_stop_wrapped_by_compiled_code_stops_the_run(ros_context: Any,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Ctrl-C landing inside a compiled call surfaces as ``SystemError: ... returned a result
+    with an exception set`` caused by the KeyboardInterrupt (seen in CI). It must end the run as
+    an interruption, never mark the system failed and run on."""
+    from mechsim.ros import simulator
+    from mechsim.ros.launch import run_scene
+    from mechsim.scene import single_system_scene
+
+    real = simulator.make_stepper
+    calls = {"n": 0}
+
+    def make(*args: Any, **kw: Any) -> Any:
+        stepper = real(*args, **kw)
+        advance = stepper.advance
+
+        def interrupted_advance(times: Any) -> Any:
+            calls["n"] += 1
+            if calls["n"] == 3:
+                try:
+                    raise KeyboardInterrupt
+                except KeyboardInterrupt as stop:
+                    raise SystemError("CPUDispatcher(...) returned a result with an exception "
+                                      "set") from stop
+            return advance(times)
+
+        stepper.advance = interrupted_advance
+        return stepper
+
+    monkeypatch.setattr(simulator, "make_stepper", make)
+    run = run_scene(single_system_scene("pendulum"), fast=True, duration=1e6,
+                    context=ros_context)
+    assert run.interrupted and not run.failures, run.failures
+    assert calls["n"] == 3 and 0 < run.sim_time < 1e6

@@ -65,8 +65,8 @@ class SceneRun:
     interrupted: bool = False
 
 
-class _Stop(Exception):
-    pass
+class _Stop(BaseException):
+    """SIGTERM during a run: a stop, like KeyboardInterrupt, never taken for an error."""
 
 
 class DiagnosticsFeed:
@@ -252,6 +252,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
             for n in nodes:
                 n.advance_to(t_next)
             k, t = k_next, t_next
+            if all(n.failed for n in nodes):
+                break  # every system stopped with an error: nothing left to run
             # Services and parameter requests are served between chunks, every 20 ms of
             # wall time at most (building the executor's wait set costs ~0.5 ms).
             now = time.monotonic()

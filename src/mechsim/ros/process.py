@@ -43,6 +43,20 @@ def _interrupt(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
 
 
+def raise_if_stop(error: BaseException) -> None:
+    """Re-raise the stop inside ``error``, if any. A Ctrl-C or SIGTERM that lands while compiled
+    or C code runs comes out wrapped (``SystemError: ... returned a result with an exception
+    set``, the KeyboardInterrupt as its cause): without this, a handler for a system's own
+    failures would take the stop for one and the run would go on."""
+    seen: set[int] = set()
+    e: BaseException | None = error
+    while e is not None and id(e) not in seen:
+        if not isinstance(e, Exception):
+            raise e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+
+
 @contextmanager
 def held_signals() -> Iterator[None]:
     """Hold SIGINT and SIGTERM for the block (files being created or completed) and raise

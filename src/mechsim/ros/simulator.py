@@ -81,7 +81,7 @@ from mechsim.ros.outlet import (
 )
 from mechsim.ros.parameters import descriptor
 from mechsim.ros.prepare import PREPARE_TIMEOUT, prepare_model
-from mechsim.ros.process import held_signals
+from mechsim.ros.process import held_signals, raise_if_stop
 from mechsim.scene import Instance, instance_name
 from mechsim.simulate import Outputs, evaluate
 from mechsim.systems import system_class
@@ -373,6 +373,7 @@ class SimulatorNode(Node):
                 self._fail(str(e))
                 break
             except Exception as e:  # noqa: BLE001 - e.g. numba errors from extreme values:
+                raise_if_stop(e)
                 self._fail(f"integration failed: {_reason(e)}")  # this system only
                 break
             published += self._emit(times, Y)
@@ -419,6 +420,7 @@ class SimulatorNode(Node):
         try:
             self._restart()
         except Exception as e:  # noqa: BLE001 - answered, never raised into the executor
+            raise_if_stop(e)
             response.success = False
             response.message = f"{self.instance.name}: reset failed: {_reason(e)}"
             return response
@@ -445,6 +447,7 @@ class SimulatorNode(Node):
         except MechsimError as e:
             return SetParametersResult(successful=False, reason=str(e))
         except Exception as e:  # noqa: BLE001 - a rejected set, never an executor error
+            raise_if_stop(e)
             names = ", ".join(p.name for p in params)
             return SetParametersResult(successful=False, reason=f"{names}: {_reason(e)}")
         self._pending = change
@@ -495,6 +498,7 @@ class SimulatorNode(Node):
         except MechsimError:
             raise
         except Exception as e:  # noqa: BLE001 - e.g. a division by zero at extreme values
+            raise_if_stop(e)
             names = ", ".join(p.name for p in params)
             raise MechsimError(f"{names}: cannot integrate with these values "
                                f"({_reason(e)})") from None
@@ -507,6 +511,7 @@ class SimulatorNode(Node):
         try:
             self._commit(change)
         except Exception as e:  # noqa: BLE001 - never out of the executor: this system stops
+            raise_if_stop(e)
             self._fail(f"applying {', '.join(p.name for p in params)} failed: {_reason(e)}")
 
     def _commit(self, c: _Change) -> None:
