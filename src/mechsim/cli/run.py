@@ -37,18 +37,18 @@ def cmd_run(a: argparse.Namespace) -> int:
         return run_single_node(scene, None if a.only == "diagnostics" else a.only,
                                fast=a.fast, duration=duration)
     if a.processes:
-        if a.bag:
-            raise ParameterError("--bag", "not available with --processes (record in-process)")
-        if a.rrd:
-            raise ParameterError("--rrd", "not available with --processes (record in-process)")
         from mechsim.ros.launch import run_processes
-        if scene.bag or scene.rrd:
-            say("the scene's outputs (bag, rrd) are recorded in-process only; not with "
-                "--processes (use `mechsim record`)")
-        say(f"{len(scene.systems)} simulator processes and a diagnostics process "
-            "(Ctrl-C stops them)")
-        return run_processes(a.target, scene, a.set, duration, rate=a.rate, fast=a.fast,
-                             name=a.name)
+        consumers = "a diagnostics process" + (" and a recorder process"
+                                               if bag is not None or rrd is not None else "")
+        say(f"{len(scene.systems)} simulator processes, {consumers} (Ctrl-C stops them)")
+        run, lines, status = run_processes(a.target, scene, a.set, duration, rate=a.rate,
+                                           fast=a.fast, name=a.name, bag=bag, rrd=rrd)
+        if status == 2:  # a refused start: its process said why
+            return status
+        print_summary(run)
+        for line in lines:
+            print(f"  outputs: {line}")
+        return status or (1 if run.failures else 0)
     from mechsim.ros.launch import run_scene
 
     fast = True if a.fast else None

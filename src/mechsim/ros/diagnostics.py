@@ -170,6 +170,8 @@ class DiagnosticsNode(Node):
         self.systems: dict[str, SystemState] = {}
         self._follows: dict[str, _Follow] = {}
         self._quiet: dict[str, float] = {}  # forgotten while still in the graph: when
+        #: Messages received over DDS (a process draining before it stops watches it).
+        self.received = 0
         self.ignored = 0  # messages from a publisher that does not own the stream
         self.outlet = Outlet(self, sinks)
         self.t_diag = self.outlet.channel("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS)
@@ -272,6 +274,7 @@ class DiagnosticsNode(Node):
 
     # --- receiving ----------------------------------------------------------------------------
     def _dds(self, ns: str, stream: str, msg: Any, info: Any) -> None:
+        self.received += 1
         self._receive(ns, stream, msg, _publisher(info))
 
     def feed(self, ns: str, stream: str, msg: Any) -> None:

@@ -299,12 +299,27 @@ def _spawn(args: list[str]) -> subprocess.Popen[bytes]:
                             env=dict(os.environ), start_new_session=True)
 
 
+#: Seconds a simulator process waits for its consumers' subscriptions (diagnostics, recorder)
+#: before it steps anyway, with a warning.
+CONSUMER_WAIT = 60.0
+#: A consumer process stops once nothing arrived for this long after its stop signal (the
+#: simulators waited for every reader's acknowledgment before they exited).
+DRAIN_QUIET = 0.5
+
+
 def run_processes(target: str, scene: Scene, sets: list[str], duration: float | None, *,
-                  rate: float | None = None, fast: bool = False,
-                  name: str | None = None) -> int:
-    """Each simulator node and the diagnostics node in its own process. Simulators stop at
-    ``duration`` by themselves; Ctrl-C / SIGTERM stop all. Returns the first non-zero exit
-    status of a child, else 0."""
+                  rate: float | None = None, fast: bool = False, name: str | None = None,
+                  bag: str | None = None, rrd: str | None = None,
+                  say: Callable[[str], None] | None = None) -> tuple[SceneRun, list[str], int]:
+    """Each simulator node, the diagnostics node and (with ``bag`` or ``rrd``) a recorder node
+    in its own process. The simulators wait for the diagnostics' and the recorder's
+    subscriptions before their first step, stop at ``duration`` by themselves and let every
+    reader acknowledge what they sent; then the consumers drain and stop. Ctrl-C / SIGTERM
+    stop all. Returns (the run as each process reported it, output lines, exit status: the
+    first non-zero status of a child, else 0)."""
+    import json
+    import tempfile
+
     common = [target, "--parent", str(os.getpid()), *[a for s in sets for a in ("--set", s)]]
     if rate is not None:
         common += ["--rate", repr(float(rate))]
@@ -314,20 +329,34 @@ def run_processes(target: str, scene: Scene, sets: list[str], duration: float | 
         common += ["--duration", repr(float(duration))]
     if name is not None:
         common += ["--name", name]
+    recording = bag is not None or rrd is not None
     previous_term = signal.getsignal(signal.SIGTERM)
     stop_on_sigterm()
     sims: dict[str, subprocess.Popen[bytes]] = {}
-    diag = None
+    consumers: list[subprocess.Popen[bytes]] = []
     status = 0
+    interrupted = False
+    reports = tempfile.mkdtemp(prefix="mechsim-run-")
+    start = time.monotonic()
+
+    def report(role: str) -> list[str]:
+        return ["--report", os.path.join(reports, f"{role}.json")]
+
     try:
-        for inst in scene.systems:
-            sims[inst.name] = _spawn([*common, "--node", inst.name])
-        diag = _spawn([*common, "--diagnostics"])
+        consumers.append(_spawn([*common, "--diagnostics", *report("diagnostics")]))
+        if recording:
+            outs = [*(["--bag", bag] if bag else []), *(["--rrd", rrd] if rrd else [])]
+            consumers.append(_spawn([*common, "--recorder", *outs, *report("recorder")]))
+        readers = ["--await-readers", str(len(consumers))]
+        if recording:
+            readers.append("--await-recorder")
+        for i, inst in enumerate(scene.systems):
+            sims[inst.name] = _spawn([*common, "--node", inst.name, *readers,
+                                      *report(f"system{i}")])
         while True:
             running = [p for p in sims.values() if p.poll() is None]
-            codes = [p.returncode for p in sims.values() if p.returncode not in (None, 0)]
-            if diag.poll() not in (None, 0):
-                codes.append(diag.returncode)
+            codes = [p.returncode for p in [*sims.values(), *consumers]
+                     if p.returncode not in (None, 0)]
             if codes:
                 status = codes[0]
                 if status != 1:  # a refused start or an error: stop the rest
@@ -336,38 +365,127 @@ def run_processes(target: str, scene: Scene, sets: list[str], duration: float | 
                 break
             time.sleep(0.1)
     except KeyboardInterrupt:
-        pass
+        interrupted = True
     finally:
-        children = [*sims.values(), *([diag] if diag is not None else [])]
-        for p in children:
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-        for p in children:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        wall = time.monotonic() - start
+        # Simulators first (they let their readers acknowledge), then the consumers drain.
+        for group in (list(sims.values()), consumers):
+            for p in group:
+                if p.poll() is None:
+                    p.send_signal(signal.SIGTERM)
+            for p in group:
+                try:
+                    p.wait(timeout=60)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, previous_term)
-    return status
+        got: dict[str, Any] = {}
+        for f in os.listdir(reports):
+            with open(os.path.join(reports, f)) as fh:
+                got[f.removesuffix(".json")] = json.load(fh)
+            os.unlink(os.path.join(reports, f))
+        os.rmdir(reports)
+    run = SceneRun(scene=scene, sim_time=0.0, wall_time=wall, startup_time=0.0, samples={},
+                   messages={}, interrupted=interrupted or status == 130)
+    for i, inst in enumerate(scene.systems):
+        r = got.get(f"system{i}")
+        if r is None:
+            continue
+        run.sim_time = max(run.sim_time, r["t"])
+        run.startup_time = max(run.startup_time, r["startup"])
+        run.samples[inst.name] = r["samples"]
+        if r["failed"]:
+            run.failures[inst.name] = r["failed"]
+        for topic, n in r["messages"].items():
+            run.messages[topic] = run.messages.get(topic, 0) + n
+    diag = got.get("diagnostics", {})
+    run.summary = [tuple(row) for row in diag.get("summary", [])]  # type: ignore[misc]
+    for topic, n in diag.get("messages", {}).items():
+        run.messages[topic] = run.messages.get(topic, 0) + n
+    lines: list[str] = []
+    if recording:
+        rec = got.get("recorder")
+        if rec is None:
+            lines.append("the recorder process reported nothing (see its error above)")
+        else:
+            lines += rec["lines"]
+            lost = {t: n - rec["counts"].get(t, 0) for t, n in run.messages.items()
+                    if n > rec["counts"].get(t, 0)}
+            dropped = {t: n for t, n in lost.items() if t in rec["best_effort"]}
+            reliable = {t: n for t, n in lost.items() if t not in dropped}
+            total = sum(run.messages.values())
+            if reliable:
+                lines.append(f"{sum(reliable.values())} of {total} published messages on "
+                             f"reliable topics did not reach the recorder "
+                             f"({', '.join(sorted(reliable))})")
+            else:
+                lines.append("every message of the reliable topics recorded")
+            for t, n in sorted(dropped.items()):
+                lines.append(f"{t}: {run.messages[t] - n} of {run.messages[t]} recorded (best "
+                             "effort: a slow reader drops; in-process recording keeps all)")
+    return run, lines, status
+
+
+def _wait_for(ready: Callable[[], bool], spin: Callable[[], None]) -> bool:
+    """Poll ``ready`` (spinning in between) for at most ``CONSUMER_WAIT`` s."""
+    end = time.monotonic() + CONSUMER_WAIT
+    while time.monotonic() < end:
+        if ready():
+            return True
+        spin()
+    return False
+
+
+def _subscribers(node: Any) -> dict[str, int]:
+    return {t: ch.publisher.get_subscription_count() for t, ch in node.outlet.channels.items()}
+
+
+def _drain(executor: Any, received: Callable[[], int]) -> None:
+    """Spin until nothing has arrived for ``DRAIN_QUIET`` s (bounded by ``CONSUMER_WAIT``)."""
+    end = time.monotonic() + CONSUMER_WAIT
+    last, quiet_since = received(), time.monotonic()
+    while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
+        executor.spin_once(timeout_sec=0.05)
+        if received() != last:
+            last, quiet_since = received(), time.monotonic()
+
+
+def _write_report(path: str | None, data: dict[str, Any]) -> None:
+    if path is not None:
+        import json
+
+        from mechsim.files import write_atomic
+
+        write_atomic(path, json.dumps(data))
 
 
 def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
-                    duration: float | None = None) -> int:
+                    duration: float | None = None, readers: int = 0, recorder: bool = False,
+                    report: str | None = None) -> int:
     """Body of one process of ``run_processes``: the simulator of instance ``which`` (or the
-    diagnostics node for None), until ``duration`` or SIGINT/SIGTERM. Exit status 1 if the
-    system failed, else 0."""
+    diagnostics node for None), until ``duration`` or SIGINT/SIGTERM. A simulator first waits
+    for ``readers`` consumers (and the recorder's subscriptions, with ``recorder``) and lets
+    them acknowledge everything before it exits; the diagnostics node drains what is in flight
+    after its stop. ``report``: a JSON file of what the process did, for the parent. Exit
+    status 1 if the system failed, else 0."""
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
+
+    from mechsim.ros.outlet import wait_acked
 
     context = rclpy.context.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     node: Any = None
     executor = SingleThreadedExecutor(context=context)
+    sim = which is not None
+    start = time.monotonic()
+    startup = 0.0
     try:
         if which is None:
             from mechsim.ros.diagnostics import DiagnosticsNode
@@ -386,26 +504,123 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
             finally:
                 graph.close()
             rtf = 0.0 if fast or scene.pacing == "fast" else scene.real_time_factor
+            waits = bool(readers or recorder)
+            late: list[str] = []
+
+            def consumers_listen(n: Any) -> None:
+                # Before the first message: every consumer reads system_info (the diagnostics
+                # node follows a system from it), the recorder every topic.
+                if not _wait_for(lambda: _subscribers(n)[n.t_info] >= readers and (
+                        not recorder or min(_subscribers(n).values()) >= 1),
+                                 lambda: time.sleep(0.05)):
+                    late.append("system_info")
+
             node = SimulatorNode(scene.systems[idx], context=context,
                                  publish_rate=scene.publish_rate, real_time_factor=rtf,
-                                 publish_clock=(idx == 0), end_time=duration)
+                                 publish_clock=(idx == 0), end_time=duration,
+                                 before_first_message=consumers_listen if waits else None)
+            if waits:
+                node.set_paused(True)  # before the executor first runs its pacing timer
         executor.add_node(node)
-        sim = which is not None
+        if sim and waits:
+            # Then the diagnostics node's sample subscriptions, made once it had system_info.
+            if not _wait_for(lambda: _subscribers(node)[node.t_energy] >= readers,
+                             lambda: executor.spin_once(timeout_sec=0.05)):
+                late.append("energy")
+            if late:
+                node.get_logger().warning(f"{which}: the diagnostics/recorder processes did "
+                                          f"not subscribe within {CONSUMER_WAIT:g} s "
+                                          f"({', '.join(late)}); stepping anyway")
+            node.set_paused(False)
+        startup = time.monotonic() - start
+        # Recorded from another process, a stepped node sends no more than its publishers
+        # keep (their history depth) before the recorder has acknowledged it: lossless
+        # however far the simulator could run ahead.
+        chunk = FAST_CHUNK
+        if sim and recorder:
+            chunk = min(ch.qos.depth for ch in node.outlet.channels.values()
+                        if ch.qos.reliability == ReliabilityPolicy.RELIABLE
+                        and ch.qos.durability == DurabilityPolicy.VOLATILE)
         while not (sim and node.finished):
             if sim and node.stepped and not node.paused:
                 # As fast as possible, serving services and parameters in between.
-                node.advance_to(node.t + FAST_CHUNK / node.publish_rate)
+                node.advance_to(node.t + chunk / node.publish_rate)
+                if recorder:
+                    wait_acked([ch.publisher for ch in node.outlet.channels.values()],
+                               CONSUMER_WAIT)
                 executor.spin_once(timeout_sec=0)
             else:
                 executor.spin_once(timeout_sec=0.1)
     except KeyboardInterrupt:
         pass
     finally:
+        try:
+            if node is not None and sim:
+                wait_acked([ch.publisher for ch in node.outlet.channels.values()])
+            elif node is not None and report is not None:
+                _drain(executor, lambda: node.received)
+        except KeyboardInterrupt:
+            pass
+        if node is not None:
+            if sim:
+                _write_report(report, {"t": node.t, "samples": node.samples_published,
+                                       "failed": node.failed, "startup": startup,
+                                       "messages": node.outlet.counts})
+            else:
+                _write_report(report, {"summary": node.summary(),
+                                       "messages": node.outlet.counts})
         executor.shutdown()
         if node is not None:
             node.destroy_node()
         context.try_shutdown()
     return 1 if which is not None and node is not None and node.failed else 0
+
+
+def run_recorder(scene: Scene, bag: str | None, rrd: str | None,
+                 report: str | None = None) -> int:
+    """Body of the recorder process: the scene's topics from the graph into ``bag`` / ``rrd``
+    until SIGINT/SIGTERM, then what is in flight, then the outputs completed."""
+    from mechsim.environment import import_rclpy
+
+    rclpy = import_rclpy()
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from mechsim.ros.process import held_signals
+    from mechsim.ros.record import open_outputs
+    from mechsim.ros.recorder import RecorderNode
+
+    with held_signals():
+        out = open_outputs(scene, bag, rrd)
+    context = rclpy.context.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    executor = SingleThreadedExecutor(context=context)
+    node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
+    executor.add_node(node)
+    lines: list[str] = []
+    try:
+        try:
+            while True:
+                executor.spin_once(timeout_sec=0.1)
+        except KeyboardInterrupt:
+            pass
+        with held_signals():
+            _drain(executor, lambda: sum(node.counts.values()))
+            lines = out.close()
+    except BaseException as e:
+        with held_signals():
+            kept = out.finish_after_error()
+        if isinstance(e, KeyboardInterrupt):
+            raise
+        raise MechsimError(f"recorder: {(str(e).splitlines() or [type(e).__name__])[0]}; "
+                           f"{kept}") from None
+    finally:
+        _write_report(report, {"lines": lines, "counts": node.counts,
+                               "best_effort": sorted(node.best_effort)})
+        executor.shutdown()
+        node.destroy_node()
+        context.try_shutdown()
+    return 0
 
 
 def _main(argv: list[str]) -> int:
@@ -417,6 +632,12 @@ def _main(argv: list[str]) -> int:
         who.add_argument("--node", help="instance name (`diagnostics`: the diagnostics node, "
                          "unless an instance has that name)")
         who.add_argument("--diagnostics", action="store_true")
+        who.add_argument("--recorder", action="store_true")
+        ap.add_argument("--bag")
+        ap.add_argument("--rrd")
+        ap.add_argument("--report", help="JSON file of what this process did, for the parent")
+        ap.add_argument("--await-readers", type=int, default=0)
+        ap.add_argument("--await-recorder", action="store_true")
         ap.add_argument("--set", action="append", default=[])
         ap.add_argument("--rate", type=float)
         ap.add_argument("--fast", action="store_true")
@@ -434,11 +655,15 @@ def _main(argv: list[str]) -> int:
             scene.publish_rate = float(PUBLISH_RATE.check(a.rate, "--rate"))
         duration = float(DURATION.check(a.duration, "--duration")) \
             if a.duration is not None else scene.duration
+        if a.recorder:
+            return run_recorder(scene, a.bag, a.rrd, a.report)
         which = a.node
         if a.diagnostics or (which == "diagnostics"
                              and which not in [i.name for i in scene.systems]):
             which = None
-        return run_single_node(scene, which, fast=a.fast, duration=duration)
+        return run_single_node(scene, which, fast=a.fast, duration=duration,
+                               readers=a.await_readers, recorder=a.await_recorder,
+                               report=a.report)
     except MechsimError as e:
         print(f"mechsim: error: {e}", file=sys.stderr)
         return 2

@@ -4,6 +4,7 @@ Rerun logger). In-process sinks see every message, so a recording cannot drop on
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -29,6 +30,36 @@ CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
 DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST)
+
+
+def subscription_qos(offered: list[QoSProfile], reliable_depth: int = 100,
+                     best_effort_depth: int = 10) -> QoSProfile:
+    """A reader's QoS that matches every publisher offering ``offered``, as ``ros2 topic echo``
+    and rosbag2 choose it: reliable only if all are (else best effort, which matches both),
+    transient local only if all are (late joiners then get the latched message)."""
+    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+    latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+    return QoSProfile(
+        depth=reliable_depth if reliable else best_effort_depth, history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+
+
+def wait_acked(pubs: list[Any], timeout: float = 2.0) -> None:
+    """Let reliable subscribers receive the tail of what was published before the publishers
+    go (a process about to exit, a replay ending)."""
+    from rclpy.duration import Duration
+
+    end = time.monotonic() + timeout
+    for p in pubs:
+        if p.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
+            left = end - time.monotonic()
+            if left <= 0:
+                break
+            try:
+                p.wait_for_all_acked(Duration(seconds=left))
+            except Exception:  # noqa: BLE001 - best effort at shutdown
+                pass
 
 
 @dataclass

@@ -52,7 +52,7 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
         read_metadata,
         topic_qos,
     )
-    from mechsim.ros.outlet import CLOCK_QOS
+    from mechsim.ros.outlet import CLOCK_QOS, wait_acked
 
     d = Path(path)
     known = topic_qos(read_metadata(d))
@@ -103,7 +103,7 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
             stats.loops += 1
             if not loop or stats.messages == 0:
                 break
-        _wait_acked(list(pubs.values()))
+        wait_acked(list(pubs.values()))
     except KeyboardInterrupt:
         pass
     finally:
@@ -119,20 +119,3 @@ def check_topics(path: Path, known: dict[str, Any], topics: list[str] | None) ->
     if missing:
         raise ParameterError("--topics", f"{', '.join(missing)} not in bag {path} (it has: "
                              f"{', '.join(sorted(known))})")
-
-
-def _wait_acked(pubs: list[Any], timeout: float = 2.0) -> None:
-    """Let reliable subscribers receive the tail of the replay before the publishers go."""
-    from rclpy.duration import Duration
-    from rclpy.qos import ReliabilityPolicy
-
-    end = time.monotonic() + timeout
-    for p in pubs:
-        if p.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
-            left = end - time.monotonic()
-            if left <= 0:
-                break
-            try:
-                p.wait_for_all_acked(Duration(seconds=left))
-            except Exception:  # noqa: BLE001 - best effort at shutdown
-                pass

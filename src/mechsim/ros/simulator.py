@@ -138,10 +138,13 @@ class SimulatorNode(Node):
                  time_offset: float = messages.DEFAULT_TIME_OFFSET,
                  constraint_limit: float = CONSTRAINT_LIMIT_DEFAULT,
                  end_time: float | None = None,
-                 prepare_timeout: float = PREPARE_TIMEOUT) -> None:
+                 prepare_timeout: float = PREPARE_TIMEOUT,
+                 before_first_message: Callable[[SimulatorNode], None] | None = None) -> None:
         """``real_time_factor`` 0: the caller steps the node (``advance_to``), which then never
         paces itself (the parameter is read-only). ``end_time``: the node never integrates
-        past this simulation time (a scene's duration), whatever its pacing."""
+        past this simulation time (a scene's duration), whatever its pacing.
+        ``before_first_message``: called once the publishers exist, before anything is
+        published (a runner of separate processes waits there for its consumers)."""
         # Same ranges as the CLI and scenes: a bad value is a ParameterError, before ROS.
         publish_rate = float(PUBLISH_RATE.check(publish_rate, "publish_rate"))
         real_time_factor = float(REAL_TIME_FACTOR.check(real_time_factor, "real_time_factor"))
@@ -204,6 +207,8 @@ class SimulatorNode(Node):
 
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(SetBool, "~/pause", self._on_pause)
+        if before_first_message is not None:
+            before_first_message(self)
         model = self.cls(**self.values)
         self._install(model, make_stepper(model, self.method, self.tolerance))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -428,10 +433,14 @@ class SimulatorNode(Node):
         response.message = f"{self.instance.name} reset to t = 0"
         return response
 
-    def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
-        self.paused = bool(request.data)
-        if not self.paused:
+    def set_paused(self, paused: bool) -> None:
+        """Pause or resume (pacing restarts from the current state, so no catching up)."""
+        self.paused = paused
+        if not paused:
             self._start_realtime()
+
+    def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
+        self.set_paused(bool(request.data))
         response.success = True
         response.message = "paused" if self.paused else "running"
         return response

@@ -116,7 +116,7 @@ def message_yaml(msg: Any, indent: int = 0) -> str:
 # --- commands ---------------------------------------------------------------------------------
 def wait_for_type(node: Any, ex: Any, topic: str, timeout: float | None) -> tuple[str, Any]:
     """(type name, QoS) of ``topic`` once it is published; MechsimError after ``timeout``."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from mechsim.ros.outlet import subscription_qos
 
     start = time.monotonic()
     said = False
@@ -124,16 +124,7 @@ def wait_for_type(node: Any, ex: Any, topic: str, timeout: float | None) -> tupl
         types = dict(node.get_topic_names_and_types())
         infos = node.get_publishers_info_by_topic(topic) if topic in types else []
         if infos:
-            reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE
-                           for i in infos)
-            latched = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
-                          for i in infos)
-            qos = QoSProfile(
-                depth=100 if reliable else 10, history=HistoryPolicy.KEEP_LAST,
-                reliability=ReliabilityPolicy.RELIABLE if reliable
-                else ReliabilityPolicy.BEST_EFFORT,
-                durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
-                else DurabilityPolicy.VOLATILE)
+            qos = subscription_qos([i.qos_profile for i in infos])
             return types[topic][0], qos
         waited = time.monotonic() - start
         if timeout is not None and waited >= timeout:

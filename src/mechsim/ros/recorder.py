@@ -1,0 +1,105 @@
+"""The recorder node: a scene's messages recorded from the ROS graph, in a process of its own.
+
+In-process runs record through the nodes' outlets (every message, by construction). When the
+nodes run in other processes (``mechsim run --processes``) or on other hosts (``mechsim run
+--only recorder`` with the several-hosts profile), this node records what arrives over DDS
+instead: every topic under the scene's instance namespaces plus ``/tf``, ``/tf_static``,
+``/clock`` and ``/diagnostics``, subscribed as they appear, with the durability and reliability
+their publishers offer (latched topics transient-local, so late joiners still get them).
+
+Each message is decoded (for its stamp and the Rerun sink), written to the bag as the outlets
+write it (the same CDR bytes), and stamped with the time it carries (header stamp, the first
+transform's stamp, the clock's time), so bags from both paths are the same. Reliable delivery
+is lossless while the recorder keeps up (a simulator recorded from another process waits for
+its acknowledgments); the counts received are reported next to what was published.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+
+from mechsim.outputs.bag import message_class
+from mechsim.ros.outlet import subscription_qos
+
+#: Topics outside the instances' namespaces that a scene's nodes publish.
+GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock", "/diagnostics")
+#: Name of the recorder node (the simulators wait for its subscriptions before stepping).
+NODE_NAME = "mechsim_recorder"
+#: How often the graph is scanned for new topics [s].
+SCAN_PERIOD = 0.2
+#: Reader history: room for bursts of a simulator running ahead (a best-effort topic loses
+#: what does not fit).
+RECORD_DEPTH = 10_000
+
+
+def stamp_ns(msg: Any) -> int | None:
+    """The time a message carries, in ns; None if it carries none."""
+    header = getattr(msg, "header", None)
+    if header is not None:
+        stamp = header.stamp
+    elif getattr(msg, "transforms", None):
+        stamp = msg.transforms[0].header.stamp
+    elif hasattr(msg, "clock"):
+        stamp = msg.clock
+    else:
+        return None
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+class RecorderNode(Node):
+    """Subscribes to the scene's topics as they appear and hands every message to ``sinks``."""
+
+    def __init__(self, instances: list[str], sinks: list[Any], *, context: Any = None) -> None:
+        super().__init__(NODE_NAME, context=context)
+        self.instances = list(instances)
+        self.sinks = sinks
+        self.counts: dict[str, int] = {}
+        #: Topics whose publishers deliver best effort (by convention: /clock).
+        self.best_effort: set[str] = set()
+        self._subs: dict[str, Any] = {}
+        self._last_ns = 0
+        self.scan()
+        self.create_timer(SCAN_PERIOD, self.scan)
+
+    def wanted(self, topic: str) -> bool:
+        return topic in GLOBAL_TOPICS or any(topic.startswith(f"/{ns}/")
+                                             for ns in self.instances)
+
+    def scan(self) -> None:
+        """Subscribe to every wanted topic that has appeared since the last scan."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._subs or not self.wanted(topic) or len(types) != 1:
+                continue
+            offered = [p.qos_profile for p in self.get_publishers_info_by_topic(topic)]
+            if not offered:
+                continue  # its publisher is not visible yet: next scan
+            cls = message_class(types[0])
+            self.counts[topic] = 0
+            if subscription_qos(offered).reliability == ReliabilityPolicy.BEST_EFFORT:
+                self.best_effort.add(topic)
+            # The bag states the QoS offered (as rosbag2 does); the reader matches them all.
+            self._subs[topic] = self.create_subscription(
+                cls, topic, self._receiver(topic, types[0], cls, offered[0]),
+                subscription_qos(offered, RECORD_DEPTH, RECORD_DEPTH), raw=True)
+
+    def _receiver(self, topic: str, type_name: str, cls: type,
+                  qos: QoSProfile) -> Callable[[bytes], None]:
+        def receive(data: bytes) -> None:
+            msg = deserialize_message(data, cls)
+            ns = stamp_ns(msg)
+            ns = self._last_ns if ns is None else ns
+            self._last_ns = max(self._last_ns, ns)
+            self.counts[topic] += 1
+            for sink in self.sinks:
+                # Re-encoded, not the received bytes: rmw's buffer may end in alignment
+                # padding that strict readers (rosbags) reject; the outlets' bytes do not.
+                sink.write(topic, type_name, msg, qos, ns)
+        return receive
+
+    def subscribed(self, topic: str) -> bool:
+        return topic in self._subs
