@@ -595,10 +595,13 @@ class SimulatorNode(Node):
                                  callback_group=MutuallyExclusiveCallbackGroup())
 
     def _effort_reset(self, new_epoch: bool) -> None:
-        """A new model or stepper starts without effort (``self.p`` holds none); the next
+        """A new model or stepper starts without effort (as its parameter vector); the next
         command applies again. A new epoch also restores the full set of laws."""
         with self._effort_lock:
             self._inbox = None
+        at = self.model.effort_slice()
+        if at is not None:
+            self.p[at] = 0.0
         self._held_until: float | None = None  # effort held (nonzero) until this sim time
         if new_epoch:
             self._effort_acted = False
@@ -660,6 +663,8 @@ class SimulatorNode(Node):
     def _apply_effort(self, at: slice, u: np.ndarray) -> None:
         """The effort ``u`` from the current sample on: the stepper restarts there with it
         (no step crosses a change of the held value); the change goes to the sinks."""
+        if self.stepper.method not in Stepper.TAKES_INPUTS:
+            return  # the method changed after the command was accepted: dropped with it
         p = self.p.copy()
         p[at] = u
         self.stepper.restart(self.t, self._y, p)

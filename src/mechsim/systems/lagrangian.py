@@ -376,10 +376,10 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     dL_dv = sp.Matrix([sp.diff(L, vi) for vi in d.v])
     M = sp.hessian(T, d.v)
     forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
-    f = sp.Matrix([
+    f0 = sp.Matrix([  # without the effort u (f = f0 + u)
         sp.diff(L, d.q[i]) - sum(sp.diff(dL_dv[i], d.q[j]) * d.v[j] for j in range(n))
-        - sp.diff(dL_dv[i], t) - sp.diff(D, d.v[i]) + forces[i] + d.efforts[i]
-        for i in range(n)])
+        - sp.diff(dL_dv[i], t) - sp.diff(D, d.v[i]) + forces[i] for i in range(n)])
+    f = f0 + sp.Matrix(d.efforts)
     g = sp.Matrix([c for _, c in d.constraints]) if nc else sp.zeros(0, 1)
     G = g.jacobian(q) if nc else sp.zeros(0, n)
     g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
@@ -405,9 +405,15 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     if diagonal:
         # simplify only small quotients: on large ones (rational functions of square roots)
         # its cancel() step can take hours; cse in _emit still shares the work.
-        accel_exprs = [sp.simplify(f[i] / M[i, i]) if sp.count_ops(f[i] / M[i, i]) <= 40
-                       else f[i] / M[i, i] for i in range(n)]
+        accel_exprs = [sp.simplify(f0[i] / M[i, i]) if sp.count_ops(f0[i] / M[i, i]) <= 40
+                       else f0[i] / M[i, i] for i in range(n)]
+        # The effort's share u/M is added apart (own cse pass), so without an effort every
+        # expression evaluates exactly as without the input (W_ext of a free or damped
+        # system stays exactly 0).
+        effort_accel = [d.efforts[i] / M[i, i] for i in range(n)]
         body += _emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
+        body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)])
+        body += [f"    a[{i}] += ua_{i}" for i in range(n)]
     else:
         m = n + nc
         body.append(f"    A = np.zeros(({m}, {m}))")
@@ -436,17 +442,22 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     # inline (no array allocation per call); otherwise through accel's linear solve.
     if diagonal:
         dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
+        P_u = sum(sp.diff(E, d.v[i]) * effort_accel[i] for i in range(n))  # dE's effort part
         body = list(pre) + _emit([(a_names[i], accel_exprs[i]) for i in range(n)]
                                  + [("P_diss", P_diss), ("dE", dE_inline)])
+        body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
+        body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
+        external = "dE + P_diss + P_u"
     else:
         body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
                 "    accel(t, y, p, acc, lam)"]
         body += pre
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
         body += _emit([("P_diss", P_diss), ("dE", dE)])
+        external = "dE + P_diss"
     body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
     body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
-    body += [f"    dy[{2 * n}] = dE + P_diss", f"    dy[{2 * n + 1}] = P_diss"]
+    body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
     out.append(_func("rhs", "t, y, p, dy", body))
 
     # project
