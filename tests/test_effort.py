@@ -26,6 +26,8 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
 from mechsim.outputs import messages  # noqa: E402
+from mechsim.outputs.bag.reader import read_messages  # noqa: E402
+from mechsim.outputs.bag.writer import BagWriter  # noqa: E402
 from mechsim.ros.launch import run_scene  # noqa: E402
 from mechsim.ros.simulator import SimulatorNode  # noqa: E402
 from mechsim.scene import Instance, single_system_scene  # noqa: E402
@@ -247,11 +249,13 @@ class DampingController:
         self.node.destroy_node()
 
 
-def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any) -> None:
+def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any, tmp_path: Any
+                                                         ) -> None:
     scene = single_system_scene("pendulum", dict(PENDULUM))
     ns = scene.systems[0].name
     controller = DampingController(ros_context, ns, c=0.8)
     rec = Recorder(messages.DEFAULT_TIME_OFFSET)
+    bag = BagWriter(tmp_path / "bag")
     try:
         # The controller must be in the graph when stepping starts (else the first samples
         # run open loop): run_scene sees its publisher from the first sample on.
@@ -265,9 +269,10 @@ def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any) -> No
             ex.spin_once(timeout_sec=0.02)
         ex.shutdown()
         probe.destroy_node()
-        run = run_scene(scene, fast=True, duration=2.0, sinks=[rec], context=ros_context)
+        run = run_scene(scene, fast=True, duration=2.0, sinks=[rec, bag], context=ros_context)
     finally:
         controller.close()
+        bag.close()
     assert not run.failures
     energy = rec.topic("energy")
     e0 = energy[0][1].total
@@ -285,3 +290,7 @@ def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any) -> No
     assert len(applied) > 150
     for t, u in applied.items():
         assert u == sent[round(t, 6)], t
+    # The bag holds the applied efforts like every other topic.
+    recorded = list(read_messages(tmp_path / "bag", [f"/{ns}/effort"]))
+    assert len(recorded) == len(applied) == run.messages[f"/{ns}/effort"]
+    assert {m.type_name for m in recorded} == {"std_msgs/msg/Float64MultiArray"}
