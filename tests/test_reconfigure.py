@@ -267,3 +267,26 @@ def test_extreme_value_fails_one_system_cleanly(ros_context: Any) -> None:
     assert set(run.failures) == {"heavy"}
     assert "\n" not in run.failures["heavy"]
     assert run.samples["calm"] == 21
+
+
+def test_change_continues_from_the_published_state(ros_context: Any) -> None:
+    """A change that keeps the state continues from the last published sample, not from the
+    stepper's own state (DOP853 steps past its last output time): the sample republished at
+    the change equals the one published before it."""
+    cap = Capture()
+    node = _node(ros_context, "pendulum", "cont", sinks=[cap],
+                 parameters={"initial.angle": 1.0})
+    try:
+        node.advance_to(0.37)
+        before = cap.state[-1]
+        result, = node.set_parameters([Parameter("tolerance", value=1e-9)])
+        assert result.successful, result.reason
+        node.advance_to(0.38)  # the new stepper's first sample
+        result, = node.set_parameters([Parameter("gravity", value=9.0)])
+        assert result.successful, result.reason
+        again = cap.state[-1]  # the current sample, republished with the new parameters
+        assert again.header.stamp == cap.state[-2].header.stamp
+        assert list(again.position) == list(cap.state[-2].position)
+        assert before.position[0] != cap.state[-2].position[0]
+    finally:
+        node.destroy_node()

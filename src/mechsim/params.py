@@ -225,3 +225,12 @@ ERROR_DRIFT = Parameter("error_drift", 1e-3, "",
 # Stamps are simulation time + an offset in builtin_interfaces/Time, whose seconds are int32.
 DURATION = Parameter("duration", 10.0, "s", "simulated seconds", minimum=0.0, maximum=1e9,
                      exclusive_minimum=True)
+# The effort input of a simulator node (``<ns>/effort``, see ``mechsim.ros.simulator``).
+EFFORT_TIMEOUT = Parameter("effort_timeout", 0.5, "s",
+                           "simulated seconds an effort command is held after it takes effect; "
+                           "then the effort returns to zero until the next command",
+                           minimum=0.0, maximum=1e9, exclusive_minimum=True)
+EFFORT_WAIT = Parameter("effort_wait", 1.0, "s",
+                        "stepped (fast) runs with an effort publisher: wall seconds the node "
+                        "waits after each sample for the next command (0: never waits)",
+                        minimum=0.0, maximum=60.0)

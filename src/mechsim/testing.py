@@ -16,7 +16,8 @@ Fixtures:
   background executor, or in a child process with ``process=True``;
   ``graph.collect(topic)`` subscribes (type from the graph) and returns a :class:`Collector`
   whose ``wait_for(count=…, predicate=…, timeout=…)`` waits on a condition, never on a fixed
-  sleep; ``graph.set_parameters(node, **values)`` and ``graph.call(service, request)`` use
+  sleep; ``graph.add_node(node)`` spins a node of the test (a controller) with them;
+  ``graph.set_parameters(node, **values)`` and ``graph.call(service, request)`` use
   the standard ROS interfaces; ``graph.assert_laws_ok(namespace)`` waits until every law the
   diagnostics node checks for that system has reported, and asserts they are all OK.
 
@@ -172,6 +173,7 @@ class Graph:
         self._spinner: threading.Thread | None = None
         self._running: list[Running] = []
         self._collectors: dict[str, Collector] = {}
+        self._own: list[Any] = []  # nodes of the test (add_node)
 
     # --- nodes --------------------------------------------------------------------------------
     def start(self, target: str, *, process: bool = False, name: str | None = None,
@@ -204,12 +206,22 @@ class Graph:
                                              error_drift=scene.error_drift))
         for node in run.nodes:
             self._node_ex.add_node(node)
+        self._start_spinner()
+        self._running.append(run)
+        return run
+
+    def add_node(self, node: Any) -> None:
+        """Spin ``node`` (made with ``context=ros_context``: a controller under test) on the
+        background executor with the started nodes; it is destroyed with the graph."""
+        self._own.append(node)
+        self._node_ex.add_node(node)
+        self._start_spinner()
+
+    def _start_spinner(self) -> None:
         if self._spinner is None:
             self._spinner = threading.Thread(target=self._spin_nodes, daemon=True,
                                               name="mechsim-nodes")
             self._spinner.start()
-        self._running.append(run)
-        return run
 
     def _spin_nodes(self) -> None:
         from rclpy.executors import ExternalShutdownException
@@ -354,5 +366,7 @@ class Graph:
         for run in self._running:
             for node in run.nodes:
                 node.destroy_node()
+        for node in self._own:
+            node.destroy_node()
         self._probe_ex.shutdown()
         self.probe.destroy_node()

@@ -262,6 +262,23 @@ class Stepper(ABC):
     def _restart_after_event(self, t: float, y: np.ndarray) -> None:
         raise NotImplementedError
 
+    #: Methods that integrate the full right-hand side ``rhs``, so an input the model reads
+    #: from ``p`` there (the effort of a Lagrangian model) acts; the others integrate the
+    #: separable or canonical forms, or a closed form, which leave it out.
+    TAKES_INPUTS = ("dop853", "radau15")
+
+    def restart(self, t: float, y: np.ndarray, p: np.ndarray) -> None:
+        """Go on afresh from state ``y`` at time ``t`` with parameters ``p``: no step crosses
+        ``t``, so an input held constant over each output interval (zero-order hold) changes
+        exactly there. ``y`` is a state the stepper returned at ``t`` (the adaptive methods step
+        past their last output time, so their own state may be later). Only ``TAKES_INPUTS``."""
+        if self.method not in self.TAKES_INPUTS:
+            raise IntegrationError(f"{self.method} takes no inputs: use "
+                                   f"{' or '.join(self.TAKES_INPUTS)}")
+        self.p = np.array(p, dtype=np.float64)
+        self.t = float(t)
+        self._restart_after_event(self.t, np.array(y, dtype=np.float64))
+
     def _fail(self, status: Status) -> IntegrationError:
         return IntegrationError(f"{self.model.id}: {self.method} stopped at "
                                 f"t = {self.t:.6g}: {status.reason}")

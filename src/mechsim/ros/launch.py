@@ -225,6 +225,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         executor.add_node(diag)
         for n in nodes:
             executor.add_node(n)
+            # A node stepping a closed loop waits for its controller's commands in between.
+            n.serve = lambda timeout: executor.spin_once(timeout_sec=timeout)
         startup = time.monotonic() - start
         start = time.monotonic()
         dt = 1.0 / scene.publish_rate
@@ -519,6 +521,7 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
                                  publish_rate=scene.publish_rate, real_time_factor=rtf,
                                  publish_clock=(idx == 0), end_time=duration,
                                  before_first_message=consumers_listen if waits else None)
+            node.serve = lambda timeout: executor.spin_once(timeout_sec=timeout)
             if waits:
                 node.set_paused(True)  # before the executor first runs its pacing timer
         executor.add_node(node)

@@ -151,3 +151,14 @@ class Outlet:
                 sink.write_serialized(topic, ch.type_name, msg, ch.qos, ns, data)
             else:
                 sink.write(topic, ch.type_name, msg, ch.qos, ns)
+
+    def record(self, topic: str, msg: Any, qos: QoSProfile, ns: int) -> None:
+        """Hand a message this node did not publish (an input it applied, such as an effort
+        command) to the sinks only, so a recording holds it like a published one; counted
+        with the published ones."""
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+        name = type_name(type(msg))
+        for sink in self.sinks:
+            wants = getattr(sink, "wants", None)
+            if wants is None or wants(topic):
+                sink.write(topic, name, msg, qos, ns)

@@ -35,6 +35,19 @@ Guards: a non-finite state, a failed step (also an error from an extreme paramet
 enforced constraint residual past the hard limit stops this system only (``_fail``): last good
 state kept, ERROR on /diagnostics.
 Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
+Effort input (``<ns>/effort``, std_msgs/Float64MultiArray, one generalized force per coordinate
+in the order of ``state``: N for a length, N·m for an angle): a command takes effect at the next
+sample and is held over each sample period (zero-order hold) for ``effort_timeout`` simulated
+seconds, then the effort returns to zero; its work is part of ``work_external``, and from the
+first nonzero effort of an epoch system_info lists only the laws that still hold
+(``Model.laws_under_effort``). Every node subscribes; a command of the wrong length, with a
+non-finite value, to a system whose kernels take none (not Lagrangian: rigid_body,
+moving_frames, the quaternion top) or under a method that integrates without it (exact,
+yoshida*, verlet, gauss6) is ignored with a one-line warning (throttled). While a command
+publisher is present (or an effort is held) the node steps sample by sample; stepped by a
+runner (fast mode), it then waits after each sample up to ``effort_wait`` wall seconds for the
+controller's next command. Each change of the applied effort goes to the sinks (a recording)
+as a message on ``<ns>/effort`` stamped with the sample from which it applies.
 Energy, invariants, observables and frames are computed only while something consumes them,
 in one call of the API's output evaluation (``mechsim.simulate.evaluate``) per block of samples.
 """
@@ -42,6 +55,7 @@ in one call of the API's output evaluation (``mechsim.simulate.evaluate``) per b
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -50,12 +64,14 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter as RosParameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
 from mechsim.errors import IntegrationError, MechsimError, ParameterError, one_line
@@ -65,6 +81,8 @@ from mechsim.outputs.messages import Chunk, ChunkEncoder, MessageFactory, Sample
 from mechsim.outputs.sink import Sink
 from mechsim.params import (
     CONSTRAINT_LIMIT,
+    EFFORT_TIMEOUT,
+    EFFORT_WAIT,
     PUBLISH_RATE,
     REAL_TIME_FACTOR,
     TOLERANCE,
@@ -91,12 +109,15 @@ from tf2_msgs.msg import TFMessage
 
 #: Run settings a node exposes as ROS parameters, each with its one range.
 SETTINGS: dict[str, Parameter] = {p.name: p for p in (TOLERANCE, PUBLISH_RATE, REAL_TIME_FACTOR,
-                                                       CONSTRAINT_LIMIT)}
+                                                       CONSTRAINT_LIMIT, EFFORT_TIMEOUT,
+                                                       EFFORT_WAIT)}
 # Projection keeps enforced constraint residuals at round-off, diagnostics says ERROR at
 # 1e-3: a residual of 1 % of the configuration's size means the state is garbage.
 CONSTRAINT_LIMIT_DEFAULT = float(CONSTRAINT_LIMIT.default)
 #: Samples integrated per call of the kernels (bounds the memory of a long advance).
 _BLOCK = 1000
+#: Wall seconds between two warnings of the same kind about rejected effort commands.
+_EFFORT_LOG_PERIOD = 5.0
 
 
 def _reason(e: BaseException) -> str:
@@ -122,6 +143,8 @@ class _Change:
     publish_rate: float
     real_time_factor: float
     constraint_limit: float
+    effort_timeout: float
+    effort_wait: float
     model: Model | None = None  # new model (values changed)
     structural: bool = False  # new equations of motion: restart at t = 0
     stepper: Stepper | None = None  # new stepper (method, tolerance or structure changed)
@@ -164,6 +187,8 @@ class SimulatorNode(Node):
         self.publish_clock = publish_clock
         self.time_offset = time_offset
         self.constraint_limit = constraint_limit
+        self.effort_timeout = float(EFFORT_TIMEOUT.default)
+        self.effort_wait = float(EFFORT_WAIT.default)
         self.end_time = end_time
         self.prepare_timeout = prepare_timeout
         self.failed: str | None = None
@@ -207,6 +232,7 @@ class SimulatorNode(Node):
 
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(SetBool, "~/pause", self._on_pause)
+        self._setup_effort()
         if before_first_message is not None:
             before_first_message(self)
         model = self.cls(**self.values)
@@ -227,7 +253,9 @@ class SimulatorNode(Node):
         self.p = model.parameter_vector()
         self._set_constraints()
         self.t = 0.0
+        self._y = stepper.y.copy()
         self.failed = None
+        self._effort_reset(new_epoch=True)
         self._publish_static()
         self._emit(np.zeros(1), stepper.y.copy()[None, :])
 
@@ -248,7 +276,7 @@ class SimulatorNode(Node):
 
     def _publish_static(self) -> None:
         ns0 = messages.stamp_ns(0.0, self.time_offset)
-        laws = self.model.laws()
+        laws = self.model.laws_under_effort() if self._effort_acted else self.model.laws()
         scales = self.model.law_scales()
         info = self.factory.system_info(ns0, self.stepper.method, self.tolerance,
                                         [law.key for law in laws],
@@ -311,6 +339,7 @@ class SimulatorNode(Node):
             with held_signals():
                 self._publish_chunk(times[:good], Y[:good], out, inv, want)
                 self.t = float(times[good - 1])
+                self._y = Y[good - 1].copy()
         if reason is not None:
             self._fail(reason)
         return good
@@ -371,6 +400,8 @@ class SimulatorNode(Node):
             n = min(int(math.floor((t_target - self.t) / dt + 1e-9)), _BLOCK)
             if n <= 0:
                 break
+            if self._effort_step():
+                n = 1
             times = self.t + dt * np.arange(1, n + 1)
             try:
                 Y = self.stepper.advance(times)
@@ -483,7 +514,8 @@ class SimulatorNode(Node):
                                          "(0 means stepped by a runner; ~/pause stops it)")
         change = _Change(_key(params), values, method, settings["tolerance"],
                          settings["publish_rate"], settings["real_time_factor"],
-                         settings["constraint_limit"])
+                         settings["constraint_limit"], settings["effort_timeout"],
+                         settings["effort_wait"])
         model = self.model
         if values != self.values:
             model = self.cls(**values)  # every check of the model (cheap: no derivation yet)
@@ -503,7 +535,7 @@ class SimulatorNode(Node):
                     or change.tolerance != self.tolerance:
                 # Continues from the current state (an initial value waits for a reset).
                 change.stepper = make_stepper(model, method, change.tolerance, t0=self.t,
-                                              y0=self.stepper.y.copy())
+                                              y0=self._y.copy())
         except MechsimError:
             raise
         except Exception as e:  # noqa: BLE001 - e.g. a division by zero at extreme values
@@ -529,6 +561,7 @@ class SimulatorNode(Node):
         self.values, self.method, self.tolerance = c.values, c.method, c.tolerance
         self.publish_rate, self.real_time_factor = c.publish_rate, c.real_time_factor
         self.constraint_limit = c.constraint_limit
+        self.effort_timeout, self.effort_wait = c.effort_timeout, c.effort_wait
         if c.structural:
             assert c.model is not None and c.stepper is not None
             self.epoch += 1
@@ -545,10 +578,122 @@ class SimulatorNode(Node):
         if c.stepper is not None:
             self.stepper = c.stepper
         if c.model is not None or c.stepper is not None:
+            self._effort_reset(new_epoch=c.model is not None)
+        if c.model is not None or c.stepper is not None:
             self._publish_static()
         if c.model is not None:
             # The current sample again, with the new parameters and the same stamp: a stamp
             # not later than the previous one is the diagnostics node's signal of a new epoch.
-            self._emit(np.array([self.t]), self.stepper.y.copy()[None, :])
+            self._emit(np.array([self.t]), self._y.copy()[None, :])
         if repace:
             self._start_realtime()
+
+    # --- effort input: generalized forces from a controller (see the module docstring) ----
+    def _setup_effort(self) -> None:
+        self.effort_received = 0  # commands accepted
+        self.effort_rejected = 0  # commands ignored (each with a throttled warning)
+        #: Set by a runner that steps this node (fast mode): serve its executor once, waiting
+        #: up to the given wall seconds (``_await_command``).
+        self.serve: Callable[[float], None] | None = None
+        self._effort_lock = threading.Lock()
+        self._effort_logged: dict[str, float] = {}
+        self._effort_topic = self.resolve_topic_name("effort")
+        self._inbox: np.ndarray | None = None  # newest accepted command, not applied yet
+        self._answered = -1  # samples_published when the latest command arrived
+        self.create_subscription(Float64MultiArray, "effort", self._on_effort, STATE_QOS,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+
+    def _effort_reset(self, new_epoch: bool) -> None:
+        """A new model or stepper starts without effort (as its parameter vector); the next
+        command applies again. A new epoch also restores the full set of laws."""
+        with self._effort_lock:
+            self._inbox = None
+        at = self.model.effort_slice()
+        if at is not None:
+            self.p[at] = 0.0
+        self._held_until: float | None = None  # effort held (nonzero) until this sim time
+        if new_epoch:
+            self._effort_acted = False
+
+    def _on_effort(self, msg: Float64MultiArray) -> None:
+        u = np.asarray(msg.data, dtype=np.float64)
+        at, names = self.model.effort_slice(), [c.name for c in self.model.coordinates]
+        if at is None:
+            self._reject("system", f"{self.model.id} ({self.model.formulation}) takes no "
+                         "effort (its kernels are not derived from a Lagrangian)")
+        elif self.stepper.method not in Stepper.TAKES_INPUTS:
+            self._reject("method", f"method {self.stepper.method} integrates without the "
+                         "effort: use dop853, radau15 or auto")
+        elif u.size != len(names):
+            self._reject("length", f"{u.size} values, expected {len(names)} (one per "
+                         f"coordinate: {', '.join(names)})")
+        elif not np.isfinite(u).all():
+            i = int(np.argmin(np.isfinite(u)))
+            self._reject("finite", f"value {i} ({names[i]}) is {u[i]}, not finite")
+        else:
+            with self._effort_lock:
+                self._inbox = u
+            self.effort_received += 1
+        self._answered = self.samples_published
+
+    def _reject(self, kind: str, reason: str) -> None:
+        self.effort_rejected += 1
+        now = time.monotonic()
+        if now - self._effort_logged.get(kind, -math.inf) >= _EFFORT_LOG_PERIOD:
+            self._effort_logged[kind] = now
+            self.get_logger().warning(f"{self._effort_topic}: command ignored: {reason}")
+
+    def _closed_loop(self) -> bool:
+        """Something publishes commands to a system that takes them."""
+        return (self.model.effort_slice() is not None
+                and self.count_publishers(self._effort_topic) > 0)
+
+    def _effort_step(self) -> bool:
+        """Before the next sample period (from ``self.t``): apply the newest command, or zero
+        once the held effort has timed out. True when the node must step sample by sample: an
+        effort is held (its timeout falls on a sample) or a controller is present."""
+        at = self.model.effort_slice()
+        if at is None:
+            return False
+        closed = self._closed_loop()
+        if closed:
+            self._await_command()
+        with self._effort_lock:
+            u, self._inbox = self._inbox, None
+        if u is not None:
+            self._held_until = self.t + self.effort_timeout if u.any() else None
+        elif self._held_until is not None and self.t >= self._held_until - 1e-9 / \
+                self.publish_rate:
+            u, self._held_until = np.zeros(at.stop - at.start), None
+        if u is not None and u.size == at.stop - at.start and not np.array_equal(u, self.p[at]):
+            self._apply_effort(at, u)
+        return self._held_until is not None or closed
+
+    def _apply_effort(self, at: slice, u: np.ndarray) -> None:
+        """The effort ``u`` from the current sample on: the stepper restarts there with it
+        (no step crosses a change of the held value); the change goes to the sinks."""
+        if self.stepper.method not in Stepper.TAKES_INPUTS:
+            return  # the method changed after the command was accepted: dropped with it
+        p = self.p.copy()
+        p[at] = u
+        self.stepper.restart(self.t, self._y, p)
+        self.p = p
+        ns = messages.stamp_ns(self.t, self.time_offset)
+        self.outlet.record(self._effort_topic, Float64MultiArray(data=u.tolist()), STATE_QOS,
+                           ns)
+        if u.any() and not self._effort_acted:
+            self._effort_acted = True
+            self._publish_static()  # system_info: only the laws that hold under an effort
+
+    def _await_command(self) -> None:
+        """Stepped closed loop: unless a command arrived since the last sample was published,
+        serve the executor until one does (the controller's answer to that sample, applied
+        from it on), at most ``effort_wait`` wall seconds."""
+        if self.serve is None or self.effort_wait <= 0:
+            return
+        end = time.monotonic() + self.effort_wait
+        while self._answered < self.samples_published:
+            left = end - time.monotonic()
+            if left <= 0 or self.failed:
+                break
+            self.serve(min(left, 0.05))

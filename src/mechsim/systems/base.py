@@ -404,6 +404,18 @@ class Model(ABC):
         laws += [law for law in named if law.is_constraint]
         return tuple(laws)
 
+    def effort_slice(self) -> slice | None:
+        """Where the effort (one generalized force per coordinate, applied from outside at
+        run time) sits in the parameter vector, or None for a model whose kernels take none
+        (default; Lagrangian models take one, see ``mechsim.systems.lagrangian``)."""
+        return None
+
+    def laws_under_effort(self) -> tuple[Law, ...]:
+        """The laws that still hold while an effort acts: the work balance (its work is part
+        of W_ext) and the constraint residuals. Energy, h and the invariants change with the
+        effort's work and impulse."""
+        return tuple(law for law in self.laws() if law.kind == "work_balance" or law.is_constraint)
+
     def energy_function_conserved(self) -> bool:
         """True when L has no explicit time dependence and nothing dissipates or drives."""
         s = self.structure

@@ -4,12 +4,18 @@ A system writes T and V in its generalized coordinates, its holonomic constraint
 its Rayleigh dissipation function D(q, q̇, t) and any other generalized forces Q(q, q̇, t). From
 that declaration sympy derives, once per declaration (the generated module is cached on disk):
 
-- the mass matrix M = ∂²T/∂q̇², and the forcing f = ∂L/∂q − (∂²L/∂q̇∂q) q̇ − ∂²L/∂q̇∂t − ∂D/∂q̇ + Q,
-  so that M q̈ = f + Gᵀλ, with G = ∂g/∂q and G q̈ = −γ (the constraints differentiated twice);
+- the mass matrix M = ∂²T/∂q̇², and the forcing f = ∂L/∂q − (∂²L/∂q̇∂q) q̇ − ∂²L/∂q̇∂t − ∂D/∂q̇ + Q
+  + u, so that M q̈ = f + Gᵀλ, with G = ∂g/∂q and G q̈ = −γ (the constraints differentiated
+  twice). u is the *effort*: one generalized force per coordinate (N for a length, N·m for an
+  angle) applied from outside at run time, read from the parameter vector after the numeric
+  parameters (``LagrangianModel.effort_slice``; zero unless a caller sets it, as the simulator
+  node does from its ``effort`` topic); it enters only the right-hand side (``accel``,
+  ``rhs``): the separable and canonical forms, for the symplectic methods, leave it out;
 - the energy function h = Σ q̇ ∂L/∂q̇ − L;
 - the power balance: dissipated power P_d = Σ q̇ ∂D/∂q̇, and the external power
   P_ext = dE/dt + P_d with dE/dt from the chain rule on E = T + V, so the integrated work terms
-  close total − total₀ = W_ext − W_d by construction of the equations, not of the outputs;
+  close total − total₀ = W_ext − W_d by construction of the equations, not of the outputs (the
+  effort's power u·q̇ is part of P_ext: q̈ includes it);
 - constraint projection, invariants, observables (which may use the multipliers λ) and frames;
 - state events (``b.event``: a sign change of an expression, which may use λ) with discrete
   modes (``b.mode``: extra state entries an expression may switch on, e.g. a constraint that is
@@ -26,6 +32,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import ClassVar
 
+import numpy as np
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
@@ -37,7 +44,7 @@ Expr = sp.Expr
 
 #: Part of every derivation's cache key, with this module's source text: any change to the
 #: generator gives new kernel modules (see ``mechsim.codegen``).
-GENERATOR_VERSION = 4
+GENERATOR_VERSION = 5
 _GENERATOR_SOURCE = codegen.source_fingerprint([sys.modules[__name__]])
 
 
@@ -58,6 +65,7 @@ class LagrangianBuilder:
     q: list[sp.Symbol] = field(default_factory=list)
     v: list[sp.Symbol] = field(default_factory=list)
     qdd: list[sp.Symbol] = field(default_factory=list)  # accelerations (``acceleration``)
+    efforts: list[sp.Symbol] = field(default_factory=list)  # applied generalized forces u
     kinetic: Expr = sp.Integer(0)
     potential: Expr = sp.Integer(0)
     rayleigh: Expr = sp.Integer(0)
@@ -83,6 +91,7 @@ class LagrangianBuilder:
         self.q.append(q)
         self.v.append(v)
         self.qdd.append(sp.Symbol(f"qdd_{name}", real=True))
+        self.efforts.append(sp.Symbol(f"effort_{name}", real=True))
         return q, v
 
     def acceleration(self, coordinate: sp.Symbol) -> sp.Symbol:
@@ -221,6 +230,17 @@ class LagrangianModel(Model):
         numeric = [p.name for p in self.parameter_spec() if p.is_numeric]
         return {name: i for i, name in enumerate(numeric)}
 
+    def effort_slice(self) -> slice:
+        """Where the effort u (one generalized force per coordinate) sits in the parameter
+        vector: after the numeric parameters. Not a parameter of the system: no name, no
+        range, not in ``parameter_spec`` (so not a ROS or scene parameter)."""
+        start = len(self._param_index())
+        return slice(start, start + len(self.declaration.coords))
+
+    def _make_parameter_vector(self) -> np.ndarray:
+        return np.concatenate([super()._make_parameter_vector(),
+                               np.zeros(len(self.declaration.coords))])
+
     def derivation_key(self) -> str:
         """Every input of the derivation: the declaration (expressions with their symbols'
         assumptions, names, events, modes), where each parameter sits in ``p`` (the index map
@@ -250,7 +270,7 @@ class LagrangianModel(Model):
                 "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
                 "N_INV": len(self.invariants), "N_OBS": len(self.observables),
                 "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes),
-                "N_P": len(self._param_index())})
+                "N_P": self.effort_slice().stop})
 
     @cached_property
     def _canonical(self) -> bool:
@@ -324,6 +344,8 @@ def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
             lines.append(f"    {ms.name} = y[{2 * n + 2 + i}]")
     for name, sym in d.params.items():
         lines.append(f"    {sym.name} = p[{pindex[name]}]")
+    for i, u in enumerate(d.efforts):  # after the parameters: LagrangianModel.effort_slice
+        lines.append(f"    {u.name} = p[{len(pindex) + i}]")
     return lines
 
 
@@ -354,9 +376,10 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     dL_dv = sp.Matrix([sp.diff(L, vi) for vi in d.v])
     M = sp.hessian(T, d.v)
     forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
-    f = sp.Matrix([
+    f0 = sp.Matrix([  # without the effort u (f = f0 + u)
         sp.diff(L, d.q[i]) - sum(sp.diff(dL_dv[i], d.q[j]) * d.v[j] for j in range(n))
         - sp.diff(dL_dv[i], t) - sp.diff(D, d.v[i]) + forces[i] for i in range(n)])
+    f = f0 + sp.Matrix(d.efforts)
     g = sp.Matrix([c for _, c in d.constraints]) if nc else sp.zeros(0, 1)
     G = g.jacobian(q) if nc else sp.zeros(0, n)
     g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
@@ -382,9 +405,15 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     if diagonal:
         # simplify only small quotients: on large ones (rational functions of square roots)
         # its cancel() step can take hours; cse in _emit still shares the work.
-        accel_exprs = [sp.simplify(f[i] / M[i, i]) if sp.count_ops(f[i] / M[i, i]) <= 40
-                       else f[i] / M[i, i] for i in range(n)]
+        accel_exprs = [sp.simplify(f0[i] / M[i, i]) if sp.count_ops(f0[i] / M[i, i]) <= 40
+                       else f0[i] / M[i, i] for i in range(n)]
+        # The effort's share u/M is added apart (own cse pass), so without an effort every
+        # expression evaluates exactly as without the input (W_ext of a free or damped
+        # system stays exactly 0).
+        effort_accel = [d.efforts[i] / M[i, i] for i in range(n)]
         body += _emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
+        body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)])
+        body += [f"    a[{i}] += ua_{i}" for i in range(n)]
     else:
         m = n + nc
         body.append(f"    A = np.zeros(({m}, {m}))")
@@ -413,17 +442,22 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     # inline (no array allocation per call); otherwise through accel's linear solve.
     if diagonal:
         dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
+        P_u = sum(sp.diff(E, d.v[i]) * effort_accel[i] for i in range(n))  # dE's effort part
         body = list(pre) + _emit([(a_names[i], accel_exprs[i]) for i in range(n)]
                                  + [("P_diss", P_diss), ("dE", dE_inline)])
+        body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
+        body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
+        external = "dE + P_diss + P_u"
     else:
         body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
                 "    accel(t, y, p, acc, lam)"]
         body += pre
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
         body += _emit([("P_diss", P_diss), ("dE", dE)])
+        external = "dE + P_diss"
     body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
     body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
-    body += [f"    dy[{2 * n}] = dE + P_diss", f"    dy[{2 * n + 1}] = P_diss"]
+    body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
     out.append(_func("rhs", "t, y, p, dy", body))
 
     # project
