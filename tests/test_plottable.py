@@ -1,0 +1,154 @@
+"""Messages users can plot by name, read back from a recorded bag by decoders that are not ours:
+rosbags, and PlotJuggler's parser (``rosx_introspection``, the flattening library PlotJuggler
+uses). An invariant is selected by its name ("angular_momentum"), never by its index; an
+attitude system publishes geometry_msgs pose and twist, and no quaternion in JointState.
+
+Oracles: the Kepler orbit's angular momentum L = √(μ² GM a (1 − e²)) (seed 003 §4.6), and a
+rigid body spinning about a principal axis, whose body angular velocity stays (0, 0, ω₀) and
+whose attitude is q(t) = q₀ ⊗ (0, 0, sin(ω₀t/2), cos(ω₀t/2)) (seed 003 §7.7: stable spin
+about the axis of largest moment), with q₀ from scipy's z-x-z Euler angles.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+SPIN = 3.0  # rad/s about principal axis 3
+PHI, THETA, PSI = 0.4, 0.3, -0.2  # initial z-x-z Euler angles of the rigid body
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Kepler and a spinning rigid body recorded for 1 s (fast pacing, in process)."""
+    from mechsim.ros import record
+    from mechsim.scene import parse_scene
+
+    scene = parse_scene({"name": "plottable", "pacing": "fast", "duration": 1.0,
+                         "publish_rate": 50.0, "systems": [
+                             {"system": "kepler"},
+                             {"system": "rigid_body", "name": "spinner", "origin": [1, 2, 3],
+                              "parameters": {"initial.phi": PHI, "initial.theta": THETA,
+                                             "initial.psi": PSI, "initial.omega_1": 0.0,
+                                             "initial.omega_2": 0.0,
+                                             "initial.omega_3": SPIN}}]})
+    path = tmp_path_factory.mktemp("bags") / "plot"
+    run, _ = record.run_with_outputs(scene, fast=True, duration=1.0, bag=str(path))
+    assert run.messages and not run.failures
+    return path
+
+
+def _mcap(path: Path) -> Path:
+    return path / f"{path.name}_0.mcap"
+
+
+def _by_name_plotjuggler(path: Path, topic: str, name: str) -> list[tuple[int, float, str]]:
+    """(log time, value, unit) of the record called ``name`` on ``topic``, flattened by
+    PlotJuggler's parser: the index whose ``/scalars[i]/name`` is ``name`` gives the value."""
+    import msgpack
+    rosx = pytest.importorskip("rosx_introspection")
+    from mcap.reader import make_reader
+
+    out = []
+    with open(_mcap(path), "rb") as f:
+        parser = None
+        for schema, channel, message in make_reader(f).iter_messages(topics=[topic]):
+            if parser is None:
+                parser = rosx.Parser(topic_name=topic, type_name=schema.name,
+                                     schema=schema.data.decode())
+            flat = msgpack.unpackb(parser.parse_to_msgpack(message.data))
+            keys = [k for k, v in flat.items() if k.endswith("/name") and v == name]
+            assert len(keys) == 1, (topic, name, sorted(flat))
+            base = keys[0][:-len("/name")]
+            out.append((message.log_time, float(flat[f"{base}/value"]), flat[f"{base}/unit"]))
+    return out
+
+
+def test_angular_momentum_selected_by_name_plotjuggler(bag: Path) -> None:
+    """PlotJuggler's parser finds "angular_momentum" on /kepler/invariants by name, with its
+    unit, in every message, equal to the Kepler orbit's L."""
+    from mechsim.systems import system_class
+
+    model = system_class("kepler")()
+    mu, GM = model.value("reduced_mass"), model.value("gravitational_parameter")
+    a, e = model.value("semi_major_axis"), model.value("eccentricity")
+    expected = math.sqrt(mu * mu * GM * a * (1 - e * e))
+    got = _by_name_plotjuggler(bag, "/kepler/invariants", "angular_momentum")
+    assert len(got) == 51  # t = 0, 0.02, ..., 1.0
+    assert {unit for _, _, unit in got} == {"kg m^2/s"}
+    np.testing.assert_allclose([v for _, v, _ in got], expected, rtol=1e-9)
+    # A name that is not published is not found (the selection can fail).
+    with pytest.raises(AssertionError):
+        _by_name_plotjuggler(bag, "/kepler/invariants", "angular_momentum_z")
+
+
+def test_invariants_by_name_rosbags_agree_with_plotjuggler(bag: Path) -> None:
+    """rosbags decodes records (name, value, unit); every named value on every
+    NamedScalars topic equals what PlotJuggler's parser selects by that name."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag]) as reader:
+        cons = [c for c in reader.connections if c.msgtype == "mechsim_msgs/msg/NamedScalars"]
+        assert {c.topic for c in cons} >= {"/kepler/invariants", "/kepler/observables",
+                                           "/spinner/invariants", "/spinner/observables"}
+        for con in cons:
+            rows = [(ts, reader.deserialize(raw, con.msgtype))
+                    for _, ts, raw in reader.messages(connections=[con])]
+            names = [s.name for s in rows[0][1].scalars]
+            assert names and len(set(names)) == len(names)
+            for name in names:
+                theirs = _by_name_plotjuggler(bag, con.topic, name)
+                ours = [(ts, next(s.value for s in m.scalars if s.name == name))
+                        for ts, m in rows]
+                assert [(t, v) for t, v, _ in theirs] == ours, (con.topic, name)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
+
+
+def test_attitude_as_pose_and_twist(bag: Path) -> None:
+    """The spinning body: PoseStamped in "world" at the instance origin with the unit
+    quaternion of the spin, TwistStamped in body axes with ω = (0, 0, ω₀) rad/s, the pose
+    equal to the body's /tf transform, and no JointState (no joint-like coordinates)."""
+    from rosbags.highlevel import AnyReader
+    from scipy.spatial.transform import Rotation
+
+    q0 = Rotation.from_euler("ZXZ", [PHI, THETA, PSI]).as_quat()  # (x, y, z, w)
+    by_topic: dict[str, list[tuple[int, Any]]] = {}
+    with AnyReader([bag]) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        for con, ts, raw in reader.messages():
+            if con.topic.startswith("/spinner/") or con.topic == "/tf":
+                by_topic.setdefault(con.topic, []).append((ts, reader.deserialize(
+                    raw, con.msgtype)))
+    assert types["/spinner/pose"] == "geometry_msgs/msg/PoseStamped"
+    assert types["/spinner/twist"] == "geometry_msgs/msg/TwistStamped"
+    assert "/spinner/state" not in types and "/kepler/state" in types
+    poses, twists = by_topic["/spinner/pose"], by_topic["/spinner/twist"]
+    assert len(poses) == len(twists) == 51
+    tf = {ts: t.transform for ts, m in by_topic["/tf"] for t in m.transforms
+          if t.child_frame_id == "spinner/principal"}
+    for (ts, p), (ts2, w) in zip(poses, twists, strict=True):
+        t = (ts - 1_000_000_000) / 1e9
+        assert ts == ts2 and p.header.frame_id == "world"
+        assert w.header.frame_id == "spinner/principal"
+        pos, o = p.pose.position, p.pose.orientation
+        assert (pos.x, pos.y, pos.z) == (1.0, 2.0, 3.0)
+        q = np.array([o.x, o.y, o.z, o.w])
+        assert abs(np.linalg.norm(q) - 1.0) < 1e-15
+        want = _quat_mul(q0, np.array([0.0, 0.0, math.sin(SPIN * t / 2),
+                                       math.cos(SPIN * t / 2)]))
+        assert min(np.max(np.abs(q - want)), np.max(np.abs(q + want))) < 1e-8, t
+        np.testing.assert_allclose([w.twist.angular.x, w.twist.angular.y, w.twist.angular.z],
+                                   [0.0, 0.0, SPIN], atol=1e-9)
+        assert (w.twist.linear.x, w.twist.linear.y, w.twist.linear.z) == (0.0, 0.0, 0.0)
+        r = tf[ts].rotation
+        np.testing.assert_allclose([r.x, r.y, r.z, r.w], q, rtol=0, atol=1e-15)
