@@ -152,3 +152,40 @@ def test_attitude_as_pose_and_twist(bag: Path) -> None:
         assert (w.twist.linear.x, w.twist.linear.y, w.twist.linear.z) == (0.0, 0.0, 0.0)
         r = tf[ts].rotation
         np.testing.assert_allclose([r.x, r.y, r.z, r.w], q, rtol=0, atol=1e-15)
+
+
+def test_new_types_in_the_bag_match_rosidl(bag: Path) -> None:
+    """Each new type's RIHS01 hash in the MCAP channel metadata and in metadata.yaml is the one
+    rosidl generated (share/<pkg>/msg/<Type>.json), and its schema text carries NamedScalar."""
+    import json
+    import sys
+
+    import yaml
+    from mcap.reader import make_reader
+
+    def rosidl_hash(type_name: str) -> str:
+        pkg, _, typ = type_name.split("/")
+        desc = json.loads((Path(sys.prefix) / "share" / pkg / "msg" / f"{typ}.json")
+                          .read_text())
+        return next(h["hash_string"] for h in desc["type_hashes"]
+                    if h["type_name"] == type_name)
+
+    with open(_mcap(bag), "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    in_yaml = {t["topic_metadata"]["name"]: t["topic_metadata"]["type_description_hash"]
+               for t in meta["topics_with_message_count"]}
+    seen = set()
+    for ch in summary.channels.values():
+        schema = summary.schemas[ch.schema_id]
+        if schema.name in ("mechsim_msgs/msg/NamedScalars", "geometry_msgs/msg/PoseStamped",
+                           "geometry_msgs/msg/TwistStamped"):
+            seen.add(schema.name)
+            assert ch.metadata["topic_type_hash"] == rosidl_hash(schema.name) == \
+                in_yaml[ch.topic], ch.topic
+        if schema.name == "mechsim_msgs/msg/NamedScalars":
+            text = schema.data.decode()
+            assert "NamedScalar[] scalars" in text
+            assert "\nMSG: mechsim_msgs/NamedScalar\n" in text
+    assert len(seen) == 3
