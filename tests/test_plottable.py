@@ -1,7 +1,9 @@
 """Messages users can plot by name, read back from a recorded bag by decoders that are not ours:
-rosbags, and PlotJuggler's parser (``rosx_introspection``, the flattening library PlotJuggler
-uses). An invariant is selected by its name ("angular_momentum"), never by its index; an
-attitude system publishes geometry_msgs pose and twist, and no quaternion in JointState.
+rosbags, PlotJuggler's parser (``rosx_introspection``, the flattening library PlotJuggler
+uses) and Foxglove's ROS 2 decoding stack (``@mcap/core``, ``@foxglove/rosmsg``,
+``@foxglove/rosmsg2-serialization``, installed by set-up in tests/foxglove; run with node).
+An invariant is selected by its name ("angular_momentum"), never by its index; an attitude
+system publishes geometry_msgs pose and twist, and no quaternion in JointState.
 
 Oracles: the Kepler orbit's angular momentum L = √(μ² GM a (1 − e²)) (seed 003 §4.6), and a
 rigid body spinning about a principal axis, whose body angular velocity stays (0, 0, ω₀) and
@@ -11,7 +13,10 @@ about the axis of largest moment), with q₀ from scipy's z-x-z Euler angles.
 
 from __future__ import annotations
 
+import json
 import math
+import shutil
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -56,7 +61,7 @@ def _by_name_plotjuggler(path: Path, topic: str, name: str) -> list[tuple[int, f
     out = []
     with open(_mcap(path), "rb") as f:
         parser = None
-        for schema, channel, message in make_reader(f).iter_messages(topics=[topic]):
+        for schema, _channel, message in make_reader(f).iter_messages(topics=[topic]):
             if parser is None:
                 parser = rosx.Parser(topic_name=topic, type_name=schema.name,
                                      schema=schema.data.decode())
@@ -105,6 +110,42 @@ def test_invariants_by_name_rosbags_agree_with_plotjuggler(bag: Path) -> None:
                 ours = [(ts, next(s.value for s in m.scalars if s.name == name))
                         for ts, m in rows]
                 assert [(t, v) for t, v, _ in theirs] == ours, (con.topic, name)
+
+
+FOXGLOVE = Path(__file__).resolve().parent / "foxglove"
+
+
+def _foxglove(path: Path, topic: str) -> list[dict[str, Any]]:
+    """Every message of ``topic`` as Foxglove's decoders give it (``{log_time, message}``)."""
+    node = shutil.which("node")
+    if node is None or not (FOXGLOVE / "node_modules" / "@foxglove" / "rosmsg").is_dir():
+        pytest.skip("Foxglove's decoders are not installed (node and `npm ci` in "
+                    "tests/foxglove, done by tools/bootstrap.py)")
+    out = subprocess.run([node, str(FOXGLOVE / "read.cjs"), str(_mcap(path)), topic],
+                         capture_output=True, text=True, timeout=120, check=False)
+    assert out.returncode == 0, out.stderr
+    return [json.loads(line) for line in out.stdout.splitlines()]
+
+
+def test_angular_momentum_selected_by_name_foxglove(bag: Path) -> None:
+    """Foxglove's decoders give records: the message path
+    ``/kepler/invariants.scalars[:]{name=="angular_momentum"}.value`` (every element of
+    ``scalars`` whose ``name`` equals, then its ``value``) selects one value per message, equal
+    to PlotJuggler's selection and to the Kepler orbit's L; the spinner's twist decodes with
+    its body rates."""
+    got = _foxglove(bag, "/kepler/invariants")
+    selected = [[s["value"] for s in m["message"]["scalars"] if s["name"] == "angular_momentum"]
+                for m in got]
+    assert len(selected) == 51 and all(len(v) == 1 for v in selected)
+    pj = _by_name_plotjuggler(bag, "/kepler/invariants", "angular_momentum")
+    assert [(int(m["log_time"]), v[0]) for m, v in zip(got, selected, strict=True)] == [
+        (t, v) for t, v, _ in pj]
+    twist = _foxglove(bag, "/spinner/twist")
+    assert len(twist) == 51
+    for m in twist:
+        w = m["message"]["twist"]["angular"]
+        assert m["message"]["header"]["frame_id"] == "spinner/principal"
+        np.testing.assert_allclose([w["x"], w["y"], w["z"]], [0.0, 0.0, SPIN], atol=1e-9)
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
