@@ -12,7 +12,7 @@ import pytest
 
 from mechsim.systems import system_class, system_ids
 
-TOPICS = ("state", "energy", "invariants", "observables", "tf", "clock")
+TOPICS = ("state", "pose", "twist", "energy", "invariants", "observables", "tf", "clock")
 
 
 def _chunk(system: str, n: int = 7) -> tuple[Any, Any, Any]:
@@ -73,7 +73,8 @@ def test_every_topic_equals_rclpy_serialization(system: str) -> None:
     enc = ChunkEncoder(factory)
     model = factory.model
     for topic in TOPICS:
-        if topic == "tf" and not enc.dynamic:
+        if (topic == "tf" and not enc.dynamic) or (
+                topic in ("pose", "twist") and model.attitude is None):
             continue
         rows = enc.encode(topic, chunk)
         layout = getattr(enc, topic)
@@ -94,8 +95,25 @@ def test_every_topic_equals_rclpy_serialization(system: str) -> None:
             store = typestore_with(layout.type_name)
             msg = store.deserialize_cdr(ours, layout.type_name)
             if topic == "state":
-                assert np.array_equal(msg.position, s.q) and np.array_equal(msg.velocity, s.v)
-                assert list(msg.name) == [c.name for c in model.coordinates]
+                # Joint-like coordinates only: a quaternion attitude is on pose and twist.
+                quat = model.attitude.quaternion if model.attitude else ()
+                j = [k for k in range(len(model.coordinates)) if k not in quat]
+                assert np.array_equal(msg.position, s.q[j])
+                assert np.array_equal(msg.velocity, s.v[j])
+                assert list(msg.name) == [model.coordinates[k].name for k in j]
+                assert not any(model.coordinates[k].name.startswith("quaternion_") for k in j)
+            if topic == "pose":
+                o = msg.pose.orientation
+                quat_q = s.q[list(model.attitude.quaternion)]
+                np.testing.assert_allclose([o.x, o.y, o.z, o.w],
+                                           quat_q / np.sqrt(np.sum(quat_q ** 2)), rtol=1e-15)
+                assert (msg.pose.position.x, msg.pose.position.y,
+                        msg.pose.position.z) == (1.5, -2.0, 0.25)
+                assert msg.header.frame_id == "world"
+            if topic in ("invariants", "observables"):
+                qs = getattr(model, topic)
+                assert [(r.name, r.unit) for r in msg.scalars] == [(q.name, q.unit) for q in qs]
+                assert [r.value for r in msg.scalars] == list(getattr(s, topic))
             if topic == "energy":
                 assert msg.kinetic == s.energy[0] and msg.work_external == s.work_external
             stamp = msg.clock if topic == "clock" else (

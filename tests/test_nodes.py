@@ -104,7 +104,7 @@ def test_every_topic_in_process(ros_context: Any, sim: Any) -> None:
     info = got[f"/{NS}/system_info"][-1]
     assert info.system == "pendulum" and "constraint:constraint_rod_length" in info.laws
     obs = got[f"/{NS}/observables"][-1]
-    assert "tension" in obs.names and obs.units[list(obs.names).index("tension")] == "N"
+    assert [s.unit for s in obs.scalars if s.name == "tension"] == ["N"]
     en = got[f"/{NS}/energy"][-1]
     assert en.total == pytest.approx(en.kinetic + en.potential, rel=1e-15)
     ex.shutdown()

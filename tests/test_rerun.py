@@ -173,8 +173,8 @@ def test_balance_residual_and_drift_values(recorded: dict[str, Any]) -> None:
     np.testing.assert_allclose(scalars(live["/plots/pendulum/balance_residual"]), want,
                                rtol=0, atol=1e-15)
     inv = cap.on("/kepler/invariants")
-    k = list(inv[0].names).index("angular_momentum")
-    want = [m.values[k] - inv[0].values[k] for m in inv]
+    k = [s.name for s in inv[0].scalars].index("angular_momentum")
+    want = [m.scalars[k].value - inv[0].scalars[k].value for m in inv]
     np.testing.assert_allclose(scalars(live["/plots/kepler/drift/angular_momentum"]), want,
                                rtol=0, atol=1e-15)
 

@@ -11,7 +11,9 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
 5. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/);
 6. loops     compile mechsim's shared integrator loops (numba, once per machine, ~15 s of
-             CPU) so that the first run of a system only compiles that system's kernels.
+             CPU) so that the first run of a system only compiles that system's kernels;
+7. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
+             with (skipped, with a note, where node or npm is missing; that test then skips).
 
 Usage: python3 tools/bootstrap.py [--force]. Logs go to .cache/bootstrap/<step>.log.
 """
@@ -209,6 +211,18 @@ LOOP_SOURCES = ("src/mechsim/integrators/kernels.py", "src/mechsim/integrators/s
                 "src/mechsim/codegen/support.py")
 
 
+FOXGLOVE = ROOT / "tests" / "foxglove"
+
+
+def step_foxglove() -> None:
+    npm = shutil.which("npm")
+    if npm is None or shutil.which("node") is None:
+        say("no node/npm: Foxglove's decoders not installed (their test will skip)")
+        return
+    say("npm ci in tests/foxglove (Foxglove's ROS 2 decoders, a few seconds)")
+    run_logged("foxglove", [npm, "ci", "--no-audit", "--no-fund", "--prefix", str(FOXGLOVE)])
+
+
 def step_interface(pkg: str) -> None:
     say(f"building {pkg} (cmake, ~10 s)")
     src = ROOT / "src" / pkg
@@ -279,6 +293,8 @@ def plan() -> list[tuple[str, str, Callable[[], None]]]:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
     steps.append(("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops))
+    steps.append(("foxglove", sha256_files([FOXGLOVE / "package.json",
+                                            FOXGLOVE / "package-lock.json"]), step_foxglove))
     return steps
 
 

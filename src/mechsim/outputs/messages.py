@@ -1,5 +1,13 @@
 """Samples of a run turned into standard ROS messages (and back): the one place message fields
-are filled, used by the simulator node, the recorder and the Rerun converter alike."""
+are filled, used by the simulator node, the recorder and the Rerun converter alike.
+
+Coordinates go to ``sensor_msgs/JointState`` only when they are joint-like (angles in rad,
+lengths in m, ...); a quaternion attitude (``Model.attitude``) is published instead as
+``geometry_msgs/PoseStamped`` (orientation of the attitude frame in "world") and
+``geometry_msgs/TwistStamped`` (its angular velocity in rad/s, in body axes: header.frame_id
+is the attitude frame itself, as REP-103 asks a twist to state its frame; linear velocity
+zero, the frame's origin being fixed). Invariants and observables are ``NamedScalars``: one
+(name, value, unit) record per quantity, so that plotting tools select them by name."""
 
 from __future__ import annotations
 
@@ -8,14 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 import yaml
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from mechsim import __version__
 from mechsim.systems.base import Model
-from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
+from mechsim_msgs.msg import Energy, NamedScalar, NamedScalars, SystemInfo
 from tf2_msgs.msg import TFMessage
 
 #: Simulation time t = 0 is stamped this many seconds: /clock never starts at 0 (a zero ROS
@@ -61,6 +69,10 @@ class MessageFactory:
         self.origin = origin
         self.time_offset = time_offset
         self.coordinate_names = [c.name for c in model.coordinates]
+        self.attitude = model.attitude
+        quaternion = set(self.attitude.quaternion) if self.attitude else set()
+        #: Indices of the joint-like coordinates (the ones JointState carries).
+        self.joints = [i for i in range(len(model.coordinates)) if i not in quaternion]
         self.invariant_names = [q.name for q in model.invariants]
         self.invariant_units = [q.unit for q in model.invariants]
         self.observable_names = [q.name for q in model.observables]
@@ -73,9 +85,29 @@ class MessageFactory:
         return Header(stamp=to_time(ns), frame_id=frame)
 
     def state(self, s: Sample, ns: int) -> JointState:
+        j = self.joints
         return JointState(header=self.header(ns, self.frame_id(self._root_frame())),
-                          name=list(self.coordinate_names), position=s.q.tolist(),
-                          velocity=s.v.tolist(), effort=[])
+                          name=[self.coordinate_names[i] for i in j],
+                          position=s.q[j].tolist(), velocity=s.v[j].tolist(), effort=[])
+
+    def pose(self, s: Sample, ns: int) -> PoseStamped:
+        """The attitude frame's pose in "world" (origin moved by the instance's origin)."""
+        assert self.attitude is not None
+        m = PoseStamped(header=self.header(ns))
+        x, y, z = (float(c) for c in self.origin)
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = x, y, z
+        qx, qy, qz, qw = (float(c) for c in self.attitude.orientation(s.q))
+        o = m.pose.orientation
+        o.x, o.y, o.z, o.w = qx, qy, qz, qw
+        return m
+
+    def twist(self, s: Sample, ns: int) -> TwistStamped:
+        """The attitude frame's angular velocity (rad/s) in its own axes."""
+        assert self.attitude is not None
+        m = TwistStamped(header=self.header(ns, self.frame_id(self.attitude.frame)))
+        wx, wy, wz = (float(c) for c in self.attitude.angular_velocity(s.q, s.v))
+        m.twist.angular.x, m.twist.angular.y, m.twist.angular.z = wx, wy, wz
+        return m
 
     def _root_frame(self) -> str:
         for f in self.model.frames:
@@ -92,15 +124,17 @@ class MessageFactory:
 
     def invariants(self, s: Sample, ns: int) -> NamedScalars:
         assert s.invariants is not None
-        return NamedScalars(header=self.header(ns), names=list(self.invariant_names),
-                            units=list(self.invariant_units),
-                            values=[float(x) for x in s.invariants])
+        return self._named(ns, self.invariant_names, self.invariant_units, s.invariants)
 
     def observables(self, s: Sample, ns: int) -> NamedScalars:
         assert s.observables is not None
-        return NamedScalars(header=self.header(ns), names=list(self.observable_names),
-                            units=list(self.observable_units),
-                            values=[float(x) for x in s.observables])
+        return self._named(ns, self.observable_names, self.observable_units, s.observables)
+
+    def _named(self, ns: int, names: list[str], units: list[str],
+               values: np.ndarray) -> NamedScalars:
+        return NamedScalars(header=self.header(ns), scalars=[
+            NamedScalar(name=n, value=float(v), unit=u)
+            for n, u, v in zip(names, units, values, strict=True)])
 
     def placed(self, frames: np.ndarray) -> np.ndarray:
         """Frames as published, for one sample (frames, 7) or many (samples, frames, 7):
@@ -179,22 +213,31 @@ class ChunkEncoder:
         self.factory = f = factory
         m = f.model
         n = len(m.coordinates)
-        s = Sample(0.0, np.zeros(n), np.zeros(n), 0.0, 0.0, np.zeros(3),
+        q0 = np.zeros(n)
+        if f.attitude is not None:
+            q0[f.attitude.quaternion[3]] = 1.0  # a unit quaternion for the prototype
+        s = Sample(0.0, q0, np.zeros(n), 0.0, 0.0, np.zeros(3),
                    np.zeros(len(m.invariants)), np.zeros(len(m.observables)),
                    np.tile([0.0, 0, 0, 0, 0, 0, 1], (len(m.frames), 1)))
         self.state = Layout("sensor_msgs/msg/JointState", f.state(s, 0))
-        self.q = self.state.block([f"position.{i}" for i in range(n)])
-        self.v = self.state.block([f"velocity.{i}" for i in range(n)])
+        self.q = self.state.block([f"position.{i}" for i in range(len(f.joints))])
+        self.v = self.state.block([f"velocity.{i}" for i in range(len(f.joints))])
+        if f.attitude is not None:
+            self.pose = Layout("geometry_msgs/msg/PoseStamped", f.pose(s, 0))
+            self.orientation = self.pose.block(
+                [f"pose.orientation.{c}" for c in ("x", "y", "z", "w")])
+            self.twist = Layout("geometry_msgs/msg/TwistStamped", f.twist(s, 0))
+            self.angular = self.twist.block([f"twist.angular.{c}" for c in ("x", "y", "z")])
         self.energy = Layout("mechsim_msgs/msg/Energy", f.energy(s, 0))
         self.energy_terms = self.energy.block(
             ["kinetic", "potential", "total", "energy_function", "work_external",
              "work_dissipated"])
         self.invariants = Layout("mechsim_msgs/msg/NamedScalars", f.invariants(s, 0))
         self.invariant_values = self.invariants.block(
-            [f"values.{i}" for i in range(len(m.invariants))])
+            [f"scalars.{i}.value" for i in range(len(m.invariants))])
         self.observables = Layout("mechsim_msgs/msg/NamedScalars", f.observables(s, 0))
         self.observable_values = self.observables.block(
-            [f"values.{i}" for i in range(len(m.observables))])
+            [f"scalars.{i}.value" for i in range(len(m.observables))])
         self.dynamic = [k for k, fr in enumerate(m.frames) if not fr.static]
         self.tf = Layout("tf2_msgs/msg/TFMessage", f.tf(s, 0))
         self.tf_values = self.tf.block(
@@ -205,10 +248,20 @@ class ChunkEncoder:
         self.clock = Layout("rosgraph_msgs/msg/Clock", clock(0))
 
     def encode(self, topic: str, c: Chunk) -> np.ndarray:
-        """(N, size) bytes of ``topic`` ("state", "energy", "invariants", "observables",
-        "tf", "clock") for the chunk."""
+        """(N, size) bytes of ``topic`` ("state", "pose", "twist", "energy", "invariants",
+        "observables", "tf", "clock") for the chunk ("pose" and "twist" only for a model
+        with an attitude)."""
+        j = self.factory.joints
         if topic == "state":
-            return self.state.encode(c.ns, [(self.q, c.q), (self.v, c.v)])
+            return self.state.encode(c.ns, [(self.q, c.q[:, j]), (self.v, c.v[:, j])])
+        if topic == "pose":
+            a = self.factory.attitude
+            assert a is not None
+            return self.pose.encode(c.ns, [(self.orientation, a.orientation(c.q))])
+        if topic == "twist":
+            a = self.factory.attitude
+            assert a is not None
+            return self.twist.encode(c.ns, [(self.angular, a.angular_velocity(c.q, c.v))])
         if topic == "energy":
             assert c.energy is not None
             e = c.energy

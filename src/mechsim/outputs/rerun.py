@@ -196,8 +196,8 @@ class RerunSink:
             if leaf == "invariants":
                 self._on_invariants(st, t, msg)
             else:
-                for name, value in zip(msg.names, msg.values, strict=False):
-                    self._scalar(_path("plots", st.ns, leaf, name), t, value)
+                for scalar in msg.scalars:
+                    self._scalar(_path("plots", st.ns, leaf, scalar.name), t, scalar.value)
         elif type_name == "sensor_msgs/msg/JointState" and leaf == "state":
             st = self._system(sys_ns)
             t = self._t(st, msg.header.stamp)
@@ -461,7 +461,8 @@ class RerunSink:
                      _BALANCE.deviation(balance, st.balance0))
 
     def _on_invariants(self, st: _System, t: int, m: Any) -> None:
-        for name, value in zip(m.names, m.values, strict=False):
+        for scalar in m.scalars:
+            name, value = scalar.name, scalar.value
             self._scalar(_path("plots", st.ns, "invariants", name), t, value)
             law = st.laws.get(name) or Law.for_invariant(name)
             v0 = st.invariants0.setdefault(name, float(value))

@@ -338,7 +338,7 @@ class DiagnosticsNode(Node):
             for law in laws:
                 law.update(float(law.law.value(energy=msg)))
         else:
-            values = dict(zip(msg.names, msg.values, strict=False))
+            values = {s.name: s.value for s in msg.scalars}
             for law in laws:
                 if law.law.name in values:
                     law.update(float(law.law.value(invariants=values)))

@@ -1,9 +1,13 @@
 """The simulator node: one system instance, one node (namespace = instance name).
 
 Topics (stamped with simulation time + ``time_offset``, so /clock never starts at 0):
-  <ns>/state        sensor_msgs/JointState   coordinates and their rates
+  <ns>/state        sensor_msgs/JointState   joint-like coordinates (rad, m, ...) and rates
+  <ns>/pose         geometry_msgs/PoseStamped   attitude systems: orientation in "world"
+  <ns>/twist        geometry_msgs/TwistStamped  attitude systems: angular velocity [rad/s] in
+                                                body axes (header.frame_id <ns>/<frame>)
   <ns>/energy       mechsim_msgs/Energy      T, V, T+V, h, work_external, work_dissipated
-  <ns>/invariants   mechsim_msgs/NamedScalars   conserved quantities and constraint residuals
+  <ns>/invariants   mechsim_msgs/NamedScalars   conserved quantities and constraint residuals,
+                                                one (name, value, unit) record each
   <ns>/observables  mechsim_msgs/NamedScalars   constraint forces, multipliers, ...
   <ns>/system_info  mechsim_msgs/SystemInfo  (transient local) what runs and which laws hold
   /tf, /tf_static   tf2_msgs/TFMessage       frames <ns>/<frame>, root "world"
@@ -63,6 +67,7 @@ from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TwistStamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -250,6 +255,9 @@ class SimulatorNode(Node):
         self.factory = MessageFactory(model, self.instance.name, self.instance.origin,
                                       self.time_offset)
         self.encoder = ChunkEncoder(self.factory)
+        if model.attitude is not None:  # made once, kept if a later formulation has none
+            self.t_pose = self.outlet.channel("pose", PoseStamped, STATE_QOS)
+            self.t_twist = self.outlet.channel("twist", TwistStamped, STATE_QOS)
         self.p = model.parameter_vector()
         self._set_constraints()
         self.t = 0.0
@@ -376,7 +384,13 @@ class SimulatorNode(Node):
         if self.publish_clock:
             topics.append((self.t_clock, enc.encode("clock", c),
                            lambda i: messages.clock(int(ns[i]))))
-        topics.append((self.t_state, enc.encode("state", c), _builder(f.state, sample, ns)))
+        if f.joints:
+            topics.append((self.t_state, enc.encode("state", c),
+                           _builder(f.state, sample, ns)))
+        if f.attitude is not None:
+            topics.append((self.t_pose, enc.encode("pose", c), _builder(f.pose, sample, ns)))
+            topics.append((self.t_twist, enc.encode("twist", c),
+                           _builder(f.twist, sample, ns)))
         for key, topic, build in (("energy", self.t_energy, f.energy),
                                   ("invariants", self.t_inv, f.invariants),
                                   ("observables", self.t_obs, f.observables),

@@ -47,7 +47,7 @@ from mechsim.systems._rotation import (
     rotate,
     rotate_inverse,
 )
-from mechsim.systems.base import Quantity, Structure
+from mechsim.systems.base import Attitude, Quantity, Structure
 from mechsim.systems.direct import DirectModel
 
 # --- inertia ----------------------------------------------------------------------------------
@@ -395,6 +395,13 @@ class RigidData:
     extra: tuple[float, ...] = ()
 
 
+def body_angular_velocity(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """ω in body axes (``rb_omega``) for quaternions q and rates v = q̇ of shape (..., 4)."""
+    y = np.concatenate([np.moveaxis(np.asarray(q, dtype=float), -1, 0),
+                        np.moveaxis(np.asarray(v, dtype=float), -1, 0)])
+    return np.stack(rb_omega(y), axis=-1)
+
+
 class QuaternionRigidBody(DirectModel):
     """Base for rigid bodies integrated as quaternions; see the module docstring.
 
@@ -403,6 +410,8 @@ class QuaternionRigidBody(DirectModel):
     """
 
     QUATERNION = ("x", "y", "z", "w")
+    #: The frame (a child of "world", at its origin) whose orientation q is.
+    ATTITUDE_FRAME = "body"
 
     def rigid_data(self) -> RigidData:
         raise NotImplementedError
@@ -414,6 +423,11 @@ class QuaternionRigidBody(DirectModel):
     def coordinates(self) -> tuple[Quantity, ...]:
         return tuple(Quantity(f"quaternion_{c}", "", f"attitude quaternion {c} (world_R_body)")
                      for c in self.QUATERNION)
+
+    @property
+    def attitude(self) -> Attitude:
+        """q is world_R_body of ``ATTITUDE_FRAME``; ω = 2 q* ⊗ q̇ in body axes (``rb_omega``)."""
+        return Attitude(self.ATTITUDE_FRAME, (0, 1, 2, 3), body_angular_velocity)
 
     @cached_property
     def structure(self) -> Structure:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
@@ -44,6 +44,27 @@ class FrameSpec:
     child: str
     parent: str
     static: bool = False
+
+
+@dataclass(frozen=True)
+class Attitude:
+    """Coordinates that hold an orientation as a quaternion rather than joint angles.
+
+    ``q[quaternion]`` = (x, y, z, w), normalised, is the orientation world_R_frame of the
+    moving frame ``frame`` (a child of "world" whose origin stays at the world origin, so its
+    linear velocity is zero). ``angular_velocity(q, v)`` is the angular velocity of that frame
+    in its own (body) axes, rad/s, for q, v of shape (..., n) -> (..., 3). These coordinates
+    are not joints: they are published as a pose and a twist, not in JointState.
+    """
+
+    frame: str
+    quaternion: tuple[int, int, int, int]
+    angular_velocity: Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+    def orientation(self, q: np.ndarray) -> np.ndarray:
+        """The unit quaternion (x, y, z, w) of ``q`` (..., n) -> (..., 4)."""
+        o = np.asarray(q, dtype=float)[..., list(self.quaternion)]
+        return o / np.linalg.norm(o, axis=-1, keepdims=True)
 
 
 @dataclass(frozen=True)
@@ -322,6 +343,11 @@ class Model(ABC):
     @property
     def frames(self) -> tuple[FrameSpec, ...]:
         return ()
+
+    @property
+    def attitude(self) -> Attitude | None:
+        """Coordinates holding a quaternion orientation (see ``Attitude``); None by default."""
+        return None
 
     @property
     def events(self) -> tuple[Event, ...]:

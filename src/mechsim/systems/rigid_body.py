@@ -108,6 +108,7 @@ SHAPES = ("box", "cylinder", "sphere")
 
 class RigidBody(QuaternionRigidBody):
     id = "rigid_body"
+    ATTITUDE_FRAME = "principal"  # q poses the principal axes (see ``frames``)
     title = "Free rigid body (Euler's equations, quaternion attitude)"
     source = "seed 003 §7.2–7.7: inertia tensor, principal axes, Euler's equations"
     oracles = ("box/cylinder/sphere tensors and parallel axis; spin stability about the "
