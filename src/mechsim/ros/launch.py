@@ -33,7 +33,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from mechsim.errors import MechsimError, ParameterError
-from mechsim.ros.process import die_with_parent, stop_on_sigterm, stopping
+from mechsim.ros.process import (
+    die_with_parent,
+    drain,
+    stop_on_sigterm,
+    stopping,
+    write_report,
+)
 
 if TYPE_CHECKING:
     from mechsim.scene import Scene
@@ -296,17 +302,14 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
 
 
 # --- one process per node -----------------------------------------------------------------
-def _spawn(args: list[str]) -> subprocess.Popen[bytes]:
-    return subprocess.Popen([sys.executable, "-m", "mechsim.ros.launch", *args],
+def _spawn(args: list[str], module: str = "mechsim.ros.launch") -> subprocess.Popen[bytes]:
+    return subprocess.Popen([sys.executable, "-m", module, *args],
                             env=dict(os.environ), start_new_session=True)
 
 
 #: Seconds a simulator process waits for its consumers' subscriptions (diagnostics, recorder)
 #: before it steps anyway, with a warning.
 CONSUMER_WAIT = 60.0
-#: A consumer process stops once nothing arrived for this long after its stop signal (the
-#: simulators waited for every reader's acknowledgment before they exited).
-DRAIN_QUIET = 0.5
 
 
 def run_processes(target: str, scene: Scene, sets: list[str], duration: float | None, *,
@@ -348,7 +351,8 @@ def run_processes(target: str, scene: Scene, sets: list[str], duration: float | 
         consumers.append(_spawn([*common, "--diagnostics", *report("diagnostics")]))
         if recording:
             outs = [*(["--bag", bag] if bag else []), *(["--rrd", rrd] if rrd else [])]
-            consumers.append(_spawn([*common, "--recorder", *outs, *report("recorder")]))
+            consumers.append(_spawn([*common, *outs, *report("recorder")],
+                                    "mechsim.ros.recorder"))
         readers = ["--await-readers", str(len(consumers))]
         if recording:
             readers.append("--await-recorder")
@@ -442,25 +446,6 @@ def _wait_for(ready: Callable[[], bool], spin: Callable[[], None]) -> bool:
 
 def _subscribers(node: Any) -> dict[str, int]:
     return {t: ch.publisher.get_subscription_count() for t, ch in node.outlet.channels.items()}
-
-
-def _drain(executor: Any, received: Callable[[], int]) -> None:
-    """Spin until nothing has arrived for ``DRAIN_QUIET`` s (bounded by ``CONSUMER_WAIT``)."""
-    end = time.monotonic() + CONSUMER_WAIT
-    last, quiet_since = received(), time.monotonic()
-    while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
-        executor.spin_once(timeout_sec=0.05)
-        if received() != last:
-            last, quiet_since = received(), time.monotonic()
-
-
-def _write_report(path: str | None, data: dict[str, Any]) -> None:
-    if path is not None:
-        import json
-
-        from mechsim.files import write_atomic
-
-        write_atomic(path, json.dumps(data))
 
 
 def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
@@ -561,69 +546,22 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
             if node is not None and sim:
                 wait_acked([ch.publisher for ch in node.outlet.channels.values()])
             elif node is not None and report is not None:
-                _drain(executor, lambda: node.received)
+                drain(executor, lambda: node.received)
         except KeyboardInterrupt:
             pass
         if node is not None:
             if sim:
-                _write_report(report, {"t": node.t, "samples": node.samples_published,
+                write_report(report, {"t": node.t, "samples": node.samples_published,
                                        "failed": node.failed, "startup": startup,
                                        "messages": node.outlet.counts})
             else:
-                _write_report(report, {"summary": node.summary(),
+                write_report(report, {"summary": node.summary(),
                                        "messages": node.outlet.counts})
         executor.shutdown()
         if node is not None:
             node.destroy_node()
         context.try_shutdown()
     return 1 if which is not None and node is not None and node.failed else 0
-
-
-def run_recorder(scene: Scene, bag: str | None, rrd: str | None,
-                 report: str | None = None) -> int:
-    """Body of the recorder process: the scene's topics from the graph into ``bag`` / ``rrd``
-    until SIGINT/SIGTERM, then what is in flight, then the outputs completed."""
-    from mechsim.environment import import_rclpy
-
-    rclpy = import_rclpy()
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
-
-    from mechsim.ros.process import held_signals
-    from mechsim.ros.record import open_outputs
-    from mechsim.ros.recorder import RecorderNode
-
-    with held_signals():
-        out = open_outputs(scene, bag, rrd)
-    context = rclpy.context.Context()
-    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    executor = SingleThreadedExecutor(context=context)
-    node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
-    executor.add_node(node)
-    lines: list[str] = []
-    try:
-        try:
-            while True:
-                executor.spin_once(timeout_sec=0.1)
-        except KeyboardInterrupt:
-            pass
-        with held_signals():
-            _drain(executor, lambda: sum(node.counts.values()))
-            lines = out.close()
-    except BaseException as e:
-        with held_signals():
-            kept = out.finish_after_error()
-        if isinstance(e, KeyboardInterrupt):
-            raise
-        raise MechsimError(f"recorder: {(str(e).splitlines() or [type(e).__name__])[0]}; "
-                           f"{kept}") from None
-    finally:
-        _write_report(report, {"lines": lines, "counts": node.counts,
-                               "best_effort": sorted(node.best_effort)})
-        executor.shutdown()
-        node.destroy_node()
-        context.try_shutdown()
-    return 0
 
 
 def _main(argv: list[str]) -> int:
@@ -635,9 +573,6 @@ def _main(argv: list[str]) -> int:
         who.add_argument("--node", help="instance name (`diagnostics`: the diagnostics node, "
                          "unless an instance has that name)")
         who.add_argument("--diagnostics", action="store_true")
-        who.add_argument("--recorder", action="store_true")
-        ap.add_argument("--bag")
-        ap.add_argument("--rrd")
         ap.add_argument("--report", help="JSON file of what this process did, for the parent")
         ap.add_argument("--await-readers", type=int, default=0)
         ap.add_argument("--await-recorder", action="store_true")
@@ -658,8 +593,6 @@ def _main(argv: list[str]) -> int:
             scene.publish_rate = float(PUBLISH_RATE.check(a.rate, "--rate"))
         duration = float(DURATION.check(a.duration, "--duration")) \
             if a.duration is not None else scene.duration
-        if a.recorder:
-            return run_recorder(scene, a.bag, a.rrd, a.report)
         which = a.node
         if a.diagnostics or (which == "diagnostics"
                              and which not in [i.name for i in scene.systems]):

@@ -1,14 +1,17 @@
 """Process plumbing shared by the launcher, the recorder and helper processes: a child that dies
 with its parent, SIGTERM taking the same clean path as Ctrl-C, and stops held while files are
-being created or completed. Standard library only."""
+being created or completed; a consumer draining before it stops, and reports to the parent.
+Standard library only (and the project's atomic files)."""
 
 from __future__ import annotations
 
 import ctypes
+import json
 import os
 import signal
 import threading
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -74,3 +77,29 @@ def held_signals() -> Iterator[None]:
             signal.signal(s, handler)
     if got:
         raise KeyboardInterrupt
+
+
+#: A consumer process stops once nothing arrived for this long after its stop signal (the
+#: simulators waited for every reader's acknowledgment before they exited).
+DRAIN_QUIET = 0.5
+#: Longest drain, however busy the graph.
+DRAIN_LIMIT = 60.0
+
+
+def drain(executor: Any, received: Callable[[], int]) -> None:
+    """Spin ``executor`` until ``received()`` has not changed for ``DRAIN_QUIET`` s: the
+    messages in flight when a consumer was told to stop are taken, not dropped."""
+    end = time.monotonic() + DRAIN_LIMIT
+    last, quiet_since = received(), time.monotonic()
+    while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
+        executor.spin_once(timeout_sec=0.05)
+        if received() != last:
+            last, quiet_since = received(), time.monotonic()
+
+
+def write_report(path: str | None, data: dict[str, Any]) -> None:
+    """What a child process did, as JSON for its parent (written atomically)."""
+    if path is not None:
+        from mechsim.files import write_atomic
+
+        write_atomic(path, json.dumps(data))

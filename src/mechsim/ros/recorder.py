@@ -16,6 +16,8 @@ its acknowledgments); the counts received are reported next to what was publishe
 
 from __future__ import annotations
 
+import argparse
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -23,8 +25,16 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
+from mechsim.errors import MechsimError, ParameterError
 from mechsim.outputs.bag import message_class
 from mechsim.ros.outlet import subscription_qos
+from mechsim.ros.process import (
+    die_with_parent,
+    drain,
+    held_signals,
+    stop_on_sigterm,
+    write_report,
+)
 
 #: Topics outside the instances' namespaces that a scene's nodes publish.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock", "/diagnostics")
@@ -103,3 +113,81 @@ class RecorderNode(Node):
 
     def subscribed(self, topic: str) -> bool:
         return topic in self._subs
+
+
+def run_recorder(scene: Any, bag: str | None, rrd: str | None,
+                 report: str | None = None) -> int:
+    """Body of the recorder process: the scene's topics from the graph into ``bag`` / ``rrd``
+    until SIGINT/SIGTERM, then what is in flight, then the outputs completed."""
+    from mechsim.environment import import_rclpy
+
+    rclpy = import_rclpy()
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from mechsim.ros.record import open_outputs
+
+    with held_signals():
+        out = open_outputs(scene, bag, rrd)
+    context = rclpy.context.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    executor = SingleThreadedExecutor(context=context)
+    node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
+    executor.add_node(node)
+    lines: list[str] = []
+    try:
+        try:
+            while True:
+                executor.spin_once(timeout_sec=0.1)
+        except KeyboardInterrupt:
+            pass
+        with held_signals():
+            drain(executor, lambda: sum(node.counts.values()))
+            lines = out.close()
+    except BaseException as e:
+        with held_signals():
+            kept = out.finish_after_error()
+        if isinstance(e, KeyboardInterrupt):
+            raise
+        raise MechsimError(f"recorder: {(str(e).splitlines() or [type(e).__name__])[0]}; "
+                           f"{kept}") from None
+    finally:
+        write_report(report, {"lines": lines, "counts": node.counts,
+                               "best_effort": sorted(node.best_effort)})
+        executor.shutdown()
+        node.destroy_node()
+        context.try_shutdown()
+    return 0
+
+
+def _main(argv: list[str]) -> int:
+    """``python -m mechsim.ros.recorder TARGET [--bag DIR] [--rrd FILE] ...``: the recorder
+    process of ``mechsim run --processes`` (same scene arguments as its other processes)."""
+    stop_on_sigterm()
+    try:
+        ap = argparse.ArgumentParser(prog="python -m mechsim.ros.recorder")
+        ap.add_argument("target", help="scene file or system id")
+        ap.add_argument("--set", action="append", default=[])
+        ap.add_argument("--name")
+        ap.add_argument("--bag")
+        ap.add_argument("--rrd")
+        ap.add_argument("--report", help="JSON file of what was recorded, for the parent")
+        ap.add_argument("--parent", type=int, help="die with this process")
+        a, _ = ap.parse_known_args(argv)  # the scene's pacing options concern the simulators
+        if a.parent is not None:
+            die_with_parent(a.parent)
+        if a.bag is None and a.rrd is None:
+            raise ParameterError("--bag", "give --bag and/or --rrd")
+        from mechsim.scene import scene_from_target
+
+        return run_recorder(scene_from_target(a.target, a.set, a.name), a.bag, a.rrd,
+                            a.report)
+    except MechsimError as e:
+        print(f"mechsim: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(_main(sys.argv[1:]))
