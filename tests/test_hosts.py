@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import uuid
@@ -127,3 +128,35 @@ def test_simulator_and_consumer_on_two_hosts(two_hosts: tuple[str, str, str, str
     finally:
         sim.terminate()
         sim.wait(timeout=60)
+
+
+def test_recorder_on_the_other_host_records_every_message(
+        two_hosts: tuple[str, str, str, str], ros_env: dict[str, str], tmp_path: Path) -> None:
+    """The simulator on host a waits for the recorder on host b (``--wait-for recorder``), runs
+    2 s as fast as it can, and every message it published is in b's bag."""
+    from rosbags.highlevel import AnyReader
+
+    a, b, addr_a, addr_b = two_hosts
+    pre_a, env_a = _in(a, addr_a, addr_b, ros_env)
+    pre_b, env_b = _in(b, addr_b, addr_a, ros_env)
+    bag = tmp_path / "bag"
+    rec = subprocess.Popen([*pre_b, *MECHSIM, "run", "pendulum", "--only", "recorder", "--bag",
+                            str(bag)], env=env_b, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        sim = subprocess.run([*pre_a, *MECHSIM, "run", "pendulum", "--only", "pendulum",
+                              "--wait-for", "recorder", "--fast", "--duration", "2"],
+                             env=env_a, capture_output=True, text=True, timeout=300)
+        assert sim.returncode == 0, sim.stderr
+        assert "stepping anyway" not in sim.stderr
+    finally:
+        rec.send_signal(signal.SIGINT)
+        out, err = rec.communicate(timeout=120)
+    assert rec.returncode == 0 and "Traceback" not in err, err
+    counts: dict[str, int] = {}
+    with AnyReader([bag]) as reader:
+        for con, _, _ in reader.messages():
+            counts[con.topic] = counts.get(con.topic, 0) + 1
+    samples = ("/pendulum/state", "/pendulum/energy", "/pendulum/observables", "/tf", "/clock")
+    assert {t: counts.get(t) for t in samples} == dict.fromkeys(samples, 201)
+    assert counts["/pendulum/system_info"] == 1 and counts["/tf_static"] == 1

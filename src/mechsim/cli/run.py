@@ -26,16 +26,32 @@ def cmd_run(a: argparse.Namespace) -> int:
         from mechsim.ros.launch import run_single_node
 
         names = [i.name for i in scene.systems]
-        if a.only != "diagnostics" and a.only not in names:
+        if a.only not in ("diagnostics", "recorder") and a.only not in names:
             raise ParameterError("--only", f"no instance {a.only!r} in the scene (instances: "
-                                 f"{', '.join(names)}; or diagnostics)")
-        for flag, given in (("--bag", a.bag), ("--rrd", a.rrd), ("--processes", a.processes)):
+                                 f"{', '.join(names)}; or diagnostics, recorder)")
+        if a.processes:
+            raise ParameterError("--processes", "not available with --only")
+        if a.only == "recorder" and a.only not in names:
+            if bag is None and rrd is None:
+                raise ParameterError("--only", "recorder needs --bag and/or --rrd")
+            from mechsim.ros.recorder import run_recorder
+
+            say(f"recording scene {scene.name!r} from the graph (Ctrl-C stops and completes "
+                "the outputs)")
+            for line in run_recorder(scene, bag, rrd):
+                print(f"  outputs: {line}")
+            return 0
+        for flag, given in (("--bag", a.bag), ("--rrd", a.rrd)):
             if given:
-                raise ParameterError(flag, "not available with --only")
+                raise ParameterError(flag, "only with --only recorder")
+        waits = a.wait_for or []
+        if waits and a.only in ("diagnostics",):
+            raise ParameterError("--wait-for", "only for a simulator")
         say(f"running {'the diagnostics node' if a.only == 'diagnostics' else a.only} of "
             f"scene {scene.name!r} (Ctrl-C stops it)")
         return run_single_node(scene, None if a.only == "diagnostics" else a.only,
-                               fast=a.fast, duration=duration)
+                               fast=a.fast, duration=duration, readers=len(set(waits)),
+                               recorder="recorder" in waits)
     if a.processes:
         from mechsim.ros.launch import run_processes
         consumers = "a diagnostics process" + (" and a recorder process"
@@ -82,7 +98,10 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--processes", action="store_true", help="one process per node")
     r.add_argument("--only", metavar="NODE", help="run only this instance's simulator (or "
                    "`diagnostics`) of the scene: one node per host with the several-hosts "
-                   "DDS profile")
+                   "DDS profile; `recorder`: record the scene from the graph (--bag/--rrd)")
+    r.add_argument("--wait-for", action="append", choices=["diagnostics", "recorder"],
+                   help="with --only SIMULATOR: step only once these consumers subscribe "
+                   "(nothing they would miss is sent before; repeatable)")
     r.add_argument("--bag", metavar="DIR", help="also record every message to a new rosbag2 "
                    "bag (strftime fields expanded)")
     r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd)")

@@ -116,9 +116,9 @@ class RecorderNode(Node):
 
 
 def run_recorder(scene: Any, bag: str | None, rrd: str | None,
-                 report: str | None = None) -> int:
-    """Body of the recorder process: the scene's topics from the graph into ``bag`` / ``rrd``
-    until SIGINT/SIGTERM, then what is in flight, then the outputs completed."""
+                 report: str | None = None) -> list[str]:
+    """The scene's topics from the graph into ``bag`` / ``rrd`` until SIGINT/SIGTERM, then
+    what is in flight, then the outputs completed. Returns the lines describing them."""
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
@@ -157,7 +157,7 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None,
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()
-    return 0
+    return lines
 
 
 def _main(argv: list[str]) -> int:
@@ -180,8 +180,8 @@ def _main(argv: list[str]) -> int:
             raise ParameterError("--bag", "give --bag and/or --rrd")
         from mechsim.scene import scene_from_target
 
-        return run_recorder(scene_from_target(a.target, a.set, a.name), a.bag, a.rrd,
-                            a.report)
+        run_recorder(scene_from_target(a.target, a.set, a.name), a.bag, a.rrd, a.report)
+        return 0
     except MechsimError as e:
         print(f"mechsim: error: {e}", file=sys.stderr)
         return 2
