@@ -105,8 +105,6 @@ def test_every_topic_in_process(ros_context: Any, sim: Any) -> None:
     assert info.system == "pendulum" and "constraint:constraint_rod_length" in info.laws
     obs = got[f"/{NS}/observables"][-1]
     assert [s.unit for s in obs.scalars if s.name == "tension"] == ["N"]
-    en = got[f"/{NS}/energy"][-1]
-    assert en.total == pytest.approx(en.kinetic + en.potential, rel=1e-15)
     ex.shutdown()
     probe.destroy_node()
 
