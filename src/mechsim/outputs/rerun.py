@@ -133,6 +133,11 @@ class _System:
     last_t: int = 0
 
 
+#: Longest wait for Rerun to write what it buffered when a recording is closed [s] (a file
+#: writer that died on a full disk once left an unbounded flush waiting under load).
+FLUSH_TIMEOUT = 120.0
+
+
 class RerunSink:
     """Outlet sink writing a Rerun ``.rrd`` recording; call :meth:`close` to finish the file.
 
@@ -215,7 +220,8 @@ class RerunSink:
             for entity in list(self.series):
                 self._flush(entity)
             self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
-            self.rec.flush()  # RuntimeError if Rerun's file writer stopped (disk full, ...)
+            # RuntimeError if Rerun's file writer stopped (disk full, ...) or, bounded, hangs.
+            self.rec.flush(timeout_sec=FLUSH_TIMEOUT)
             self.rec.disconnect()
             fd = os.open(self._tmp, os.O_RDONLY | os.O_NOFOLLOW)
             try:
