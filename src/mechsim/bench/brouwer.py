@@ -1,11 +1,11 @@
 """Brouwer's law for the machine-precision method: the energy error of ``radau15`` grows like
 √N over N steps, not like N.
 
-Round-off makes every step's energy error a random number of a few ulps with mean zero when
-the method has no bias of its own (Brouwer 1937, AJ 46, 149; the test of IAS15 in Rein &
-Spiegel 2015, MNRAS 446, 1424, §5 and Fig. 5): the errors add up as a random walk, whose RMS
-over independent runs grows like √N. A method with a bias (truncation error of one sign, or
-a rounding that always leans one way) drifts like N.
+Round-off makes every step's energy error a random number of at most an ulp or so, with mean
+zero when the method has no bias of its own (Brouwer 1937, AJ 46, 149; IAS15's long-term
+energy test in Rein & Spiegel 2015, MNRAS 446, 1424, with perturbed initial conditions): the
+errors add up as a random walk, whose RMS over independent runs grows like √N. A method with
+a bias (truncation error of one sign, or a rounding that always leans one way) drifts like N.
 
 The experiment (``mechsim bench --brouwer``): Kepler's problem (``kepler``, GM = μ = a = 1,
 e = 0.5) with ``runs`` initial states perturbed by a relative 1e-8 (seeded), each integrated
