@@ -84,6 +84,7 @@ def _advance_rounding_up(st: Any, t: float) -> np.ndarray:
     """Advance a ``radau15`` stepper to ``t`` one planned step at a time, and after each step
     round the velocity one ulp away from zero: a rounding that always leans one way (the
     bias Brouwer's law excludes), for showing that the slope check detects it."""
+    y = st.y.copy()
     while st.t < t:
         y = st.advance(np.array([min(st.t + float(st.state["h"][0]), t)]))[0]
         st.y[2:4] = np.nextafter(st.y[2:4], np.copysign(np.inf, st.y[2:4]))
@@ -104,8 +105,7 @@ def energy_walks(n_steps: int, runs: int, method: str = "radau15", tolerance: fl
     probe.advance(np.array([period]))
     per_orbit = max(probe.n_steps, 1)
     orbits = max(n_steps / per_orbit, 2.0)
-    # log-spaced, then moved half an orbit off pericentre (the energy error of a finite
-    # step is largest at pericentre and a sample on it would see the step's own error)
+    # whole orbits, log-spaced, plus half an orbit: every sample at apocentre, the same phase
     times = period * (np.unique(np.round(np.geomspace(1.0, orbits, samples))) + 0.5)
     steps: list[list[int]] = []
     errors: list[list[float]] = []
