@@ -28,6 +28,12 @@ def add_parser(sub: Any) -> None:
     b.add_argument("--streaming", action="store_true",
                    help="real-time factor of each system recording at 100 Hz, and the CPU "
                    "share of all systems streaming in real time")
+    b.add_argument("--brouwer", action="store_true",
+                   help="Brouwer's law: radau15's energy error against the number of steps "
+                   "on perturbed Kepler orbits (brouwer.png, brouwer.json)")
+    b.add_argument("--steps", type=int, default=10_000_000,
+                   help="steps per run for --brouwer (default 10^7)")
+    b.add_argument("--runs", type=int, default=16, help="perturbed runs for --brouwer")
     b.set_defaults(func=cmd_bench)
 
 
@@ -35,6 +41,17 @@ def cmd_bench(a: argparse.Namespace) -> int:
     from mechsim.errors import ParameterError
 
     out = Path(a.out)
+    if a.brouwer:
+        if a.systems:
+            raise ParameterError("--brouwer", "takes no PROBLEM arguments")
+        if a.steps < 10_000:
+            raise ParameterError("--steps", f"must be at least 10000 (got {a.steps})")
+        if a.runs < 2:
+            raise ParameterError("--runs", f"must be at least 2 (got {a.runs})")
+        from mechsim.bench.brouwer import run_brouwer
+
+        run_brouwer(out, n_steps=a.steps, runs=a.runs)
+        return 0
     if a.streaming:
         from mechsim.bench.streaming import run_streaming
 

@@ -589,6 +589,11 @@ _RADAU_X = np.array([1.0 / ((k + 2) * (k + 3)) for k in range(7)])
 # Binomial coefficients C(j+1, k+1) for moving the expansion to the next step.
 _RADAU_SHIFT = np.array([[math.comb(j + 1, k + 1) for k in range(7)] for j in range(7)],
                         dtype=np.float64)
+# A step that would end short of the next output time by less than this fraction of its
+# length is stretched to land on it: otherwise the next step is the remainder, a few ulps
+# when the planned step is the previous output gap and this gap is a few ulps longer (equal
+# output gaps differ by rounding), and the run stops with a step-size underflow.
+_LANDING_STRETCH = 0.01
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
@@ -653,7 +658,7 @@ def _kahan(x, comp, i, inc):
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
-                    g_old, ev_dir, tau):
+                    g_old, ev_dir, a_floor):
     """Adaptive 15th-order Gauss–Radau predictor–corrector on q̈ = f(t, q, q̇) (the scheme of
     IAS15, Rein & Spiegel 2015, with velocity-dependent forces and the work terms integrated
     alongside as first-order components): within a step the second derivatives are a degree-7
@@ -662,14 +667,14 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     round-off; the step adapts so that max|b₆| / max|q̈| stays at ``eps``
     (dt_new = dt (eps / ε_b)^(1/7), a step whose proposal shrinks below a quarter is redone;
     so is one whose iteration does not converge). Near an equilibrium q̈ is round-off and so
-    is b₆: the acceleration scale is then the model's own, max|q|/τ² + max|q̇|/τ (τ: its time
-    scale ``tau``), so that noise does not drive the step to zero.
+    is b₆: the acceleration scale is floored at ``a_floor`` (the stepper's: the model's own
+    scale at the start of the run), so that noise does not drive the step to zero.
     The state and the time are updated with compensated summation. Steps are shortened to
-    land on every output time. ``b``, ``g`` (7, N_Q + 2) hold the expansion between calls and
-    ``e`` its prediction, ``F0``/``dy`` are scratch. Events as in ``dop853_advance``, located
-    on the step's expansion (``g_old``: event functions at the current state, ``ev_dir``
-    their directions); on EVENT the state is at the event. Returns (status, outputs
-    written)."""
+    land on every output time (or stretched by up to ``_LANDING_STRETCH`` of their length).
+    ``b``, ``g`` (7, N_Q + 2) hold the expansion between calls and ``e`` its prediction,
+    ``F0``/``dy`` are scratch. Events as in ``dop853_advance``, located on the step's
+    expansion (``g_old``: event functions at the current state, ``ev_dir`` their
+    directions); on EVENT the state is at the event. Returns (status, outputs written)."""
     s_ = state[0]
     n = ks.n_q
     m = n + 2  # accelerations and the two work rates
@@ -696,7 +701,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         t0 = s_.t
         dt = s_.h
         landing = False
-        if t0 + dt >= t_out[k]:
+        if t0 + dt * (1.0 + _LANDING_STRETCH) >= t_out[k]:
             dt = t_out[k] - t0
             landing = True
         if dt <= 10.0 * abs(np.nextafter(t0, np.inf) - t0):
@@ -709,9 +714,6 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         for j in range(m):
             F0[j] = dy[n + j]
         b_start[:, :] = b
-        natural = 0.0
-        for j in range(n):
-            natural = max(natural, abs(y[j]) / (tau * tau) + abs(y[n + j]) / tau)
         while True:
             # predictor–corrector iteration
             previous = math.inf
@@ -751,7 +753,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
             # step size control on the accelerations' last coefficient (the work rates do
             # not act back on the motion, and may be round-off around zero)
             big_b6 = 0.0
-            big_a = natural
+            big_a = a_floor
             for j in range(n):
                 big_b6 = max(big_b6, abs(b[6, j]))
                 big_a = max(big_a, abs(dy[n + j]))
