@@ -91,28 +91,6 @@ def test_velocity_dependent_force_and_work_terms() -> None:
     assert np.max(np.abs(Y[:, 3] - exact[:, 3])) < 3e-13  # work_dissipated
 
 
-def test_brouwer_law() -> None:
-    """Energy error of Kepler orbits over 2000 orbits, averaged over eight orbits (e = 0.1 …
-    0.8): the RMS grows like t^½ (round-off random walk), not like t (a bias per step)."""
-    orbits = np.arange(20, 2001, 20)
-    T = orbits * 2 * math.pi
-    sq = np.zeros(T.size)
-    for e in np.linspace(0.1, 0.8, 8):
-        model = mechsim.load_system("kepler", eccentricity=e)
-        st = make_stepper(model, "radau15", 1e-14)
-        Y = st.advance(T)
-        p, E = model.parameter_vector(), np.zeros(3)
-        model.kernels.energy(0.0, model.initial_y(), p, E)
-        e0 = E[0] + E[1]
-        for i, row in enumerate(Y):
-            model.kernels.energy(0.0, row, p, E)
-            sq[i] += ((E[0] + E[1] - e0) / e0) ** 2
-    rms = np.sqrt(sq / 8)
-    slope = np.polyfit(np.log(T), np.log(rms), 1)[0]
-    assert 0.3 < slope < 0.75, (slope, rms[[0, -1]])
-    assert rms[-1] < 5e-14  # a few ulps of E after ~10⁵ steps
-
-
 def test_events_located_on_the_expansion() -> None:
     """A bead released at rest near the top of a sphere leaves it where cos θ = (2/3) cos θ₀
     (energy conservation and N = 0); radau15 finds the event there and continues in flight."""
