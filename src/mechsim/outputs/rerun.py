@@ -23,6 +23,10 @@ Layout of the recording (Rerun 0.41, one timeline ``sim_time``: duration = stamp
   plots/<ns>/diagnostics/<law>           level 0 OK, 1 WARN, 2 ERROR, 3 STALE from /diagnostics
                                          statuses named ``mechsim/<ns>/<law>``
 
+``RerunSink.live(url)`` streams the same entities and blueprint to a Rerun viewer or server
+(gRPC, ``rerun+http://HOST:PORT/proxy``; ``mechsim.outputs.rerun_live`` serves one on loopback)
+instead of writing a file: the buffered columns are sent every ``LIVE_PERIOD`` s of wall time.
+
 A system is learned from its ``<ns>/system_info`` message: system id and parameters give the model
 (``mechsim.load_system``), hence its frames and visuals. Its time offset is that message's stamp,
 which is always simulation time 0 (``DEFAULT_TIME_OFFSET`` until one arrives). Time series and
@@ -39,6 +43,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,6 +65,10 @@ HANDLED_TYPES = {
     "diagnostic_msgs/msg/DiagnosticArray",
 }
 _FLUSH_ROWS = 4096
+#: Live streams: buffered columns are sent at least this often [s of wall time].
+LIVE_PERIOD = 0.1
+#: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
+LIVE_FLUSH_TIMEOUT = 10.0
 _BALANCE = Law("work_balance")
 
 
@@ -147,7 +156,7 @@ class RerunSink:
                  recording_id: str | None = None, replace: bool = True) -> None:
         import rerun as rr
 
-        self.path = Path(path)
+        self.path: Path | None = Path(path)
         self.replace = replace
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -163,6 +172,28 @@ class RerunSink:
         except BaseException:
             self._remove_tmp()
             raise
+        self._start(live=False)
+
+    @classmethod
+    def live(cls, url: str, *, application_id: str = "mechsim",
+             recording_id: str | None = None) -> RerunSink:
+        """A sink streaming to the Rerun viewer or server at ``url`` (``rerun+http://…/proxy``)
+        instead of a file. The blueprint is sent once the systems are known and again, as the
+        .rrd's, by :meth:`close`, which waits up to ``LIVE_FLUSH_TIMEOUT`` s for the rest to
+        be taken; the viewer keeps what it received."""
+        import rerun as rr
+
+        self = cls.__new__(cls)
+        self.path, self.replace, self._tmpdir = None, False, None
+        self.rec = rr.RecordingStream(
+            application_id, recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
+        self.rec.connect_grpc(url, default_blueprint=self._blueprint())
+        self._start(live=True)
+        return self
+
+    def _start(self, *, live: bool) -> None:
+        import rerun as rr
+
         self.rec.set_log_time_enabled(False)
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
@@ -174,6 +205,8 @@ class RerunSink:
         self.bbox: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self.messages = 0
         self.closed = False
+        self._live_next: float | None = time.monotonic() + LIVE_PERIOD if live else None
+        self._live_blueprint: tuple[Any, ...] = ()
 
     # --- sink protocol ------------------------------------------------------------------------
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
@@ -211,6 +244,9 @@ class RerunSink:
         if self.closed:
             return
         self.closed = True
+        if self._live_next is not None:
+            self._close_live()
+            return
         try:
             for entity in list(self.series):
                 self._flush(entity)
@@ -243,8 +279,30 @@ class RerunSink:
                 self.rec.disconnect()
         self._remove_tmp()
 
+    def _close_live(self) -> None:
+        try:
+            for entity in list(self.series):
+                self._flush(entity)
+            self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+            self.rec.flush(timeout_sec=LIVE_FLUSH_TIMEOUT)
+        finally:
+            with contextlib.suppress(Exception):
+                self.rec.disconnect()
+
+    def _send_live(self) -> None:
+        """Send every buffered column; the blueprint too once the systems (or the 3D extent
+        that places the camera) are first known."""
+        for entity in list(self.series):
+            self._flush(entity)
+        shown = (tuple(st.key for st in self.systems.values()), self.bbox[0] is not None)
+        if shown != self._live_blueprint and shown[0]:
+            self._live_blueprint = shown
+            self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+        self._live_next = time.monotonic() + LIVE_PERIOD
+
     def _remove_tmp(self) -> None:
-        shutil.rmtree(self._tmpdir, ignore_errors=True)
+        if self._tmpdir is not None:
+            shutil.rmtree(self._tmpdir, ignore_errors=True)
 
     def __enter__(self) -> RerunSink:
         return self
@@ -498,6 +556,8 @@ class RerunSink:
         s.values.append(value)
         if len(s.times) >= _FLUSH_ROWS:
             self._flush(entity)
+        if self._live_next is not None and time.monotonic() >= self._live_next:
+            self._send_live()
 
     def _flush(self, entity: str) -> None:
         import rerun as rr
