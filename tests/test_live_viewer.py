@@ -372,3 +372,41 @@ def test_connect_to_nothing_is_refused(ros_env: dict[str, str]) -> None:
     assert r.returncode == 2, r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith(
         f"mechsim: error: --connect: nothing listens at 127.0.0.1:{port}")
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # Rerun stopped by Ctrl-C
+def test_connect_streams_the_run_to_a_running_viewer(ros_env: dict[str, str],
+                                                      tmp_path: Path) -> None:
+    """`--connect URL` sends the run to a Rerun server already running (here Rerun's own,
+    saving what it receives): it gets every row the run's .rrd holds."""
+    import socket
+
+    from mechsim.outputs.rerun_live import rerun_executable
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    saved, rrd = tmp_path / "received.rrd", tmp_path / "run.rrd"
+    server = subprocess.Popen([rerun_executable(), "--bind", "127.0.0.1", "--port", str(port),
+                               "--save", str(saved)], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)
+    try:
+        wait_until("Rerun's server to listen", lambda: listeners(port) == ["127.0.0.1"] or (
+            server.poll() is not None and pytest.fail("rerun exited")))
+        r = run_cli(["run", "pendulum", "--connect", f"rerun+http://127.0.0.1:{port}/proxy",
+                     "--fast", "--duration", str(DURATION), "--rate", str(RATE),
+                     "--rrd", str(rrd)], ros_env)
+        assert r.returncode == 0, r.stderr
+        assert f"live view rerun+http://127.0.0.1:{port}/proxy: " in r.stdout
+    finally:
+        server.send_signal(signal.SIGINT)  # Rerun completes the file on Ctrl-C
+        try:
+            server.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(server.pid, signal.SIGKILL)
+            server.wait()
+    expected = {e: v["rows"] for e, v in read_entities(rrd).items() if v["rows"]}
+    got = {e: v["rows"] for e, v in read_entities(saved).items() if v["rows"]}
+    assert got == expected
+    assert expected["/plots/pendulum/energy/total"] == round(DURATION * RATE) + 1

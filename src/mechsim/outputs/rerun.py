@@ -70,6 +70,19 @@ LIVE_PERIOD = 0.1
 #: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
 LIVE_FLUSH_TIMEOUT = 10.0
 _BALANCE = Law("work_balance")
+#: Line colours within one plot, in order (Tableau 10: distinguishable, also in print).
+_PALETTE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
+            (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
+
+
+def _colours(n: int) -> list[tuple[int, int, int]]:
+    """``n`` line colours, all different: the palette, else hues evenly around the circle."""
+    import colorsys
+
+    if n <= len(_PALETTE):
+        return list(_PALETTE[:n])
+    return [tuple(int(255 * c) for c in colorsys.hsv_to_rgb(k / n, 0.8, 0.85))  # type: ignore[misc]
+            for k in range(n)]
 
 
 def _ns(stamp: Any) -> int:
@@ -140,6 +153,9 @@ class _System:
     invariants0: dict[str, float] = field(default_factory=dict)
     laws: dict[str, Law] = field(default_factory=dict)  # invariant laws from system_info
     last_t: int = 0
+    #: "<stream>/<name>" (state, invariants, drift, observables) -> unit, from the model: the
+    #: blueprint draws one unit per plot
+    units: dict[str, str] = field(default_factory=dict)
 
 
 class RerunSink:
@@ -205,6 +221,7 @@ class RerunSink:
         self.bbox: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self.messages = 0
         self.closed = False
+        self.peaks: dict[str, float] = {}  # entity -> largest |value| sent (scalars)
         self._live_next: float | None = time.monotonic() + LIVE_PERIOD if live else None
         self._live_blueprint: tuple[Any, ...] = ()
 
@@ -361,6 +378,7 @@ class RerunSink:
         except (MechsimError, yaml.YAMLError, TypeError):
             return  # not a system this mechsim knows: transforms and plots only
         self._log_visuals(st, model)
+        self._label_units(st, model)
 
     def _label_plots(self, st: _System, info: Any) -> None:
         import rerun as rr
@@ -373,6 +391,26 @@ class RerunSink:
         for name, unit in zip(info.coordinates, info.coordinate_units, strict=False):
             self.rec.log(_path("plots", st.ns, "state", name),
                          rr.SeriesLines(names=f"{name} [{unit}]" if unit else name), static=True)
+
+    def _label_units(self, st: _System, model: Any) -> None:
+        """Units of the model's coordinates, invariants (and their drifts) and observables
+        (its ``Quantity.unit``): legend names "name [unit]", and ``st.units`` for the
+        blueprint. Coordinates are labelled from system_info by :meth:`_label_plots`."""
+        import rerun as rr
+
+        st.units.clear()
+        for q in model.coordinates:
+            st.units[f"state/{q.name}"] = q.unit
+        for stream, quantities in (("invariants", model.invariants),
+                                   ("drift", model.invariants),
+                                   ("observables", model.observables)):
+            for q in quantities:
+                st.units[f"{stream}/{q.name}"] = q.unit
+                law = st.laws.get(q.name) or Law.for_invariant(q.name)
+                name = (f"{q.name} − {q.name}₀" if stream == "drift" and not law.is_constraint
+                        else q.name)
+                self.rec.log(_path("plots", st.ns, stream, q.name), rr.SeriesLines(
+                    names=f"{name} [{q.unit}]" if q.unit else name), static=True)
 
     def _frame_entity(self, st: _System, frame: str) -> str:
         """Entity of a model frame (name without namespace), known from model.frames."""
@@ -567,7 +605,11 @@ class RerunSink:
             return
         index = [rr.TimeColumn(TIMELINE, duration=np.asarray(s.times, dtype="timedelta64[ns]"))]
         if s.kind == "scalar":
-            columns: Any = rr.Scalars.columns(scalars=np.asarray(s.values, dtype=np.float64))
+            values = np.asarray(s.values, dtype=np.float64)
+            finite = np.abs(values[np.isfinite(values)])
+            if finite.size:
+                self.peaks[entity] = max(self.peaks.get(entity, 0.0), float(finite.max()))
+            columns: Any = rr.Scalars.columns(scalars=values)
         elif s.kind == "transform":
             columns = rr.Transform3D.columns(
                 translation=np.asarray([v[0] for v in s.values], dtype=np.float32),
@@ -580,6 +622,7 @@ class RerunSink:
 
     # --- blueprint ----------------------------------------------------------------------------
     def _blueprint(self) -> Any:
+        import rerun as rr
         import rerun.blueprint as rrb
 
         systems = [st for st in getattr(self, "systems", {}).values() if st.key]
@@ -598,23 +641,69 @@ class RerunSink:
                                     look_target=center.tolist(), eye_up=[0.0, 0.0, 1.0])
         view3d = rrb.Spatial3DView(name="world", origin="/world", eye_controls=eye,
                                    overrides={f"/{e}": growing for e in trails})
+        # Every plot on the same time axis, from simulation time 0 (not from each plot's first
+        # sample), one unit per plot, no colour twice in a plot; residuals and drifts say their
+        # magnitude in the title (their axis shows round-off around 0 without one).
+        axis_x = rrb.TimeAxis(view_range=rrb.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seconds=0.0),
+            end=rrb.TimeRangeBoundary.infinite()))
+
+        def plot(name: str, origin: str, contents: Any = "$origin/**",
+                 entities: list[str] | None = None, **kw: Any) -> Any:
+            entities = entities or []
+            colours = {e: rr.SeriesLines.from_fields(colors=[c])
+                       for e, c in zip(entities, _colours(len(entities)), strict=True)}
+            return rrb.TimeSeriesView(name=name, origin=origin, contents=contents,
+                                      axis_x=axis_x, overrides=colours, **kw)
+
+        def peak(root: str, keys: list[str]) -> str:
+            peaks = getattr(self, "peaks", {})
+            values = [peaks[e] for e in (f"{root[1:]}/{_path(k)}" for k in keys) if e in peaks]
+            return f", max |·| = {max(values):.1e}" if values else ""
+
+        def by_unit(st: _System, root: str, streams: tuple[str, ...], what: str) -> list[Any]:
+            groups: dict[str, list[str]] = {}
+            for key, unit in st.units.items():
+                if key.partition("/")[0] in streams:
+                    groups.setdefault(unit, []).append(key)
+            views = []
+            for unit, keys in groups.items():
+                names = [k.partition("/")[2] for k in keys]
+                shown = ", ".join(names) if len(names) <= 3 else f"{names[0]}, … ({len(names)})"
+                views.append(plot(f"{st.ns}: {what}{shown} [{unit or '1'}]"
+                                  f"{peak(root, keys) if what else ''}", root,
+                                  [f"$origin/{_path(k)}" for k in keys],
+                                  [f"{root}/{_path(k)}" for k in keys]))
+            return views
+
+        def row(views: list[Any]) -> Any:
+            return views[0] if len(views) == 1 else rrb.Tabs(*views)
+
         if not systems:
-            plots: Any = rrb.TimeSeriesView(name="plots", origin="/plots")
+            plots: Any = plot("plots", "/plots")
         else:
             tabs = []
             for st in systems:
                 root = f"/{_path('plots', st.ns)}"
+                residual = plot(f"{st.ns}: balance residual [J]"
+                                f"{peak(root, ['balance_residual'])}", root,
+                                ["$origin/balance_residual"])
+                if st.units:
+                    values = by_unit(st, root, ("state", "observables"), "")
+                    drifts = by_unit(st, root, ("drift",), "drift of ")
+                else:  # units unknown (not a model this mechsim has): by stream
+                    values = [plot(f"{st.ns}: coordinates, observables", root,
+                                   ["$origin/state/**", "$origin/observables/**"])]
+                    drifts = [plot(f"{st.ns}: invariant drifts", root, ["$origin/drift/**"])]
+                diagnostics = sorted(f"/{e}" for e in self.series
+                                     if f"/{e}".startswith(f"{root}/diagnostics/"))
                 tabs.append(rrb.Vertical(
-                    rrb.TimeSeriesView(name=f"{st.ns}: energy [J]", origin=f"{root}/energy"),
-                    rrb.TimeSeriesView(name=f"{st.ns}: balance residual, invariant drifts",
-                                       origin=root, contents=["$origin/balance_residual",
-                                                              "$origin/drift/**"]),
-                    rrb.TimeSeriesView(name=f"{st.ns}: coordinates, observables",
-                                       origin=root, contents=["$origin/state/**",
-                                                              "$origin/observables/**"]),
-                    rrb.TimeSeriesView(name=f"{st.ns}: diagnostics (0 OK … 3 STALE)",
-                                       origin=f"{root}/diagnostics",
-                                       axis_y=rrb.ScalarAxis(range=(-0.2, 3.2))),
+                    plot(f"{st.ns}: energy [J]", f"{root}/energy",
+                         entities=[f"{root}/energy/{t}" for t in ENERGY_TERMS]),
+                    row([residual, *drifts]),
+                    row(values),
+                    plot(f"{st.ns}: diagnostics (0 OK … 3 STALE)", f"{root}/diagnostics",
+                         entities=diagnostics, axis_y=rrb.ScalarAxis(range=(-0.2, 3.2))),
                     name=st.ns))
             plots = tabs[0] if len(tabs) == 1 else rrb.Tabs(*tabs)
         return rrb.Blueprint(rrb.Horizontal(view3d, plots, column_shares=[3, 2]),
