@@ -232,41 +232,78 @@ def distinct_regions(png: bytes) -> tuple[int, float]:
             max(n for n, _ in counts) / total)
 
 
-@needs_chromium
-def test_live_viewer_renders_the_run(ros_env: dict[str, str], tmp_path: Path) -> None:
-    rrd = tmp_path / "run.rrd"
-    run = subprocess.Popen(
-        [*MECHSIM, "run", "pendulum", "--viewer", "--fast", "--duration", str(DURATION),
-         "--rate", str(RATE), "--rrd", str(rrd)],
-        env=ros_env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True)
-    out, err = Lines(run.stdout), Lines(run.stderr)
-    browser: Chromium | None = None
-    try:
-        m = wait_until("the live view's URL", lambda: run.poll() is None and err.find(
-            r"live view: open (http://127\.0\.0\.1:(\d+)/\?url=(\S+))") or (
-            run.poll() is not None and pytest.fail(f"mechsim exited: {err.text()}")))
-        url, web_port = m.group(1), int(m.group(2))
+class ViewerRun:
+    """``mechsim run ... --viewer`` as a child process: its output, the printed URL and ports;
+    :meth:`close` kills whatever is left (the run, its browser)."""
+
+    def __init__(self, args: list[str], env: dict[str, str], tmp_path: Path) -> None:
+        self.tmp_path = tmp_path
+        self.run = subprocess.Popen(
+            [*MECHSIM, "run", *args, "--viewer"], env=env, stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        self.out, self.err = Lines(self.run.stdout), Lines(self.run.stderr)
+        self.browser: Chromium | None = None
+        m = wait_until("the live view's URL", lambda: self.err.find(
+            r"live view: open (http://127\.0\.0\.1:(\d+)/\?url=(\S+))") or self.exited())
+        self.url, self.web_port = m.group(1), int(m.group(2))
         grpc_url = urllib.parse.unquote(m.group(3))
         grpc = re.fullmatch(r"rerun\+http://127\.0\.0\.1:(\d+)/proxy", grpc_url)
         assert grpc, grpc_url
-        grpc_port = int(grpc.group(1))
+        self.grpc_port = int(grpc.group(1))
+
+    def exited(self) -> bool:
+        """False while the run goes on; fails the test with its messages once it exited."""
+        if self.run.poll() is not None:
+            pytest.fail(f"mechsim exited ({self.run.returncode}): {self.err.text()}")
+        return False
+
+    def open_page(self) -> str:
+        """Chromium showing the printed URL, once the web viewer started; the page's session."""
+        self.browser = Chromium(self.tmp_path / "profile")
+        page = self.browser.open(self.url)
+        wait_until("the web viewer to start", lambda: self.browser.evaluate(  # type: ignore[union-attr]
+            page, "window._handle !== undefined") is True)
+        assert self.browser.evaluate(page, "window._handle.has_panicked()") is False
+        return page
+
+    def recording(self, page: str, path: Path) -> dict[str, dict[str, Any]]:
+        """What the viewer holds now (``read_entities``; empty until the stream arrives)."""
+        assert self.browser is not None
+        data = self.browser.evaluate(page, JS_BYTES.format(method="save_recording"))
+        if not isinstance(data, str):
+            return {}  # "No active recording to save" until the stream arrives
+        path.write_bytes(base64.b64decode(data))
+        return read_entities(path)
+
+    def close(self) -> None:
+        if self.browser is not None:
+            self.browser.close()
+            self.browser = None
+        if self.run.poll() is None:
+            os.killpg(self.run.pid, signal.SIGKILL)
+            self.run.wait()
+
+
+@needs_chromium
+def test_live_viewer_renders_the_run(ros_env: dict[str, str], tmp_path: Path) -> None:
+    rrd = tmp_path / "run.rrd"
+    v = ViewerRun(["pendulum", "--fast", "--duration", str(DURATION), "--rate", str(RATE),
+                   "--rrd", str(rrd)], ros_env, tmp_path)
+    run, out, err, web_port, grpc_port = v.run, v.out, v.err, v.web_port, v.grpc_port
+    try:
         # Both servers listen on loopback only (never 0.0.0.0, never IPv6 any).
         assert listeners(web_port) == ["127.0.0.1"], listeners(web_port)
         assert listeners(grpc_port) == ["127.0.0.1"], listeners(grpc_port)
 
         # The run ends; the view stays up (until Ctrl-C).
-        wait_until("the end of the run", lambda: err.find("the live view stays at") or (
-            run.poll() is not None and pytest.fail(f"mechsim exited: {err.text()}")))
-        assert run.poll() is None
+        wait_until("the end of the run", lambda: err.find("the live view stays at")
+                   or v.exited())
         assert "Conservation results" in out.text()
         assert rrd.is_file()
 
-        browser = Chromium(tmp_path / "profile")
-        page = browser.open(url)
-        wait_until("the web viewer to start", lambda: browser.evaluate(
-            page, "window._handle !== undefined") is True)
-        assert browser.evaluate(page, "window._handle.has_panicked()") is False
+        page = v.open_page()
+        browser = v.browser
+        assert browser is not None
 
         # The viewer holds the whole run: the same entities and rows as the .rrd written by
         # the same run, up to the run's duration.
@@ -274,12 +311,8 @@ def test_live_viewer_renders_the_run(ros_env: dict[str, str], tmp_path: Path) ->
         live_rrd = tmp_path / "live.rrd"
 
         def whole_run() -> bool:
-            data = browser.evaluate(page, JS_BYTES.format(method="save_recording"))
-            if not isinstance(data, str):
-                return False  # "No active recording to save" until the stream arrives
-            live_rrd.write_bytes(base64.b64decode(data))
-            got = read_entities(live_rrd)
-            return all(e in got and got[e]["rows"] == v["rows"] for e, v in expected.items())
+            got = v.recording(page, live_rrd)
+            return all(e in got and got[e]["rows"] == x["rows"] for e, x in expected.items())
 
         wait_until("the viewer to hold every row of the run", whole_run)
         got = read_entities(live_rrd)
@@ -316,17 +349,38 @@ def test_live_viewer_renders_the_run(ros_env: dict[str, str], tmp_path: Path) ->
         (tmp_path / "live_viewer.png").write_bytes(shots[-1])
 
         # Ctrl-C ends the view: exit status of the (successful) run, both ports closed.
-        browser.close()
-        browser = None
         run.send_signal(signal.SIGINT)
         assert run.wait(timeout=60) == 0, err.text()
         assert listeners(web_port) == [] and listeners(grpc_port) == []
     finally:
-        if browser is not None:
-            browser.close()
-        if run.poll() is None:
-            os.killpg(run.pid, signal.SIGKILL)
-            run.wait()
+        v.close()
+
+
+@needs_chromium
+def test_live_viewer_shows_a_real_time_run_as_it_happens(ros_env: dict[str, str],
+                                                         tmp_path: Path) -> None:
+    """A run in real time, far from its end: the viewer receives rows while it runs, a few at a
+    time (not in the batches of ``_FLUSH_ROWS`` rows a recording is written in), and more
+    later; Ctrl-C then stops the run and the view together."""
+    from mechsim.outputs.rerun import _FLUSH_ROWS
+
+    v = ViewerRun(["pendulum", "--duration", "3600", "--rate", str(RATE)], ros_env, tmp_path)
+    try:
+        page = v.open_page()
+        entity = "/plots/pendulum/energy/total"
+
+        def rows() -> int:
+            return int(v.recording(page, tmp_path / "live.rrd").get(entity, {}).get("rows", 0))
+
+        first = wait_until("rows in the viewer, fewer than a whole batch",
+                           lambda: (n := rows()) % _FLUSH_ROWS and n)
+        wait_until("more rows in the viewer", lambda: rows() > first)
+        assert v.run.poll() is None and not v.err.find("the run has ended")
+        v.run.send_signal(signal.SIGINT)
+        assert v.run.wait(timeout=60) in (0, 130), v.err.text()  # an interrupted run
+        assert listeners(v.web_port) == [] and listeners(v.grpc_port) == []
+    finally:
+        v.close()
 
 
 def run_cli(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:

@@ -81,8 +81,11 @@ def _colours(n: int) -> list[tuple[int, int, int]]:
 
     if n <= len(_PALETTE):
         return list(_PALETTE[:n])
-    return [tuple(int(255 * c) for c in colorsys.hsv_to_rgb(k / n, 0.8, 0.85))  # type: ignore[misc]
-            for k in range(n)]
+    colours = []
+    for k in range(n):
+        r, g, b = colorsys.hsv_to_rgb(k / n, 0.8, 0.85)
+        colours.append((int(255 * r), int(255 * g), int(255 * b)))
+    return colours
 
 
 def _ns(stamp: Any) -> int:
