@@ -683,7 +683,7 @@ class RerunSink:
             return views[0] if len(views) == 1 else rrb.Tabs(*views)
 
         if not systems:
-            plots: Any = plot("plots", "/plots")
+            plots: Any = rrb.TimeSeriesView(name="plots", origin="/plots")
         else:
             tabs = []
             for st in systems:
