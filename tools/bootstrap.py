@@ -15,6 +15,11 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
 7. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
              with (skipped, with a note, where node or npm is missing; that test then skips).
 
+Then, every time: Debian's `chromium` (the headless browser tests/test_live_viewer.py opens the
+live Rerun view in) is installed with apt-get if /usr/bin/chromium is missing and this runs as
+root where apt-get exists, its progress shown; otherwise one line says so and the set-up goes
+on (that test is then skipped, with the reason).
+
 Usage: python3 tools/bootstrap.py [--force]. Logs go to .cache/bootstrap/<step>.log.
 """
 
@@ -335,6 +340,33 @@ def bootstrap(force: bool = False) -> int:
     return 0
 
 
+CHROMIUM = Path("/usr/bin/chromium")
+
+
+def ensure_chromium() -> None:
+    """Install Debian's chromium where it is missing and we can (root, apt-get); never fails
+    the set-up: one line says what was not done."""
+    if CHROMIUM.exists():
+        return
+    apt = shutil.which("apt-get")
+    if apt is None or os.geteuid() != 0:
+        why = "apt-get not found" if apt is None else "not running as root"
+        say(f"chromium: not installed ({why}); the live-viewer test will be skipped "
+            "(install Debian's `chromium` to run it)")
+        return
+    say("chromium: installing Debian's chromium (apt-get) for the live-viewer test")
+    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
+    install = [apt, "install", "-y", "--no-install-recommends", "chromium"]
+    try:
+        if subprocess.call(install, env=env) != 0:  # stale package lists: update, retry once
+            subprocess.call([apt, "update"], env=env)
+            subprocess.call(install, env=env)
+    except OSError as e:
+        say(f"chromium: apt-get failed to start ({e.strerror or e})")
+    if not CHROMIUM.exists():
+        say("chromium: could not be installed; the live-viewer test will be skipped")
+
+
 def main(argv: list[str]) -> int:
     if any(a in ("-h", "--help") for a in argv):
         print(__doc__)
@@ -343,7 +375,10 @@ def main(argv: list[str]) -> int:
     if unknown:
         print(f"bootstrap: unknown argument(s): {' '.join(unknown)}", file=sys.stderr)
         return 2
-    return bootstrap(force="--force" in argv)
+    rc = bootstrap(force="--force" in argv)
+    if rc == 0:
+        ensure_chromium()
+    return rc
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ import sys
 from typing import Any
 
 from mechsim.cli.common import print_summary, progress_bar, say
+from mechsim.outputs.rerun_live import DEFAULT_CONNECT
 from mechsim.ros.process import stop_on_sigterm
 
 
@@ -29,8 +30,10 @@ def cmd_run(a: argparse.Namespace) -> int:
         if a.only not in ("diagnostics", "recorder") and a.only not in names:
             raise ParameterError("--only", f"no instance {a.only!r} in the scene (instances: "
                                  f"{', '.join(names)}; or diagnostics, recorder)")
-        if a.processes:
-            raise ParameterError("--processes", "not available with --only")
+        for flag, given in (("--processes", a.processes), ("--viewer", a.viewer),
+                            ("--connect", a.connect)):
+            if given:
+                raise ParameterError(flag, "not available with --only")
         if a.only == "recorder" and a.only not in names:
             if bag is None and rrd is None:
                 raise ParameterError("--only", "recorder needs --bag and/or --rrd")
@@ -53,6 +56,9 @@ def cmd_run(a: argparse.Namespace) -> int:
                                fast=a.fast, duration=duration, readers=len(set(waits)),
                                recorder="recorder" in waits)
     if a.processes:
+        for flag, given in (("--viewer", a.viewer), ("--connect", a.connect)):
+            if given:
+                raise ParameterError(flag, "not available with --processes (view in-process)")
         from mechsim.ros.launch import run_processes
         consumers = "a diagnostics process" + (" and a recorder process"
                                                if bag is not None or rrd is not None else "")
@@ -73,16 +79,51 @@ def cmd_run(a: argparse.Namespace) -> int:
     say(f"running scene {scene.name!r} ({len(scene.systems)} systems, {pace}"
         f"{f', {duration:g} s' if duration else ', until Ctrl-C'})")
     lines: list[str] = []
-    if bag is not None or rrd is not None:
-        from mechsim.ros.record import run_with_outputs
-        run, lines = run_with_outputs(scene, fast=fast, duration=duration, bag=bag, rrd=rrd,
-                                      progress=show)
-    else:
-        run = run_scene(scene, fast=fast, duration=duration, progress=show)
-    print_summary(run)
-    for line in lines:
-        print(f"  outputs: {line}")
+    server, live = _live_view(a)
+    try:
+        if bag is not None or rrd is not None or live is not None:
+            from mechsim.ros.record import run_with_outputs
+            run, lines = run_with_outputs(scene, fast=fast, duration=duration, bag=bag,
+                                          rrd=rrd, live=live, progress=show)
+        else:
+            run = run_scene(scene, fast=fast, duration=duration, progress=show)
+        print_summary(run)
+        for line in lines:
+            print(f"  outputs: {line}")
+        if server is not None and not run.interrupted:
+            sys.stdout.flush()
+            say(f"the run has ended; the live view stays at {server.web_url} until Ctrl-C")
+            try:
+                server.wait()
+                say("Rerun's server has exited")
+            except KeyboardInterrupt:
+                pass  # the user has seen enough: the run's own result stands
+    finally:
+        if server is not None:
+            server.stop()
     return 1 if run.failures else 0
+
+
+def _live_view(a: argparse.Namespace) -> tuple[Any, str | None]:
+    """(server, URL to stream to) for --viewer / --connect; (None, None) without either."""
+    from mechsim.errors import ParameterError
+
+    if a.viewer_port is not None and not a.viewer:
+        raise ParameterError("--viewer-port", "only with --viewer")
+    if a.viewer and a.connect:
+        raise ParameterError("--connect", "not with --viewer (one live view)")
+    if a.connect:
+        from mechsim.outputs.rerun_live import check_url
+
+        return None, check_url(a.connect)
+    if not a.viewer:
+        return None, None
+    from mechsim.outputs.rerun_live import LiveViewer
+
+    server = LiveViewer.start(a.viewer_port)
+    say(f"live view: open {server.web_url} (on this machine; a native viewer: "
+        f"`rerun --connect {server.grpc_url}`)")
+    return server, server.grpc_url
 
 
 def add_parser(sub: Any) -> None:
@@ -105,4 +146,14 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--bag", metavar="DIR", help="also record every message to a new rosbag2 "
                    "bag (strftime fields expanded)")
     r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd)")
+    r.add_argument("--viewer", action="store_true", help="serve Rerun's web viewer of the run "
+                   "on 127.0.0.1 (this machine only) and print its URL; it shows the run live "
+                   "with the .rrd's blueprint and stays up after the run ends until Ctrl-C "
+                   "(Ctrl-C during the run stops both)")
+    r.add_argument("--viewer-port", type=int, metavar="PORT", help="port of --viewer's web "
+                   "page (default: a free port; a taken port is refused)")
+    r.add_argument("--connect", nargs="?", const=DEFAULT_CONNECT, metavar="URL",
+                   help="stream the run to a Rerun viewer already running (default URL: "
+                   f"{DEFAULT_CONNECT}, where `rerun` listens); the viewer keeps it after "
+                   "the run")
     r.set_defaults(func=cmd_run)

@@ -23,6 +23,10 @@ Layout of the recording (Rerun 0.41, one timeline ``sim_time``: duration = stamp
   plots/<ns>/diagnostics/<law>           level 0 OK, 1 WARN, 2 ERROR, 3 STALE from /diagnostics
                                          statuses named ``mechsim/<ns>/<law>``
 
+``RerunSink.live(url)`` streams the same entities and blueprint to a Rerun viewer or server
+(gRPC, ``rerun+http://HOST:PORT/proxy``; ``mechsim.outputs.rerun_live`` serves one on loopback)
+instead of writing a file: the buffered columns are sent every ``LIVE_PERIOD`` s of wall time.
+
 A system is learned from its ``<ns>/system_info`` message: system id and parameters give the model
 (``mechsim.load_system``), hence its frames and visuals. Its time offset is that message's stamp,
 which is always simulation time 0 (``DEFAULT_TIME_OFFSET`` until one arrives). Time series and
@@ -39,6 +43,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,7 +65,27 @@ HANDLED_TYPES = {
     "diagnostic_msgs/msg/DiagnosticArray",
 }
 _FLUSH_ROWS = 4096
+#: Live streams: buffered columns are sent at least this often [s of wall time].
+LIVE_PERIOD = 0.1
+#: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
+LIVE_FLUSH_TIMEOUT = 10.0
 _BALANCE = Law("work_balance")
+#: Line colours within one plot, in order (Tableau 10: distinguishable, also in print).
+_PALETTE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
+            (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
+
+
+def _colours(n: int) -> list[tuple[int, int, int]]:
+    """``n`` line colours, all different: the palette, else hues evenly around the circle."""
+    import colorsys
+
+    if n <= len(_PALETTE):
+        return list(_PALETTE[:n])
+    colours = []
+    for k in range(n):
+        r, g, b = colorsys.hsv_to_rgb(k / n, 0.8, 0.85)
+        colours.append((int(255 * r), int(255 * g), int(255 * b)))
+    return colours
 
 
 def _ns(stamp: Any) -> int:
@@ -131,6 +156,9 @@ class _System:
     invariants0: dict[str, float] = field(default_factory=dict)
     laws: dict[str, Law] = field(default_factory=dict)  # invariant laws from system_info
     last_t: int = 0
+    #: "<stream>/<name>" (state, invariants, drift, observables) -> unit, from the model: the
+    #: blueprint draws one unit per plot
+    units: dict[str, str] = field(default_factory=dict)
 
 
 #: Longest wait for Rerun to write what it buffered when a recording is closed [s] (a file
@@ -152,7 +180,7 @@ class RerunSink:
                  recording_id: str | None = None, replace: bool = True) -> None:
         import rerun as rr
 
-        self.path = Path(path)
+        self.path: Path | None = Path(path)
         self.replace = replace
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -168,6 +196,28 @@ class RerunSink:
         except BaseException:
             self._remove_tmp()
             raise
+        self._start(live=False)
+
+    @classmethod
+    def live(cls, url: str, *, application_id: str = "mechsim",
+             recording_id: str | None = None) -> RerunSink:
+        """A sink streaming to the Rerun viewer or server at ``url`` (``rerun+http://…/proxy``)
+        instead of a file. The blueprint is sent once the systems are known and again, as the
+        .rrd's, by :meth:`close`, which waits up to ``LIVE_FLUSH_TIMEOUT`` s for the rest to
+        be taken; the viewer keeps what it received."""
+        import rerun as rr
+
+        self = cls.__new__(cls)
+        self.path, self.replace, self._tmpdir = None, False, None
+        self.rec = rr.RecordingStream(
+            application_id, recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
+        self.rec.connect_grpc(url, default_blueprint=self._blueprint())
+        self._start(live=True)
+        return self
+
+    def _start(self, *, live: bool) -> None:
+        import rerun as rr
+
         self.rec.set_log_time_enabled(False)
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
@@ -179,6 +229,9 @@ class RerunSink:
         self.bbox: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self.messages = 0
         self.closed = False
+        self.peaks: dict[str, float] = {}  # entity -> largest |value| sent (scalars)
+        self._live_next: float | None = time.monotonic() + LIVE_PERIOD if live else None
+        self._live_blueprint: tuple[Any, ...] = ()
 
     # --- sink protocol ------------------------------------------------------------------------
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
@@ -216,6 +269,9 @@ class RerunSink:
         if self.closed:
             return
         self.closed = True
+        if self._live_next is not None:
+            self._close_live()
+            return
         try:
             for entity in list(self.series):
                 self._flush(entity)
@@ -249,8 +305,30 @@ class RerunSink:
                 self.rec.disconnect()
         self._remove_tmp()
 
+    def _close_live(self) -> None:
+        try:
+            for entity in list(self.series):
+                self._flush(entity)
+            self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+            self.rec.flush(timeout_sec=LIVE_FLUSH_TIMEOUT)
+        finally:
+            with contextlib.suppress(Exception):
+                self.rec.disconnect()
+
+    def _send_live(self) -> None:
+        """Send every buffered column; the blueprint too once the systems (or the 3D extent
+        that places the camera) are first known."""
+        for entity in list(self.series):
+            self._flush(entity)
+        shown = (tuple(st.key for st in self.systems.values()), self.bbox[0] is not None)
+        if shown != self._live_blueprint and shown[0]:
+            self._live_blueprint = shown
+            self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+        self._live_next = time.monotonic() + LIVE_PERIOD
+
     def _remove_tmp(self) -> None:
-        shutil.rmtree(self._tmpdir, ignore_errors=True)
+        if self._tmpdir is not None:
+            shutil.rmtree(self._tmpdir, ignore_errors=True)
 
     def __enter__(self) -> RerunSink:
         return self
@@ -309,6 +387,7 @@ class RerunSink:
         except (MechsimError, yaml.YAMLError, TypeError):
             return  # not a system this mechsim knows: transforms and plots only
         self._log_visuals(st, model)
+        self._label_units(st, model)
 
     def _label_plots(self, st: _System, info: Any) -> None:
         import rerun as rr
@@ -321,6 +400,26 @@ class RerunSink:
         for name, unit in zip(info.coordinates, info.coordinate_units, strict=False):
             self.rec.log(_path("plots", st.ns, "state", name),
                          rr.SeriesLines(names=f"{name} [{unit}]" if unit else name), static=True)
+
+    def _label_units(self, st: _System, model: Any) -> None:
+        """Units of the model's coordinates, invariants (and their drifts) and observables
+        (its ``Quantity.unit``): legend names "name [unit]", and ``st.units`` for the
+        blueprint. Coordinates are labelled from system_info by :meth:`_label_plots`."""
+        import rerun as rr
+
+        st.units.clear()
+        for q in model.coordinates:
+            st.units[f"state/{q.name}"] = q.unit
+        for stream, quantities in (("invariants", model.invariants),
+                                   ("drift", model.invariants),
+                                   ("observables", model.observables)):
+            for q in quantities:
+                st.units[f"{stream}/{q.name}"] = q.unit
+                law = st.laws.get(q.name) or Law.for_invariant(q.name)
+                name = (f"{q.name} − {q.name}₀" if stream == "drift" and not law.is_constraint
+                        else q.name)
+                self.rec.log(_path("plots", st.ns, stream, q.name), rr.SeriesLines(
+                    names=f"{name} [{q.unit}]" if q.unit else name), static=True)
 
     def _frame_entity(self, st: _System, frame: str) -> str:
         """Entity of a model frame (name without namespace), known from model.frames."""
@@ -505,6 +604,8 @@ class RerunSink:
         s.values.append(value)
         if len(s.times) >= _FLUSH_ROWS:
             self._flush(entity)
+        if self._live_next is not None and time.monotonic() >= self._live_next:
+            self._send_live()
 
     def _flush(self, entity: str) -> None:
         import rerun as rr
@@ -514,7 +615,11 @@ class RerunSink:
             return
         index = [rr.TimeColumn(TIMELINE, duration=np.asarray(s.times, dtype="timedelta64[ns]"))]
         if s.kind == "scalar":
-            columns: Any = rr.Scalars.columns(scalars=np.asarray(s.values, dtype=np.float64))
+            values = np.asarray(s.values, dtype=np.float64)
+            finite = np.abs(values[np.isfinite(values)])
+            if finite.size:
+                self.peaks[entity] = max(self.peaks.get(entity, 0.0), float(finite.max()))
+            columns: Any = rr.Scalars.columns(scalars=values)
         elif s.kind == "transform":
             columns = rr.Transform3D.columns(
                 translation=np.asarray([v[0] for v in s.values], dtype=np.float32),
@@ -527,6 +632,7 @@ class RerunSink:
 
     # --- blueprint ----------------------------------------------------------------------------
     def _blueprint(self) -> Any:
+        import rerun as rr
         import rerun.blueprint as rrb
 
         systems = [st for st in getattr(self, "systems", {}).values() if st.key]
@@ -545,23 +651,69 @@ class RerunSink:
                                     look_target=center.tolist(), eye_up=[0.0, 0.0, 1.0])
         view3d = rrb.Spatial3DView(name="world", origin="/world", eye_controls=eye,
                                    overrides={f"/{e}": growing for e in trails})
+        # Every plot on the same time axis, from simulation time 0 (not from each plot's first
+        # sample), one unit per plot, no colour twice in a plot; residuals and drifts say their
+        # magnitude in the title (their axis shows round-off around 0 without one).
+        axis_x = rrb.TimeAxis(view_range=rrb.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seconds=0.0),
+            end=rrb.TimeRangeBoundary.infinite()))
+
+        def plot(name: str, origin: str, contents: Any = "$origin/**",
+                 entities: list[str] | None = None, **kw: Any) -> Any:
+            entities = entities or []
+            colours = {e: rr.SeriesLines.from_fields(colors=[c])
+                       for e, c in zip(entities, _colours(len(entities)), strict=True)}
+            return rrb.TimeSeriesView(name=name, origin=origin, contents=contents,
+                                      axis_x=axis_x, overrides=colours, **kw)
+
+        def peak(root: str, keys: list[str]) -> str:
+            peaks = getattr(self, "peaks", {})
+            values = [peaks[e] for e in (f"{root[1:]}/{_path(k)}" for k in keys) if e in peaks]
+            return f", max |·| = {max(values):.1e}" if values else ""
+
+        def by_unit(st: _System, root: str, streams: tuple[str, ...], what: str) -> list[Any]:
+            groups: dict[str, list[str]] = {}
+            for key, unit in st.units.items():
+                if key.partition("/")[0] in streams:
+                    groups.setdefault(unit, []).append(key)
+            views = []
+            for unit, keys in groups.items():
+                names = [k.partition("/")[2] for k in keys]
+                shown = ", ".join(names) if len(names) <= 3 else f"{names[0]}, … ({len(names)})"
+                views.append(plot(f"{st.ns}: {what}{shown} [{unit or '1'}]"
+                                  f"{peak(root, keys) if what else ''}", root,
+                                  [f"$origin/{_path(k)}" for k in keys],
+                                  [f"{root}/{_path(k)}" for k in keys]))
+            return views
+
+        def row(views: list[Any]) -> Any:
+            return views[0] if len(views) == 1 else rrb.Tabs(*views)
+
         if not systems:
             plots: Any = rrb.TimeSeriesView(name="plots", origin="/plots")
         else:
             tabs = []
             for st in systems:
                 root = f"/{_path('plots', st.ns)}"
+                residual = plot(f"{st.ns}: balance residual [J]"
+                                f"{peak(root, ['balance_residual'])}", root,
+                                ["$origin/balance_residual"])
+                if st.units:
+                    values = by_unit(st, root, ("state", "observables"), "")
+                    drifts = by_unit(st, root, ("drift",), "drift of ")
+                else:  # units unknown (not a model this mechsim has): by stream
+                    values = [plot(f"{st.ns}: coordinates, observables", root,
+                                   ["$origin/state/**", "$origin/observables/**"])]
+                    drifts = [plot(f"{st.ns}: invariant drifts", root, ["$origin/drift/**"])]
+                diagnostics = sorted(f"/{e}" for e in self.series
+                                     if f"/{e}".startswith(f"{root}/diagnostics/"))
                 tabs.append(rrb.Vertical(
-                    rrb.TimeSeriesView(name=f"{st.ns}: energy [J]", origin=f"{root}/energy"),
-                    rrb.TimeSeriesView(name=f"{st.ns}: balance residual, invariant drifts",
-                                       origin=root, contents=["$origin/balance_residual",
-                                                              "$origin/drift/**"]),
-                    rrb.TimeSeriesView(name=f"{st.ns}: coordinates, observables",
-                                       origin=root, contents=["$origin/state/**",
-                                                              "$origin/observables/**"]),
-                    rrb.TimeSeriesView(name=f"{st.ns}: diagnostics (0 OK … 3 STALE)",
-                                       origin=f"{root}/diagnostics",
-                                       axis_y=rrb.ScalarAxis(range=(-0.2, 3.2))),
+                    plot(f"{st.ns}: energy [J]", f"{root}/energy",
+                         entities=[f"{root}/energy/{t}" for t in ENERGY_TERMS]),
+                    row([residual, *drifts]),
+                    row(values),
+                    plot(f"{st.ns}: diagnostics (0 OK … 3 STALE)", f"{root}/diagnostics",
+                         entities=diagnostics, axis_y=rrb.ScalarAxis(range=(-0.2, 3.2))),
                     name=st.ns))
             plots = tabs[0] if len(tabs) == 1 else rrb.Tabs(*tabs)
         return rrb.Blueprint(rrb.Horizontal(view3d, plots, column_shares=[3, 2]),

@@ -18,6 +18,7 @@ flushed chunks.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import sys
 from dataclasses import dataclass, field
@@ -76,11 +77,13 @@ class _Counted:
 
 @dataclass
 class Outputs:
-    """The recording sinks of one run (bag and/or rrd) and how to finish them."""
+    """The sinks of one run (bag, rrd, live Rerun stream) and how to finish them."""
 
     bag: Any = None
     rrd: Any = None
     rrd_path: str | None = None
+    live: Any = None  # RerunSink.live: what it sent stays in the viewer
+    live_url: str | None = None
     notes: list[str] = field(default_factory=list)
     _bag_counter: _Counted | None = None
 
@@ -88,8 +91,8 @@ class Outputs:
     def sinks(self) -> list[Any]:
         if self.bag is not None and self._bag_counter is None:
             self._bag_counter = _Counted(self.bag)
-        return [s for s in (self._bag_counter if self.bag is not None else None, self.rrd)
-                if s is not None]
+        return [s for s in (self._bag_counter if self.bag is not None else None, self.rrd,
+                            self.live) if s is not None]
 
     @property
     def recorded(self) -> int:
@@ -118,6 +121,13 @@ class Outputs:
                 lines.append(f"rrd {self.rrd_path}")
             except Exception as e:  # noqa: BLE001
                 error = error or e
+        if self.live is not None:
+            live, self.live = self.live, None
+            try:
+                live.close()
+                lines.append(f"live view {self.live_url}: {live.messages} messages sent")
+            except Exception as e:  # noqa: BLE001
+                error = error or e
         if error is not None:
             raise error
         return lines
@@ -137,6 +147,10 @@ class Outputs:
                 kept.append(f"rrd {self.rrd_path} closed with what was written")
             except Exception:  # noqa: BLE001 - the first error is the one reported
                 kept.append(f"rrd {self.rrd_path} left as written")
+        if self.live is not None:
+            live, self.live = self.live, None
+            with contextlib.suppress(Exception):  # the viewer keeps what it received
+                live.close()
         return "; ".join(kept)
 
 
@@ -190,14 +204,17 @@ def bag_path(template: str, scene: Any) -> str:
     return template.replace("{scene}", scene_name(scene.name))
 
 
-def open_outputs(scene: Any, bag: str | None, rrd: str | None) -> Outputs:
+def open_outputs(scene: Any, bag: str | None, rrd: str | None,
+                 live: str | None = None) -> Outputs:
+    """The run's sinks: a bag at ``bag``, a recording at ``rrd``, a live stream to the Rerun
+    viewer or server at the URL ``live`` (``RerunSink.live``)."""
     from mechsim.environment import import_rclpy
 
     import_rclpy()
     from mechsim.outputs.bag import BagWriter
     from mechsim.params import check_text
 
-    out = Outputs(rrd_path=rrd)
+    out = Outputs(rrd_path=rrd, live_url=live)
     path = bag_path(bag, scene) if bag is not None else None
     if rrd is not None:
         check_text("--rrd", rrd)
@@ -206,6 +223,14 @@ def open_outputs(scene: Any, bag: str | None, rrd: str | None) -> Outputs:
     if rrd is not None:
         try:
             out.rrd = rerun_sink(rrd)
+        except BaseException:
+            out.finish_after_error()
+            raise
+    if live is not None:
+        try:
+            from mechsim.outputs.rerun import RerunSink
+
+            out.live = RerunSink.live(live)
         except BaseException:
             out.finish_after_error()
             raise
@@ -225,9 +250,10 @@ def _failure(where: str, e: BaseException, kept: str) -> MechsimError:
 
 
 def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
-                     bag: str | None, rrd: str | None = None,
+                     bag: str | None, rrd: str | None = None, live: str | None = None,
                      progress: Any = None) -> tuple[Any, list[str]]:
-    """``run_scene`` with the bag / rrd sinks attached; returns (SceneRun, output lines).
+    """``run_scene`` with the bag / rrd / live Rerun sinks attached (``open_outputs``);
+    returns (SceneRun, output lines).
     An error is a MechsimError (one line: the output, the reason, what was kept); Ctrl-C or
     SIGTERM outside the run loop completes the outputs and is raised as KeyboardInterrupt."""
     from mechsim.ros.launch import run_scene
@@ -235,7 +261,7 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
     out: Outputs | None = None
     try:
         with held_signals():
-            out = open_outputs(scene, bag, rrd)
+            out = open_outputs(scene, bag, rrd, live)
         run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks,
                         progress=progress)
         with held_signals():
@@ -251,7 +277,8 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
     except Exception as e:
         if out is None:
             raise
-        where = f"bag {out.bag.path}" if out.bag is not None else f"rrd {rrd}"
+        where = (f"bag {out.bag.path}" if out.bag is not None else
+                 f"rrd {rrd}" if rrd is not None else f"live view {live}")
         with held_signals():
             kept = out.finish_after_error()
         raise _failure(where, e, kept) from None
