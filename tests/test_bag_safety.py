@@ -412,12 +412,15 @@ def test_convert_never_overwrites_unasked(tmp_path: Path, capsys: pytest.Capture
 def test_rrd_on_a_full_disk_is_not_left_half_written(tmp_path: Path,
                                                      ros_env: dict[str, str]) -> None:
     """The file-size limit (RLIMIT_FSIZE: writes past it fail like a full disk) stops Rerun's
-    writer: one error line naming the .rrd, and neither it nor a temporary is left."""
+    writer: one error line naming the .rrd, and neither it nor a temporary is left. The limit
+    (64 KiB) lies past the recording's opening (an empty recording with its blueprint is ~17 KB;
+    Rerun hangs when its very first write fails, which a real disk full at that instant would
+    also do) and well before its end (~130 KB)."""
     bag = _make_bag(tmp_path / "b", n=3000)
     rrd = tmp_path / "out.rrd"
 
     def limit() -> None:
-        resource.setrlimit(resource.RLIMIT_FSIZE, (16_384, 16_384))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (65_536, 65_536))
 
     r = subprocess.run([sys.executable, "-m", "mechsim.cli", "convert", str(bag), "--rrd",
                         str(rrd)], env=ros_env, capture_output=True, text=True, timeout=300,
