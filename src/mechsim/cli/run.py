@@ -70,6 +70,8 @@ def cmd_run(a: argparse.Namespace) -> int:
         print_summary(run)
         for line in lines:
             print(f"  outputs: {line}")
+        if run.interrupted:
+            return 130  # stopped by Ctrl-C / SIGTERM: not a success (as every command)
         return status or (1 if run.failures else 0)
     from mechsim.ros.launch import run_scene
 
@@ -101,6 +103,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     finally:
         if server is not None:
             server.stop()
+    if run.interrupted:
+        return 130
     return 1 if run.failures else 0
 
 
