@@ -76,8 +76,8 @@ class _Stop(BaseException):
 
 
 class DiagnosticsFeed:
-    """In-process sink that hands energy/invariant/system_info messages straight to the
-    diagnostics node: lossless, whatever the executor's pace."""
+    """In-process sink that hands system_info messages and the energy/invariant values of
+    each chunk straight to the diagnostics node: lossless, whatever the executor's pace."""
 
     def __init__(self, diag: Any) -> None:
         self.diag = diag
@@ -88,6 +88,11 @@ class DiagnosticsFeed:
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
         base, _, leaf = topic.rpartition("/")
         self.diag.feed(base, leaf, msg)
+
+    def write_columns(self, topic: str, ns: Any, values: Any) -> None:
+        """A chunk's evaluated energy or invariants (no message objects: see the Outlet)."""
+        base, _, leaf = topic.rpartition("/")
+        self.diag.feed_chunk(base, leaf, ns, values)
 
 
 # --- graph hygiene ------------------------------------------------------------------------

@@ -67,11 +67,10 @@ class _Counted:
         else:
             self.sink.write(topic, type_name, msg, qos, ns)
 
-    def write_batch(self, topic: str, type_name: str, qos: Any, ns: list[int],
-                    payloads: list[bytes]) -> None:
-        """Serialized messages of one topic (the recorder takes batches: see the Outlet)."""
-        self.count += len(payloads)
-        self.sink.write_batch(topic, type_name, qos, ns, payloads)
+    def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
+        """Serialized messages of a chunk (the recorder takes chunks: see the Outlet)."""
+        self.count += len(ns) * len(topics)
+        self.sink.write_chunk(ns, topics)
 
 
 @dataclass

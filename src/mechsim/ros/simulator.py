@@ -380,6 +380,12 @@ class SimulatorNode(Node):
                           None if c.frames is None else c.frames[i])
 
         enc = self.encoder
+        columns: dict[str, Any] = {}
+        if c.energy is not None:
+            columns[self.t_energy] = messages.EnergyColumns.of(c)
+        if c.invariants is not None:
+            columns[self.t_inv] = {q.name: c.invariants[:, j]
+                                   for j, q in enumerate(m.invariants)}
         topics: list[tuple[str, np.ndarray, Callable[[int], Any]]] = []
         if self.publish_clock:
             topics.append((self.t_clock, enc.encode("clock", c),
@@ -399,7 +405,7 @@ class SimulatorNode(Node):
                 continue
             self.computed["frames" if key == "tf" else key] += n
             topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
-        o.publish_chunk(ns, topics)
+        o.publish_chunk(ns, topics, columns)
         self.samples_published += n
 
     def advance_to(self, t_target: float) -> int:

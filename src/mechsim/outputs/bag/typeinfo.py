@@ -179,8 +179,23 @@ def _size_function(cls: type) -> Any:
 
 
 def cdr_bytes(msg: Any) -> bytes:
-    """The CDR payload of ``msg`` as DDS carries it: rclpy's serialization, cut at the end of
-    the data (see the module docstring); rclpy's bytes unchanged if the size is unknown."""
+    """The CDR payload of ``msg`` as DDS carries it, every padding byte zero: encoded from the
+    type's definition (``mechsim.outputs.cdr``; rclpy's serializer leaves its padding bytes
+    uninitialised, so equal messages could differ in their bytes). For a type without a known
+    definition, rclpy's serialization cut at the end of the data (see the module docstring)."""
+    from mechsim.outputs.cdr import Layout
+
+    cls = type(msg)
+    pkg = cls.__module__.split(".")[0]
+    try:
+        return Layout(f"{pkg}/msg/{cls.__name__}", msg).template.tobytes()
+    except (MechsimError, KeyError, AttributeError, TypeError, ValueError):
+        return _rclpy_bytes(msg)
+
+
+def _rclpy_bytes(msg: Any) -> bytes:
+    """rclpy's serialization of ``msg``, cut at the end of the data (unchanged if the size
+    is unknown)."""
     from rclpy.serialization import serialize_message
 
     data: bytes = serialize_message(msg)

@@ -28,9 +28,12 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mechsim.errors import MechsimError
 from mechsim.files import make_dir, open_exclusive, write_atomic
 from mechsim.outputs.bag.lock import LOCK_FILE, BagLock
+from mechsim.outputs.bag.mcapfile import McapFile
 from mechsim.outputs.bag.metadata import (
     METADATA_FILE,
     SERIALIZATION,
@@ -52,7 +55,7 @@ SCHEMA_ENCODING = "ros2msg"
 FLUSH_SIM_NS = 1_000_000_000
 FLUSH_WALL_S = 1.0
 CHUNK_SIZE = 512 * 1024
-#: Items (a message, or a batch of up to a chunk of samples) queued for the writer thread at
+#: Items (a message, or a chunk of samples on several topics) queued for the writer thread at
 #: most; a producer faster than the disk waits (memory stays bounded however long the run).
 QUEUE_ITEMS = 64
 _STOP = object()
@@ -151,18 +154,21 @@ class BagWriter:
                 self._queue.put(("custom", key, value))
         self._queue.put((topic, ns, data))
 
-    def write_batch(self, topic: str, type_name: str, qos: Any, ns: list[int],
-                    payloads: list[bytes]) -> None:
-        """Messages of one topic (not system_info) already serialized, in time order: one
-        hand-off to the writer thread for the whole batch."""
+    def write_chunk(self, ns: np.ndarray, topics: list[tuple[str, str, Any, np.ndarray]]
+                    ) -> None:
+        """A chunk of N samples stamped ``ns`` (int64, in time order): for each (topic,
+        type_name, qos, rows), rows is the (N, size) uint8 array of the topic's CDR payloads
+        (none of them system_info). One hand-off to the writer thread for the whole chunk;
+        the arrays must not be changed afterwards."""
         if self.error is not None:
             raise self.error
-        if self._closed or not payloads:
+        if self._closed or not topics or len(ns) == 0:
             return
-        if topic not in self._types:
-            self._types[topic] = type_name
-            self._queue.put(("channel", topic, type_name, qos_dict(qos)))
-        self._queue.put(("batch", topic, ns, payloads))
+        for topic, type_name, qos, _ in topics:
+            if topic not in self._types:
+                self._types[topic] = type_name
+                self._queue.put(("channel", topic, type_name, qos_dict(qos)))
+        self._queue.put(("chunk", ns, [(t, rows) for t, _, _, rows in topics]))
 
     def set_custom(self, key: str, value: Any) -> None:
         self._queue.put(("custom", key, str(value)))
@@ -229,11 +235,11 @@ class BagWriter:
         return MechsimError(f"bag {self.path}: write failed ({e.strerror or e}){kept}")
 
     def _write_loop(self) -> None:
-        from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+        from mcap.writer import LIBRARY_IDENTIFIER
 
         from mechsim import __version__
 
-        w = Writer(self._file, chunk_size=self._chunk_size, compression=CompressionType.ZSTD)
+        w = McapFile(self._file, chunk_size=self._chunk_size)
         w.start(profile=PROFILE, library=f"mechsim {__version__}; {LIBRARY_IDENTIFIER}")
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(
             bag_metadata(BagStats(custom_data=dict(self.stats.custom_data)), self.file_name))})
@@ -260,22 +266,23 @@ class BagWriter:
             if item[0] == "custom":
                 self.stats.custom_data[item[1]] = item[2]
                 continue
-            if item[0] == "batch":
-                _, topic, stamps, payloads = item
+            if item[0] == "chunk":
+                _, ns, rows = item
+                w.add_batch(ns, [(channels[topic], r) for topic, r in rows])
+                first, last = int(ns[0]), int(ns[-1])
+                for topic, _ in rows:
+                    self.stats.add(topic, first, len(ns), last)
             else:
-                topic, ns, data = item
-                stamps, payloads = (ns,), (data,)
-            channel = channels[topic]
-            for ns, data in zip(stamps, payloads, strict=True):
-                w.add_message(channel, log_time=ns, data=data, publish_time=ns)
-                self.stats.add(topic, ns)
+                topic, first, data = item
+                last = first
+                w.add_message(channels[topic], first, data)
+                self.stats.add(topic, first)
             if last_flush_ns is None:
-                last_flush_ns = stamps[0]
+                last_flush_ns = first
             now = time.monotonic()
-            if stamps[-1] - last_flush_ns >= FLUSH_SIM_NS or \
-                    now - last_flush_wall >= FLUSH_WALL_S:
+            if last - last_flush_ns >= FLUSH_SIM_NS or now - last_flush_wall >= FLUSH_WALL_S:
                 w.flush()  # closes the chunk in progress and flushes the stream
-                last_flush_ns, last_flush_wall = stamps[-1], now
+                last_flush_ns, last_flush_wall = last, now
         meta = bag_metadata(self.stats, self.file_name)
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
         w.finish()
