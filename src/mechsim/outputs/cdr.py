@@ -18,6 +18,7 @@ from the stamps. A new ``.msg`` needs no code here: only its prototype.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +35,11 @@ _PRIMITIVES: dict[str, str] = {
     "int16": "<i2", "uint16": "<u2", "int32": "<i4", "uint32": "<u4", "int64": "<i8",
     "uint64": "<u8", "float32": "<f4", "float64": "<f8",
 }
+_DTYPES = {k: np.dtype(v) for k, v in _PRIMITIVES.items()}
+_STRUCTS = {k: struct.Struct("<" + {"u1": "B", "i1": "b", "<i2": "h", "<u2": "H", "<i4": "i",
+                                     "<u4": "I", "<i8": "q", "<u8": "Q", "<f4": "f",
+                                     "<f8": "d"}[v]) for k, v in _PRIMITIVES.items()}
+_U32 = struct.Struct("<I")
 _DEPTH_LIMIT = 50
 
 
@@ -60,16 +66,19 @@ class _Writer:
                 raise MechsimError(f"{path}: wstring fields are not supported")
             data = str(value).encode()
             self.align(4)
-            self.buf += np.uint32(len(data) + 1).astype("<u4").tobytes() + data + b"\x00"
+            self.buf += _U32.pack(len(data) + 1) + data + b"\x00"
             return
         if typ not in _PRIMITIVES:
             raise MechsimError(f"{path}: unknown primitive type {typ}")
-        dt = np.dtype(_PRIMITIVES[typ])
+        dt = _DTYPES[typ]
         self.align(dt.itemsize)
         self.slots[path] = (len(self.buf), dt)
         if isinstance(value, (bytes, bytearray)):
             value = value[0]
-        self.buf += np.array(value).astype(dt).tobytes()
+        try:
+            self.buf += _STRUCTS[typ].pack(value)
+        except (struct.error, TypeError):  # a numpy scalar or an out-of-range value
+            self.buf += np.array(value).astype(dt).tobytes()
 
     def node(self, kind: Any, arg: Any, value: Any, path: str, depth: int) -> None:
         from rosbags.interfaces import Nodetype
@@ -87,7 +96,7 @@ class _Writer:
                 raise MechsimError(f"{path}: {len(items)} elements, the array has {length}")
             if kind == Nodetype.SEQUENCE:
                 self.align(4)
-                self.buf += np.uint32(len(items)).astype("<u4").tobytes()
+                self.buf += _U32.pack(len(items))
             for k, item in enumerate(items):
                 self.node(sub_kind, sub_arg, item, f"{path}.{k}" if path else str(k), depth)
         else:

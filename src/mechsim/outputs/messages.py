@@ -219,6 +219,11 @@ class EnergyColumns:
         e = c.energy
         return cls(e[:, 0], e[:, 1], e[:, 0] + e[:, 1], e[:, 2], c.work[:, 0], c.work[:, 1])
 
+    def rows(self, rows: slice) -> EnergyColumns:
+        return EnergyColumns(self.kinetic[rows], self.potential[rows], self.total[rows],
+                             self.energy_function[rows], self.work_external[rows],
+                             self.work_dissipated[rows])
+
 
 class ChunkEncoder:
     """The CDR payloads of a chunk, per topic, as :class:`MessageFactory` would fill the
