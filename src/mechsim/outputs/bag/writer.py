@@ -268,17 +268,29 @@ class BagWriter:
                 continue
             if item[0] == "chunk":
                 _, ns, rows = item
-                w.add_batch(ns, [(channels[topic], r) for topic, r in rows])
-                first, last = int(ns[0]), int(ns[-1])
-                for topic, _ in rows:
-                    self.stats.add(topic, first, len(ns), last)
+                topics = [(channels[topic], r) for topic, r in rows]
+                start = 0
+                while start < len(ns):
+                    # Up to the next flush in simulation time (a chunk spans a second at most).
+                    if last_flush_ns is None:
+                        last_flush_ns = int(ns[start])
+                    end = int(np.searchsorted(ns, last_flush_ns + FLUSH_SIM_NS, "left"))
+                    end = max(end, start + 1)
+                    w.add_batch(ns[start:end], [(c, r[start:end]) for c, r in topics])
+                    first, last = int(ns[start]), int(ns[end - 1])
+                    for topic, _ in rows:
+                        self.stats.add(topic, first, end - start, last)
+                    start = end
+                    if start < len(ns):
+                        w.flush()
+                        last_flush_ns, last_flush_wall = int(ns[start]), time.monotonic()
             else:
                 topic, first, data = item
                 last = first
                 w.add_message(channels[topic], first, data)
                 self.stats.add(topic, first)
-            if last_flush_ns is None:
-                last_flush_ns = first
+                if last_flush_ns is None:
+                    last_flush_ns = first
             now = time.monotonic()
             if last - last_flush_ns >= FLUSH_SIM_NS or now - last_flush_wall >= FLUSH_WALL_S:
                 w.flush()  # closes the chunk in progress and flushes the stream
