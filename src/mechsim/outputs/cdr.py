@@ -111,6 +111,79 @@ class _Writer:
             self.node(kind, arg, _field(value, name), f"{path}.{name}" if path else name, depth)
 
 
+class _Plain:
+    """Serializes one message to CDR bytes (padding zero), no leaf offsets kept: the path
+    for single messages (``bag.typeinfo.cdr_bytes``). Same rules as :class:`_Writer`."""
+
+    def __init__(self, store: Any) -> None:
+        from rosbags.interfaces import Nodetype
+
+        self.fielddefs = store.fielddefs
+        self.BASE, self.NAME = Nodetype.BASE, Nodetype.NAME
+        self.ARRAY, self.SEQUENCE = Nodetype.ARRAY, Nodetype.SEQUENCE
+        self.buf = bytearray(HEADER)
+
+    def pad(self, n: int) -> None:
+        extra = -(len(self.buf) - 4) % n
+        if extra:
+            self.buf += bytes(extra)
+
+    def value(self, kind: Any, arg: Any, v: Any, depth: int) -> None:
+        if depth > _DEPTH_LIMIT:
+            raise MechsimError("message nested too deep")
+        buf = self.buf
+        if kind == self.BASE:
+            typ = arg[0]
+            if typ == "string":
+                data = str(v).encode()
+                self.pad(4)
+                buf += _U32.pack(len(data) + 1)
+                buf += data
+                buf += b"\x00"
+                return
+            st = _STRUCTS.get(typ)
+            if st is None:
+                raise MechsimError(f"unsupported primitive type {typ}")
+            self.pad(st.size)
+            if isinstance(v, (bytes, bytearray)):
+                v = v[0]
+            try:
+                buf += st.pack(v)
+            except (struct.error, TypeError):
+                buf += np.array(v).astype(_DTYPES[typ]).tobytes()
+        elif kind == self.NAME:
+            self.message(str(arg), v, depth + 1)
+        elif kind == self.ARRAY or kind == self.SEQUENCE:
+            (sub_kind, sub_arg), length = arg
+            items = list(v)
+            if kind == self.ARRAY and len(items) != length:
+                raise MechsimError(f"{len(items)} elements, the array has {length}")
+            if kind == self.SEQUENCE:
+                self.pad(4)
+                buf += _U32.pack(len(items))
+            for item in items:
+                self.value(sub_kind, sub_arg, item, depth)
+        else:
+            raise MechsimError(f"unsupported field kind {kind}")
+
+    def message(self, type_name: str, v: Any, depth: int = 0) -> None:
+        if type_name == TIME_TYPE:
+            self.pad(4)
+        get = v.__getitem__ if isinstance(v, dict) else v.__getattribute__
+        for name, (kind, arg) in self.fielddefs[type_name][1]:
+            self.value(kind, arg, get(name), depth)
+
+
+def encode_message(type_name: str, value: Any) -> bytes:
+    """The CDR payload (with the encapsulation header, padding zero) of one message of
+    ``type_name`` (an rclpy message, or nested dicts and lists)."""
+    pkg, typ = split_type(type_name)
+    full = f"{pkg}/msg/{typ}"
+    w = _Plain(typestore_with(full))
+    w.message(full, value)
+    return bytes(w.buf)
+
+
 @dataclass(frozen=True)
 class Block:
     """Numeric leaves of one type, filled from the columns of one (N, k) matrix: runs of

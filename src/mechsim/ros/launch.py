@@ -71,6 +71,10 @@ class SceneRun:
     summary: list[tuple[str, str, float, int]] = field(default_factory=list)
     failures: dict[str, str] = field(default_factory=dict)
     interrupted: bool = False
+    #: Wall seconds per stage of the sample pipeline, all nodes together: integrate,
+    #: evaluate, encode, publish (including the hand-off to sinks), diagnostics (the
+    #: in-process law tracking and reports); a recording adds write (the bag writer thread).
+    costs: dict[str, float] = field(default_factory=dict)
 
 
 class _Stop(BaseException):
@@ -241,6 +245,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     interrupted = False
     start = time.monotonic()
     startup = 0.0
+    diag_cost = 0.0
     t = 0.0
     try:
         if main_thread:
@@ -300,11 +305,13 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
                 executor.spin_once(timeout_sec=0)
                 next_spin = now + 0.02
             # A report per diagnostics period of simulated time, on the samples up to it.
+            t0 = time.perf_counter()
             while t >= next_diag - 1e-12:
                 feed.deliver(stamp_ns(next_diag, offset))
                 diag.publish_now()
                 next_diag += diagnostics_period
             feed.deliver()
+            diag_cost += time.perf_counter() - t0
             if progress is not None and duration is not None:
                 progress(t, duration)
     except (KeyboardInterrupt, _Stop):
@@ -328,6 +335,10 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         for n in [*nodes, diag]:
             for topic, count in n.outlet.counts.items():
                 run.messages[topic] = run.messages.get(topic, 0) + count
+        for n in nodes:
+            for stage, seconds in n.costs.items():
+                run.costs[stage] = run.costs.get(stage, 0.0) + seconds
+        run.costs["diagnostics"] = diag_cost
         executor.shutdown()
         for n in [*nodes, diag]:
             n.destroy_node()

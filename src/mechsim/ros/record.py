@@ -237,8 +237,11 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
             out = open_outputs(scene, bag, rrd)
         run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks,
                         progress=progress)
+        bag = out.bag
         with held_signals():
             lines = out.close()
+        if bag is not None:
+            run.costs["write"] = bag.write_seconds
     except KeyboardInterrupt:
         if out is not None:
             with held_signals():

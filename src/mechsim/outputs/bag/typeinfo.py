@@ -183,12 +183,12 @@ def cdr_bytes(msg: Any) -> bytes:
     type's definition (``mechsim.outputs.cdr``; rclpy's serializer leaves its padding bytes
     uninitialised, so equal messages could differ in their bytes). For a type without a known
     definition, rclpy's serialization cut at the end of the data (see the module docstring)."""
-    from mechsim.outputs.cdr import Layout
+    from mechsim.outputs.cdr import encode_message
 
     cls = type(msg)
     pkg = cls.__module__.split(".")[0]
     try:
-        return Layout(f"{pkg}/msg/{cls.__name__}", msg).template.tobytes()
+        return encode_message(f"{pkg}/msg/{cls.__name__}", msg)
     except (MechsimError, KeyError, AttributeError, TypeError, ValueError):
         return _rclpy_bytes(msg)
 

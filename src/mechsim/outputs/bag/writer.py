@@ -125,6 +125,8 @@ class BagWriter:
         self._closed = False
         self._finished = False
         self._chunk_size = chunk_size
+        #: Seconds the writer thread spent writing (not waiting for work).
+        self.write_seconds = 0.0
         self._thread = threading.Thread(target=self._run, name="bag-writer", daemon=False)
         try:
             self._file = open_exclusive(self.path / self.file_name)
@@ -244,60 +246,68 @@ class BagWriter:
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(
             bag_metadata(BagStats(custom_data=dict(self.stats.custom_data)), self.file_name))})
         self._file.flush()
-        schemas: dict[str, int] = {}
-        channels: dict[str, int] = {}
-        last_flush_ns: int | None = None
-        last_flush_wall = time.monotonic()
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._last_flush_ns: int | None = None
+        self._last_flush_wall = time.monotonic()
         while True:
             item = self._queue.get()
             if item is _STOP:
                 break
-            if item[0] == "channel":
-                _, topic, type_name, qos = item
-                if type_name not in schemas:
-                    schemas[type_name] = w.register_schema(
-                        type_name, SCHEMA_ENCODING, message_definition(type_name).encode())
-                h = type_description_hash(type_name)
-                channels[topic] = w.register_channel(
-                    topic, SERIALIZATION, schemas[type_name],
-                    {"offered_qos_profiles": dump_yaml([qos]), "topic_type_hash": h})
-                self.stats.topics[topic] = TopicInfo(topic, type_name, [qos], h)
-                continue
-            if item[0] == "custom":
-                self.stats.custom_data[item[1]] = item[2]
-                continue
-            if item[0] == "chunk":
-                _, ns, rows = item
-                topics = [(channels[topic], r) for topic, r in rows]
-                start = 0
-                while start < len(ns):
-                    # Up to the next flush in simulation time (a chunk spans a second at most).
-                    if last_flush_ns is None:
-                        last_flush_ns = int(ns[start])
-                    end = int(np.searchsorted(ns, last_flush_ns + FLUSH_SIM_NS, "left"))
-                    end = max(end, start + 1)
-                    w.add_batch(ns[start:end], [(c, r[start:end]) for c, r in topics])
-                    first, last = int(ns[start]), int(ns[end - 1])
-                    for topic, _ in rows:
-                        self.stats.add(topic, first, end - start, last)
-                    start = end
-                    if start < len(ns):
-                        w.flush()
-                        last_flush_ns, last_flush_wall = int(ns[start]), time.monotonic()
-            else:
-                topic, first, data = item
-                last = first
-                w.add_message(channels[topic], first, data)
-                self.stats.add(topic, first)
-                if last_flush_ns is None:
-                    last_flush_ns = first
-            now = time.monotonic()
-            if last - last_flush_ns >= FLUSH_SIM_NS or now - last_flush_wall >= FLUSH_WALL_S:
-                w.flush()  # closes the chunk in progress and flushes the stream
-                last_flush_ns, last_flush_wall = last, now
+            started = time.perf_counter()
+            self._write_item(w, item)
+            self.write_seconds += time.perf_counter() - started
         meta = bag_metadata(self.stats, self.file_name)
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
         w.finish()
         self._file.flush()
         os.fsync(self._file.fileno())
         write_atomic(self.path / METADATA_FILE, metadata_text(meta))
+
+    def _write_item(self, w: McapFile, item: Any) -> None:
+        channels = self._channels
+        if item[0] == "channel":
+            _, topic, type_name, qos = item
+            if type_name not in self._schemas:
+                self._schemas[type_name] = w.register_schema(
+                    type_name, SCHEMA_ENCODING, message_definition(type_name).encode())
+            h = type_description_hash(type_name)
+            channels[topic] = w.register_channel(
+                topic, SERIALIZATION, self._schemas[type_name],
+                {"offered_qos_profiles": dump_yaml([qos]), "topic_type_hash": h})
+            self.stats.topics[topic] = TopicInfo(topic, type_name, [qos], h)
+            return
+        if item[0] == "custom":
+            self.stats.custom_data[item[1]] = item[2]
+            return
+        if item[0] == "chunk":
+            _, ns, rows = item
+            topics = [(channels[topic], r) for topic, r in rows]
+            start = 0
+            while start < len(ns):
+                # Up to the next flush in simulation time (a chunk spans a second at most).
+                if self._last_flush_ns is None:
+                    self._last_flush_ns = int(ns[start])
+                end = int(np.searchsorted(ns, self._last_flush_ns + FLUSH_SIM_NS, "left"))
+                end = max(end, start + 1)
+                w.add_batch(ns[start:end], [(c, r[start:end]) for c, r in topics])
+                first, last = int(ns[start]), int(ns[end - 1])
+                for topic, _ in rows:
+                    self.stats.add(topic, first, end - start, last)
+                start = end
+                if start < len(ns):
+                    w.flush()
+                    self._last_flush_ns, self._last_flush_wall = int(ns[start]), \
+                        time.monotonic()
+        else:
+            topic, first, data = item
+            last = first
+            w.add_message(channels[topic], first, data)
+            self.stats.add(topic, first)
+            if self._last_flush_ns is None:
+                self._last_flush_ns = first
+        now = time.monotonic()
+        if last - self._last_flush_ns >= FLUSH_SIM_NS or \
+                now - self._last_flush_wall >= FLUSH_WALL_S:
+            w.flush()  # closes the chunk in progress and flushes the stream
+            self._last_flush_ns, self._last_flush_wall = last, now
