@@ -47,9 +47,11 @@ from rcl_interfaces.msg import (
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from std_msgs.msg import Header
 
+from mechsim.outputs.cdr import encode_message
 from mechsim.outputs.sink import Sink
 from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet
 from mechsim.systems.base import LEVEL_NAMES, Law
@@ -406,7 +408,9 @@ class DiagnosticsNode(Node):
         return law.law.level(law.max_drift, self._param("warn_drift"),
                              self._param("error_drift"))
 
-    def statuses(self) -> list[DiagnosticStatus]:
+    def status_fields(self) -> list[dict[str, Any]]:
+        """The report: one DiagnosticStatus per law per system, as nested dicts (the fields
+        of diagnostic_msgs/DiagnosticStatus; encoded without building rclpy messages)."""
         out = []
         timeout = self._param("stale_timeout")
         now = time.monotonic()
@@ -424,30 +428,40 @@ class DiagnosticsNode(Node):
                     if law.nonfinite:
                         text += f", {law.nonfinite} non-finite sample(s)"
                 label = key.replace(":", "/")
-                out.append(DiagnosticStatus(
-                    level=bytes([level]), name=f"mechsim/{st.name}/{label}", message=text,
-                    hardware_id=st.name, values=[
-                        KeyValue(key="drift", value=f"{law.drift:.6e}"),
-                        KeyValue(key="max_drift", value=f"{law.max_drift:.6e}"),
-                        KeyValue(key="initial", value=f"{law.initial!r}"),
-                        KeyValue(key="current", value=f"{law.current!r}"),
-                        KeyValue(key="scale", value=f"{law.scale!r}"),
-                        KeyValue(key="samples", value=str(law.samples)),
-                        KeyValue(key="nonfinite", value=str(law.nonfinite)),
-                        KeyValue(key="epoch", value=str(st.epoch)),
-                        KeyValue(key="system", value=st.info.system),
-                        KeyValue(key="integrator", value=st.info.integrator)]))
+                out.append({
+                    "level": level, "name": f"mechsim/{st.name}/{label}", "message": text,
+                    "hardware_id": st.name, "values": [
+                        {"key": k, "value": v} for k, v in (
+                            ("drift", f"{law.drift:.6e}"),
+                            ("max_drift", f"{law.max_drift:.6e}"),
+                            ("initial", f"{law.initial!r}"),
+                            ("current", f"{law.current!r}"),
+                            ("scale", f"{law.scale!r}"),
+                            ("samples", str(law.samples)),
+                            ("nonfinite", str(law.nonfinite)),
+                            ("epoch", str(st.epoch)),
+                            ("system", st.info.system),
+                            ("integrator", st.info.integrator))]})
         return out
+
+    def statuses(self) -> list[DiagnosticStatus]:
+        """:meth:`status_fields` as rclpy messages."""
+        return [DiagnosticStatus(level=bytes([f["level"]]), name=f["name"],
+                                 message=f["message"], hardware_id=f["hardware_id"],
+                                 values=[KeyValue(**kv) for kv in f["values"]])
+                for f in self.status_fields()]
 
     def publish_now(self) -> None:
         if not self.systems:
             return
         ns = max((s.last_stamp for s in self.systems.values() if s.last_stamp is not None),
                  default=0)
-        header = Header(frame_id="")
-        header.stamp.sec, header.stamp.nanosec = divmod(ns, 1_000_000_000)
-        msg = DiagnosticArray(header=header, status=self.statuses())
-        self.outlet.publish(self.t_diag, msg, ns)
+        sec, nanosec = divmod(ns, 1_000_000_000)
+        fields = {"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": ""},
+                  "status": self.status_fields()}
+        data = encode_message(self.outlet.channels[self.t_diag].type_name, fields)
+        self.outlet.publish_serialized(
+            self.t_diag, data, ns, lambda: deserialize_message(data, DiagnosticArray))
         self.published += 1
 
     def summary(self) -> list[tuple[str, str, float, int]]:

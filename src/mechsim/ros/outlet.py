@@ -152,6 +152,25 @@ class Outlet:
             else:
                 sink.write(topic, ch.type_name, msg, ch.qos, ns)
 
+    def publish_serialized(self, topic: str, data: bytes, ns: int,
+                           message: Callable[[], Any]) -> None:
+        """Publish a message already encoded (``data``: CDR bytes, padding zero). A sink that
+        records bytes (``write_bytes``) gets them; any other gets ``message()``, made only if
+        it wants the topic."""
+        ch = self.channels[topic]
+        ch.publisher.publish(data)
+        self.counts[topic] += 1
+        msg = None
+        for sink in self.sinks:
+            write_bytes = getattr(sink, "write_bytes", None)
+            if write_bytes is not None:
+                write_bytes(topic, ch.type_name, ch.qos, ns, data)
+                continue
+            wants = getattr(sink, "wants", None)
+            if wants is None or wants(topic):
+                msg = message() if msg is None else msg
+                sink.write(topic, ch.type_name, msg, ch.qos, ns)
+
     def record(self, topic: str, msg: Any, qos: QoSProfile, ns: int) -> None:
         """Hand a message this node did not publish (an input it applied, such as an effort
         command) to the sinks only, so a recording holds it like a published one; counted

@@ -67,6 +67,10 @@ class _Counted:
         else:
             self.sink.write(topic, type_name, msg, qos, ns)
 
+    def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
+        self.count += 1
+        self.sink.write_bytes(topic, type_name, qos, ns, data)
+
     def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
         """Serialized messages of a chunk (the recorder takes chunks: see the Outlet)."""
         self.count += len(ns) * len(topics)

@@ -59,7 +59,7 @@ def message_records(ns: np.ndarray, topics: list[tuple[int, np.ndarray]]
 
 class McapFile:
     """Writes one MCAP file to ``stream`` (``start`` … ``finish``), messages in batches.
-    Chunks are zstd-compressed (as ``mcap.writer.Writer`` with ``CompressionType.ZSTD``)
+    Chunks are zstd-compressed (level 1)
     and closed by :meth:`flush`, or when they pass ``chunk_size`` uncompressed bytes."""
 
     def __init__(self, stream: IO[bytes], chunk_size: int) -> None:
@@ -80,6 +80,10 @@ class McapFile:
         self._index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
         self._start: int | None = None
         self._end = 0
+        import zstandard
+
+        # Level 1: the fastest standard level (chunks are small; readers need no setting).
+        self._zstd = zstandard.ZstdCompressor(level=1)
 
     def _builder(self) -> Any:
         from mcap.data_stream import RecordBuilder
@@ -180,13 +184,12 @@ class McapFile:
     def flush_chunk(self) -> None:
         """Close the chunk in progress (if it holds a message): Chunk record, then one
         Message Index record per channel."""
-        import zstandard
         from mcap.records import Chunk, ChunkIndex
 
         if self._start is None:
             return
         data = b"".join(self._parts)
-        compressed = zstandard.compress(data)
+        compressed = self._zstd.compress(data)
         chunk = Chunk(compression="zstd", data=compressed, message_start_time=self._start,
                       message_end_time=self._end, uncompressed_crc=zlib.crc32(data),
                       uncompressed_size=len(data))

@@ -156,6 +156,17 @@ class BagWriter:
                 self._queue.put(("custom", key, value))
         self._queue.put((topic, ns, data))
 
+    def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
+        """One message already serialized (not system_info)."""
+        if self.error is not None:
+            raise self.error
+        if self._closed:
+            return
+        if topic not in self._types:
+            self._types[topic] = type_name
+            self._queue.put(("channel", topic, type_name, qos_dict(qos)))
+        self._queue.put((topic, ns, data))
+
     def write_chunk(self, ns: np.ndarray, topics: list[tuple[str, str, Any, np.ndarray]]
                     ) -> None:
         """A chunk of N samples stamped ``ns`` (int64, in time order): for each (topic,
