@@ -21,6 +21,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -111,77 +112,93 @@ class _Writer:
             self.node(kind, arg, _field(value, name), f"{path}.{name}" if path else name, depth)
 
 
-class _Plain:
-    """Serializes one message to CDR bytes (padding zero), no leaf offsets kept: the path
-    for single messages (``bag.typeinfo.cdr_bytes``). Same rules as :class:`_Writer`."""
+_STR = "string"
 
-    def __init__(self, store: Any) -> None:
-        from rosbags.interfaces import Nodetype
 
-        self.fielddefs = store.fielddefs
-        self.BASE, self.NAME = Nodetype.BASE, Nodetype.NAME
-        self.ARRAY, self.SEQUENCE = Nodetype.ARRAY, Nodetype.SEQUENCE
-        self.buf = bytearray(HEADER)
+@cache
+def _plan(type_name: str) -> tuple[tuple[str, Any], ...]:
+    """How to encode ``type_name``: per field (name, op), op being "string", a
+    ``struct.Struct`` (a primitive), ("msg", plan, is Time), ("seq", op) or ("arr", length,
+    op). Made once per type from its definition."""
+    from rosbags.interfaces import Nodetype
 
-    def pad(self, n: int) -> None:
-        extra = -(len(self.buf) - 4) % n
-        if extra:
-            self.buf += bytes(extra)
+    store = typestore_with(type_name)
 
-    def value(self, kind: Any, arg: Any, v: Any, depth: int) -> None:
+    def op(kind: Any, arg: Any, depth: int) -> Any:
         if depth > _DEPTH_LIMIT:
-            raise MechsimError("message nested too deep")
-        buf = self.buf
-        if kind == self.BASE:
+            raise MechsimError(f"{type_name}: message nested too deep")
+        if kind == Nodetype.BASE:
             typ = arg[0]
             if typ == "string":
-                data = str(v).encode()
-                self.pad(4)
-                buf += _U32.pack(len(data) + 1)
-                buf += data
-                buf += b"\x00"
-                return
-            st = _STRUCTS.get(typ)
-            if st is None:
-                raise MechsimError(f"unsupported primitive type {typ}")
-            self.pad(st.size)
-            if isinstance(v, (bytes, bytearray)):
-                v = v[0]
-            try:
-                buf += st.pack(v)
-            except (struct.error, TypeError):
-                buf += np.array(v).astype(_DTYPES[typ]).tobytes()
-        elif kind == self.NAME:
-            self.message(str(arg), v, depth + 1)
-        elif kind == self.ARRAY or kind == self.SEQUENCE:
+                return _STR
+            if typ not in _STRUCTS:
+                raise MechsimError(f"{type_name}: unsupported primitive type {typ}")
+            return _STRUCTS[typ]
+        if kind == Nodetype.NAME:
+            return ("msg", message(str(arg), depth + 1), str(arg) == TIME_TYPE)
+        if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
             (sub_kind, sub_arg), length = arg
-            items = list(v)
-            if kind == self.ARRAY and len(items) != length:
-                raise MechsimError(f"{len(items)} elements, the array has {length}")
-            if kind == self.SEQUENCE:
-                self.pad(4)
-                buf += _U32.pack(len(items))
-            for item in items:
-                self.value(sub_kind, sub_arg, item, depth)
-        else:
-            raise MechsimError(f"unsupported field kind {kind}")
+            sub = op(sub_kind, sub_arg, depth + 1)
+            return ("seq", sub) if kind == Nodetype.SEQUENCE else ("arr", length, sub)
+        raise MechsimError(f"{type_name}: unsupported field kind {kind}")
 
-    def message(self, type_name: str, v: Any, depth: int = 0) -> None:
-        if type_name == TIME_TYPE:
-            self.pad(4)
+    def message(name: str, depth: int) -> tuple[tuple[str, Any], ...]:
+        return tuple((field, op(kind, arg, depth)) for field, (kind, arg)
+                     in store.fielddefs[name][1])
+
+    return message(type_name, 0)
+
+
+def _put(buf: bytearray, op: Any, v: Any) -> None:
+    """Append ``v`` encoded by ``op`` (see :func:`_plan`) to ``buf``, aligned, padding zero."""
+    if op is _STR:
+        data = str(v).encode()
+        extra = -(len(buf) - 4) % 4
+        if extra:
+            buf += bytes(extra)
+        buf += _U32.pack(len(data) + 1)
+        buf += data
+        buf += b"\x00"
+    elif isinstance(op, struct.Struct):
+        extra = -(len(buf) - 4) % op.size
+        if extra:
+            buf += bytes(extra)
+        if isinstance(v, (bytes, bytearray)):
+            v = v[0]
+        try:
+            buf += op.pack(v)
+        except (struct.error, TypeError):  # a numpy scalar
+            buf += op.pack(np.asarray(v).item())
+    elif op[0] == "msg":
+        if op[2]:  # builtin_interfaces/Time: 4-aligned
+            extra = -(len(buf) - 4) % 4
+            if extra:
+                buf += bytes(extra)
         get = v.__getitem__ if isinstance(v, dict) else v.__getattribute__
-        for name, (kind, arg) in self.fielddefs[type_name][1]:
-            self.value(kind, arg, get(name), depth)
+        for name, sub in op[1]:
+            _put(buf, sub, get(name))
+    else:
+        items = list(v)
+        if op[0] == "seq":
+            extra = -(len(buf) - 4) % 4
+            if extra:
+                buf += bytes(extra)
+            buf += _U32.pack(len(items))
+        elif len(items) != op[1]:
+            raise MechsimError(f"{len(items)} elements, the array has {op[1]}")
+        sub = op[-1]
+        for item in items:
+            _put(buf, sub, item)
 
 
 def encode_message(type_name: str, value: Any) -> bytes:
     """The CDR payload (with the encapsulation header, padding zero) of one message of
-    ``type_name`` (an rclpy message, or nested dicts and lists)."""
+    ``type_name`` (an rclpy message, or nested dicts and lists): the path for single
+    messages (``bag.typeinfo.cdr_bytes``); same rules as :class:`Layout`."""
     pkg, typ = split_type(type_name)
-    full = f"{pkg}/msg/{typ}"
-    w = _Plain(typestore_with(full))
-    w.message(full, value)
-    return bytes(w.buf)
+    buf = bytearray(HEADER)
+    _put(buf, ("msg", _plan(f"{pkg}/msg/{typ}"), False), value)
+    return bytes(buf)
 
 
 @dataclass(frozen=True)

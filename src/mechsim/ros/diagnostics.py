@@ -108,23 +108,27 @@ class LawState:
     def update(self, values: Any) -> None:
         """Take the law's values of consecutive samples of one epoch (a float or an array):
         the drift of each finite one from the epoch's first finite value."""
-        v = np.atleast_1d(np.asarray(values, dtype=float))
+        v = np.asarray(values, dtype=float).reshape(-1)
         if v.size == 0:
             return
-        self.samples += int(v.size)
+        self.samples += v.size
         self.current = float(v[-1])
         finite = np.isfinite(v)
-        self.finite_now = bool(finite[-1])
-        ok = v if finite.all() else v[finite]
-        self.nonfinite += int(v.size - ok.size)
-        last = math.inf
+        if finite.all():
+            ok = v
+            self.finite_now = True
+        else:
+            ok = v[finite]
+            self.nonfinite += int(v.size - ok.size)
+            self.finite_now = bool(finite[-1])
+        self.drift = math.inf
         if ok.size:
             if self.initial is None:
                 self.initial = float(ok[0])
-            drifts = np.asarray(self.law.drift(ok, self.initial, self.scale), dtype=float)
-            self.max_drift = max(self.max_drift, float(np.max(drifts)))
-            last = float(drifts[-1])
-        self.drift = last if self.finite_now else math.inf
+            drifts = self.law.drift(ok, self.initial, self.scale)
+            self.max_drift = max(self.max_drift, float(drifts.max()))
+            if self.finite_now:
+                self.drift = float(drifts[-1])
 
 
 @dataclass

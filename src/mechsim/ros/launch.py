@@ -54,6 +54,9 @@ if TYPE_CHECKING:
 GRAPH_WAIT = 2.0
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go).
 FAST_CHUNK = 500
+#: Wall seconds between two turns of the executor in a fast run (a service or parameter
+#: request waits this long at most, plus a chunk).
+SERVE_PERIOD = 0.1
 #: Seconds a node found in the graph has to answer before it counts as gone (killed).
 LIVENESS_TIMEOUT = 2.0
 
@@ -298,12 +301,12 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
             k, t = k_next, t_next
             if all(n.failed for n in nodes):
                 break  # every system stopped with an error: nothing left to run
-            # Services and parameter requests are served between chunks, every 20 ms of
-            # wall time at most (building the executor's wait set costs ~0.5 ms).
+            # Services and parameter requests are served between chunks, every SERVE_PERIOD
+            # of wall time at most (building the executor's wait set costs 0.5-2.5 ms).
             now = time.monotonic()
             if now >= next_spin:
                 executor.spin_once(timeout_sec=0)
-                next_spin = now + 0.02
+                next_spin = time.monotonic() + SERVE_PERIOD
             # A report per diagnostics period of simulated time, on the samples up to it.
             t0 = time.perf_counter()
             while t >= next_diag - 1e-12:
