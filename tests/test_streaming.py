@@ -206,3 +206,50 @@ def test_chunk_feed_tracks_drift_and_epochs(ros_context: Any) -> None:
         assert st.epoch == 1 and law.nonfinite == 1
     finally:
         diag.destroy_node()
+
+
+def test_mcap_batches_read_back_by_the_mcap_library(tmp_path: Path) -> None:
+    """Messages written a batch at a time (and one at a time) come back from the mcap
+    library's reader, through the chunk indexes and message indexes and by a plain scan, with
+    their stamps, payloads and the summary statistics."""
+    from mcap.reader import make_reader
+    from mcap.stream_reader import StreamReader
+
+    from mechsim.outputs.bag.mcapfile import McapFile
+
+    rng = np.random.default_rng(1)
+    f = tmp_path / "x.mcap"
+    expected: list[tuple[str, int, bytes]] = []
+    with open(f, "wb") as stream:
+        w = McapFile(stream, chunk_size=4000)
+        w.start("ros2", "test")
+        sid = w.register_schema("pkg/msg/T", "ros2msg", b"float64 x")
+        a = w.register_channel("/a", "cdr", sid, {})
+        b = w.register_channel("/b", "cdr", sid, {"k": "v"})
+        for k in range(5):
+            ns = np.arange(k * 30, k * 30 + 30, dtype=np.int64) * 1000 + 7
+            ra = rng.integers(0, 256, (30, 12), dtype=np.uint8)
+            rb = rng.integers(0, 256, (30, 37), dtype=np.uint8)
+            w.add_batch(ns, [(a, ra), (b, rb)])
+            for i in range(30):
+                expected += [("/a", int(ns[i]), ra[i].tobytes()), ("/b", int(ns[i]),
+                                                                     rb[i].tobytes())]
+            w.add_message(b, int(ns[-1]) + 1, b"single")
+            expected.append(("/b", int(ns[-1]) + 1, b"single"))
+            if k == 2:
+                w.flush()
+        w.add_metadata("m", {"x": "y"})
+        w.finish()
+    with open(f, "rb") as stream:
+        reader = make_reader(stream)
+        got = [(ch.topic, m.log_time, bytes(m.data)) for _, ch, m in reader.iter_messages()]
+        summary = reader.get_summary()
+    assert got == expected  # file order is time order here
+    assert summary is not None and summary.statistics is not None
+    assert summary.statistics.message_count == len(expected)
+    assert dict(summary.statistics.channel_message_counts) == {a: 150, b: 155}
+    assert len(summary.chunk_indexes) >= 3 and summary.channels[b].metadata == {"k": "v"}
+    with open(f, "rb") as stream:  # a scan of every record (chunks opened), CRCs checked
+        records = list(StreamReader(stream, validate_crcs=True).records)
+    assert [(r.log_time, bytes(r.data)) for r in records if type(r).__name__ == "Message"] \
+        == [(ts, d) for _, ts, d in expected]

@@ -25,7 +25,8 @@ At most ``max_systems`` namespaces are followed (those that also have an energy 
 followed namespace silent for ``expire_timeout`` (or for ``stale_timeout`` once its topics have
 left the graph) is forgotten, subscriptions destroyed; namespaces are followed in turns, and a
 silent one not again before ``expire_timeout`` has passed. Messages fed in-process
-(:meth:`feed`) are trusted.
+(:meth:`feed`, or as arrays of a chunk of samples with :meth:`feed_chunk`: no message objects,
+the same law tracking, vectorised over the chunk) are trusted.
 """
 
 from __future__ import annotations

@@ -9,7 +9,9 @@ chunks, message indexes, the summary with its statistics, chunk, metadata index 
 offsets, footer) is written with the record classes of ``mcap.records``, in the layout
 ``mcap.writer.Writer`` produces (MCAP specification, https://mcap.dev/spec: Message record op
 0x05 = channel_id u16, sequence u32, log_time u64, publish_time u64, data; Message Index op
-0x07 = channel_id u16, then (log_time u64, offset u64) pairs prefixed by their byte length).
+0x07 = channel_id u16, then (log_time u64, offset u64) pairs prefixed by their byte length;
+Chunk op 0x06 = start and end time u64, uncompressed size u64, uncompressed CRC-32 u32,
+compression (u32-prefixed string), then the compressed records prefixed by a u64 length).
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ _MESSAGE_HEAD = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
 _HEAD = _MESSAGE_HEAD.itemsize  # 31
 _OP_MESSAGE = 0x05
 _OP_MESSAGE_INDEX = 0x07
+_OP_CHUNK = 0x06
+_CHUNK_HEAD = struct.Struct("<BQQQQII4sQ")  # up to the compressed records ("zstd" only)
 
 
 def message_records(ns: np.ndarray, topics: list[tuple[int, np.ndarray]]
@@ -184,21 +188,22 @@ class McapFile:
     def flush_chunk(self) -> None:
         """Close the chunk in progress (if it holds a message): Chunk record, then one
         Message Index record per channel."""
-        from mcap.records import Chunk, ChunkIndex
+        from mcap.records import ChunkIndex
 
         if self._start is None:
             return
         data = b"".join(self._parts)
         compressed = self._zstd.compress(data)
-        chunk = Chunk(compression="zstd", data=compressed, message_start_time=self._start,
-                      message_end_time=self._end, uncompressed_crc=zlib.crc32(data),
-                      uncompressed_size=len(data))
-        b = self._builder()
-        chunk.write(b)
-        raw = b.end()
+        # Chunk record (op 0x06): start, end, uncompressed size, uncompressed CRC, compression
+        # (a prefixed string), records (a prefixed byte string); written as two pieces.
+        head = _CHUNK_HEAD.pack(_OP_CHUNK, _CHUNK_HEAD.size - 9 + len(compressed),
+                                self._start, self._end, len(data), zlib.crc32(data),
+                                4, b"zstd", len(compressed))
         chunk_start = self.stream.tell()
-        self.stream.write(raw)
-        index_start = chunk_start + len(raw)
+        self.stream.write(head)
+        self.stream.write(compressed)
+        chunk_length = len(head) + len(compressed)
+        index_start = chunk_start + chunk_length
         offsets: dict[int, int] = {}
         pieces = []
         pos = index_start
@@ -216,7 +221,7 @@ class McapFile:
         self.stream.write(b"".join(pieces))
         self.chunk_indexes.append(ChunkIndex(
             message_start_time=self._start, message_end_time=self._end,
-            chunk_start_offset=chunk_start, chunk_length=len(raw),
+            chunk_start_offset=chunk_start, chunk_length=chunk_length,
             message_index_offsets=offsets, message_index_length=pos - index_start,
             compression="zstd", compressed_size=len(compressed), uncompressed_size=len(data)))
         self.stats.chunk_count += 1

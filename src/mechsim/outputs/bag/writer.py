@@ -8,9 +8,10 @@ exclusive temporary renamed into place; then the lock is removed.
 
 Robustness. Records are written by a writer thread (Python runs signal handlers in the main
 thread only, so Ctrl-C / SIGTERM can never interrupt a half-written record); the sink only
-serializes and queues. A chunk is closed and flushed to the file at least every second of
-simulation time and every second of wall time (``mcap.Writer.flush``), so after a hard kill
-every chunk but the last is in the file and ``mechsim bag repair`` completes the bag.
+serializes and queues (a chunk of samples, already encoded by the nodes, is one item: see
+``mcapfile``). A chunk is closed and flushed to the file at least every second of simulation
+time and every second of wall time (``McapFile.flush``), so after a hard kill every chunk but
+the last is in the file and ``mechsim bag repair`` completes the bag.
 
 A recording is never deleted after its first message: :meth:`BagWriter.abort` (after an error
 anywhere) completes the bag if the writer is healthy; after a write error (disk full, ...) the
