@@ -21,27 +21,22 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache
 from typing import Any
 
 import numpy as np
 
 from mechsim.errors import MechsimError
-from mechsim.outputs.bag.typeinfo import split_type, typestore_with
-
-HEADER = b"\x00\x01\x00\x00"  # CDR little-endian, no options
-TIME_TYPE = "builtin_interfaces/msg/Time"
-_PRIMITIVES: dict[str, str] = {
-    "bool": "u1", "byte": "u1", "char": "u1", "octet": "u1", "int8": "i1", "uint8": "u1",
-    "int16": "<i2", "uint16": "<u2", "int32": "<i4", "uint32": "<u4", "int64": "<i8",
-    "uint64": "<u8", "float32": "<f4", "float64": "<f8",
-}
-_DTYPES = {k: np.dtype(v) for k, v in _PRIMITIVES.items()}
-_STRUCTS = {k: struct.Struct("<" + {"u1": "B", "i1": "b", "<i2": "h", "<u2": "H", "<i4": "i",
-                                     "<u4": "I", "<i8": "q", "<u8": "Q", "<f4": "f",
-                                     "<f8": "d"}[v]) for k, v in _PRIMITIVES.items()}
-_U32 = struct.Struct("<I")
-_DEPTH_LIMIT = 50
+from mechsim.outputs.bag.typeinfo import (
+    DEPTH_LIMIT,
+    DTYPES,
+    HEADER,
+    PRIMITIVES,
+    STRUCTS,
+    TIME_TYPE,
+    U32,
+    split_type,
+    typestore_with,
+)
 
 
 def _field(obj: Any, name: str) -> Any:
@@ -67,24 +62,24 @@ class _Writer:
                 raise MechsimError(f"{path}: wstring fields are not supported")
             data = str(value).encode()
             self.align(4)
-            self.buf += _U32.pack(len(data) + 1) + data + b"\x00"
+            self.buf += U32.pack(len(data) + 1) + data + b"\x00"
             return
-        if typ not in _PRIMITIVES:
+        if typ not in PRIMITIVES:
             raise MechsimError(f"{path}: unknown primitive type {typ}")
-        dt = _DTYPES[typ]
+        dt = DTYPES[typ]
         self.align(dt.itemsize)
         self.slots[path] = (len(self.buf), dt)
         if isinstance(value, (bytes, bytearray)):
             value = value[0]
         try:
-            self.buf += _STRUCTS[typ].pack(value)
+            self.buf += STRUCTS[typ].pack(value)
         except (struct.error, TypeError):  # a numpy scalar or an out-of-range value
             self.buf += np.array(value).astype(dt).tobytes()
 
     def node(self, kind: Any, arg: Any, value: Any, path: str, depth: int) -> None:
         from rosbags.interfaces import Nodetype
 
-        if depth > _DEPTH_LIMIT:
+        if depth > DEPTH_LIMIT:
             raise MechsimError(f"{path}: message nested too deep")
         if kind == Nodetype.BASE:
             self.base(arg[0], value, path)
@@ -97,7 +92,7 @@ class _Writer:
                 raise MechsimError(f"{path}: {len(items)} elements, the array has {length}")
             if kind == Nodetype.SEQUENCE:
                 self.align(4)
-                self.buf += _U32.pack(len(items))
+                self.buf += U32.pack(len(items))
             for k, item in enumerate(items):
                 self.node(sub_kind, sub_arg, item, f"{path}.{k}" if path else str(k), depth)
         else:
@@ -110,95 +105,6 @@ class _Writer:
         _, fields = self.store.fielddefs[type_name]
         for name, (kind, arg) in fields:
             self.node(kind, arg, _field(value, name), f"{path}.{name}" if path else name, depth)
-
-
-_STR = "string"
-
-
-@cache
-def _plan(type_name: str) -> tuple[tuple[str, Any], ...]:
-    """How to encode ``type_name``: per field (name, op), op being "string", a
-    ``struct.Struct`` (a primitive), ("msg", plan, is Time), ("seq", op) or ("arr", length,
-    op). Made once per type from its definition."""
-    from rosbags.interfaces import Nodetype
-
-    store = typestore_with(type_name)
-
-    def op(kind: Any, arg: Any, depth: int) -> Any:
-        if depth > _DEPTH_LIMIT:
-            raise MechsimError(f"{type_name}: message nested too deep")
-        if kind == Nodetype.BASE:
-            typ = arg[0]
-            if typ == "string":
-                return _STR
-            if typ not in _STRUCTS:
-                raise MechsimError(f"{type_name}: unsupported primitive type {typ}")
-            return _STRUCTS[typ]
-        if kind == Nodetype.NAME:
-            return ("msg", message(str(arg), depth + 1), str(arg) == TIME_TYPE)
-        if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-            (sub_kind, sub_arg), length = arg
-            sub = op(sub_kind, sub_arg, depth + 1)
-            return ("seq", sub) if kind == Nodetype.SEQUENCE else ("arr", length, sub)
-        raise MechsimError(f"{type_name}: unsupported field kind {kind}")
-
-    def message(name: str, depth: int) -> tuple[tuple[str, Any], ...]:
-        return tuple((field, op(kind, arg, depth)) for field, (kind, arg)
-                     in store.fielddefs[name][1])
-
-    return message(type_name, 0)
-
-
-def _put(buf: bytearray, op: Any, v: Any) -> None:
-    """Append ``v`` encoded by ``op`` (see :func:`_plan`) to ``buf``, aligned, padding zero."""
-    if op is _STR:
-        data = str(v).encode()
-        extra = -(len(buf) - 4) % 4
-        if extra:
-            buf += bytes(extra)
-        buf += _U32.pack(len(data) + 1)
-        buf += data
-        buf += b"\x00"
-    elif isinstance(op, struct.Struct):
-        extra = -(len(buf) - 4) % op.size
-        if extra:
-            buf += bytes(extra)
-        if isinstance(v, (bytes, bytearray)):
-            v = v[0]
-        try:
-            buf += op.pack(v)
-        except (struct.error, TypeError):  # a numpy scalar
-            buf += op.pack(np.asarray(v).item())
-    elif op[0] == "msg":
-        if op[2]:  # builtin_interfaces/Time: 4-aligned
-            extra = -(len(buf) - 4) % 4
-            if extra:
-                buf += bytes(extra)
-        get = v.__getitem__ if isinstance(v, dict) else v.__getattribute__
-        for name, sub in op[1]:
-            _put(buf, sub, get(name))
-    else:
-        items = list(v)
-        if op[0] == "seq":
-            extra = -(len(buf) - 4) % 4
-            if extra:
-                buf += bytes(extra)
-            buf += _U32.pack(len(items))
-        elif len(items) != op[1]:
-            raise MechsimError(f"{len(items)} elements, the array has {op[1]}")
-        sub = op[-1]
-        for item in items:
-            _put(buf, sub, item)
-
-
-def encode_message(type_name: str, value: Any) -> bytes:
-    """The CDR payload (with the encapsulation header, padding zero) of one message of
-    ``type_name`` (an rclpy message, or nested dicts and lists): the path for single
-    messages (``bag.typeinfo.cdr_bytes``); same rules as :class:`Layout`."""
-    pkg, typ = split_type(type_name)
-    buf = bytearray(HEADER)
-    _put(buf, ("msg", _plan(f"{pkg}/msg/{typ}"), False), value)
-    return bytes(buf)
 
 
 @dataclass(frozen=True)

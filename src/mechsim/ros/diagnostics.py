@@ -52,7 +52,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from std_msgs.msg import Header
 
-from mechsim.outputs.cdr import encode_message
+from mechsim.outputs.bag.typeinfo import encode_message
 from mechsim.outputs.sink import Sink
 from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet
 from mechsim.systems.base import LEVEL_NAMES, Law
