@@ -73,7 +73,9 @@ class McapFile:
         self.chunk_size = chunk_size
         self.schemas: dict[int, Any] = {}
         self.channels: dict[int, Any] = {}
-        self.chunk_indexes: list[Any] = []
+        #: The Chunk Index records, already encoded (memory: ~100 bytes per chunk, not a
+        #: Python object per chunk).
+        self.chunk_indexes = bytearray()
         self.metadata_indexes: list[Any] = []
         self.stats = Statistics(attachment_count=0, channel_count=0,
                                 channel_message_counts=defaultdict(int), chunk_count=0,
@@ -219,11 +221,13 @@ class McapFile:
             pos += len(rec)
             pieces.append(rec)
         self.stream.write(b"".join(pieces))
-        self.chunk_indexes.append(ChunkIndex(
-            message_start_time=self._start, message_end_time=self._end,
-            chunk_start_offset=chunk_start, chunk_length=chunk_length,
-            message_index_offsets=offsets, message_index_length=pos - index_start,
-            compression="zstd", compressed_size=len(compressed), uncompressed_size=len(data)))
+        b = self._builder()
+        ChunkIndex(message_start_time=self._start, message_end_time=self._end,
+                   chunk_start_offset=chunk_start, chunk_length=chunk_length,
+                   message_index_offsets=offsets, message_index_length=pos - index_start,
+                   compression="zstd", compressed_size=len(compressed),
+                   uncompressed_size=len(data)).write(b)
+        self.chunk_indexes += b.end()
         self.stats.chunk_count += 1
         self._parts, self._size, self._start, self._end = [], 0, None, 0
         self._index = defaultdict(list)
@@ -246,12 +250,15 @@ class McapFile:
         for opcode, records in ((Opcode.SCHEMA, list(self.schemas.values())),
                                 (Opcode.CHANNEL, list(self.channels.values())),
                                 (Opcode.STATISTICS, [self.stats]),
-                                (Opcode.CHUNK_INDEX, self.chunk_indexes),
+                                (Opcode.CHUNK_INDEX, [bytes(self.chunk_indexes)]),
                                 (Opcode.ATTACHMENT_INDEX, []),
                                 (Opcode.METADATA_INDEX, self.metadata_indexes)):
             start = b.count
             for r in records:
-                r.write(b)
+                if isinstance(r, bytes):
+                    b.write(r)
+                else:
+                    r.write(b)
             groups.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + start,
                                         group_length=b.count - start))
         offset_start = summary_start + b.count
