@@ -38,6 +38,11 @@ from mechsim.outputs.bag.typeinfo import (
     typestore_with,
 )
 
+_TIME = struct.Struct("<iI")  # builtin_interfaces/Time: int32 sec, uint32 nanosec
+#: struct codes of the numpy types a block can have.
+_CODES = {np.dtype(v).str: st.format[-1] for v, st in
+          ((PRIMITIVES[k], STRUCTS[k]) for k in PRIMITIVES)}
+
 
 def _field(obj: Any, name: str) -> Any:
     return obj[name] if isinstance(obj, dict) else getattr(obj, name)
@@ -127,7 +132,8 @@ class Layout:
         store = typestore_with(self.type_name)
         w = _Writer(store)
         w.message(self.type_name, prototype, "")
-        self.template = np.frombuffer(bytes(w.buf), dtype=np.uint8)
+        self._template_bytes = bytes(w.buf)
+        self.template = np.frombuffer(self._template_bytes, dtype=np.uint8)
         self.size = self.template.size
         self.slots = w.slots
         self.time_offsets = tuple(w.times)
@@ -157,6 +163,8 @@ class Layout:
         """(N, size) uint8: one message per row, Time fields from ``ns`` (int64 nanoseconds)
         and each block from its (N, k) matrix (a 1-D array for k = 1)."""
         n = int(np.shape(ns)[0])
+        if n == 1:
+            return self._encode_one(int(np.asarray(ns).reshape(-1)[0]), blocks)
         out = np.empty((n, self.size), dtype=np.uint8)
         out[:] = self.template
         if self.time_offsets:
@@ -174,6 +182,20 @@ class Layout:
                 out[:, off:off + size * (b - a)] = \
                     np.ascontiguousarray(m[:, a:b]).view(np.uint8)
         return out
+
+    def _encode_one(self, ns: int, blocks: Sequence[tuple[Block, np.ndarray]]) -> np.ndarray:
+        """:meth:`encode` of one message, with ``struct`` (a paced run encodes one sample at
+        a time, where numpy's per-call cost would dominate)."""
+        buf = bytearray(self._template_bytes)
+        sec, nanosec = divmod(ns, 1_000_000_000)
+        for off in self.time_offsets:
+            _TIME.pack_into(buf, off, sec, nanosec)
+        for block, values in blocks:
+            row = np.asarray(values, dtype=block.dtype).reshape(-1).tolist()
+            code = block.dtype.str
+            for a, b, off in block.runs:
+                struct.pack_into(f"<{b - a}{_CODES[code]}", buf, off, *row[a:b])
+        return np.frombuffer(bytes(buf), dtype=np.uint8).reshape(1, self.size)
 
     def payloads(self, rows: np.ndarray) -> list[bytes]:
         """The rows of :meth:`encode` as ``bytes`` (what rclpy publishes and MCAP records)."""
