@@ -154,7 +154,8 @@ def run_streaming(out: Path, systems: list[str], duration: float = 100.0,
     lines = ["# Streaming throughput", "",
              f"Recording at 100 Hz output, as fast as possible, bag writer attached "
              f"({duration:g} s simulated per system; real-time factor = simulated / wall "
-             f"seconds after start-up, to the bag complete on disk; load average at the end {os.getloadavg()[0]:.1f} on "
+             f"seconds after start-up, to the bag complete on disk; load average at the end "
+             f"{os.getloadavg()[0]:.1f} on "
              f"{os.cpu_count()} cores).", "",
              "Per-sample cost split, µs of wall time per sample in each stage (write runs in "
              "the bag writer's thread, alongside the others).", "",
