@@ -29,28 +29,54 @@ class Outputs:
     frames: np.ndarray | None = None  # (samples, frames, 7): translation xyz, quaternion xyzw
 
 
-def evaluate(model: Model, t: np.ndarray, Y: np.ndarray, p: np.ndarray,
-             which: tuple[str, ...] = OUTPUTS) -> Outputs:
-    """Compute the requested outputs at the given states (nothing else is computed)."""
+@dataclass(frozen=True)
+class OutputShape:
+    """How many invariants, observables and frames a model's outputs have (asked of the
+    model once: some models derive them)."""
+
+    invariants: tuple[str, ...]
+    observables: tuple[str, ...]
+    frames: int
+
+    @classmethod
+    def of(cls, model: Model) -> OutputShape:
+        return cls(tuple(q.name for q in model.invariants),
+                   tuple(q.name for q in model.observables), len(model.frames))
+
+
+def evaluate_arrays(model: Model, shape: OutputShape, t: np.ndarray, Y: np.ndarray,
+                    p: np.ndarray, which: tuple[str, ...] = OUTPUTS
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The requested outputs at the given states as arrays, in one compiled call: energy
+    terms (m, 3: kinetic, potential, energy_function), invariants (m, k), observables
+    (m, k), frames (m, frames, 7); outputs not asked for are empty stand-ins."""
     m = t.size
-    # Outputs not asked for are neither allocated nor computed (empty stand-ins).
     E = np.zeros((m, 3)) if "energy" in which else _NONE2
-    inv = np.zeros((m, max(len(model.invariants), 1))) if "invariants" in which else _NONE2
-    obs = np.zeros((m, max(len(model.observables), 1))) if "observables" in which else _NONE2
-    fr = np.zeros((m, max(len(model.frames), 1), 7)) if "frames" in which else _NONE3
+    inv = np.zeros((m, max(len(shape.invariants), 1))) if "invariants" in which else _NONE2
+    obs = np.zeros((m, max(len(shape.observables), 1))) if "observables" in which else _NONE2
+    fr = np.zeros((m, max(shape.frames, 1), 7)) if "frames" in which else _NONE3
     loops().evaluate_outputs(model.kernels.kernel_set(*which), np.ascontiguousarray(t),
                              np.ascontiguousarray(Y), p, "energy" in which,
                              "invariants" in which, "observables" in which, "frames" in which,
                              E, inv, obs, fr)
+    return (E, inv[:, :len(shape.invariants)], obs[:, :len(shape.observables)],
+            fr[:, :shape.frames])
+
+
+def evaluate(model: Model, t: np.ndarray, Y: np.ndarray, p: np.ndarray,
+             which: tuple[str, ...] = OUTPUTS) -> Outputs:
+    """Compute the requested outputs at the given states (nothing else is computed)."""
+    shape = OutputShape.of(model)
+    E, inv, obs, fr = evaluate_arrays(model, shape, t, Y, p, which)
     out = Outputs()
     if "energy" in which:
         out.kinetic, out.potential, out.energy_function = E[:, 0], E[:, 1], E[:, 2]
     if "invariants" in which:
-        out.invariants = {q.name: inv[:, i] for i, q in enumerate(model.invariants)}
+        out.invariants = {name: inv[:, i] for i, name in enumerate(shape.invariants)}
     if "observables" in which:
-        out.observables = {q.name: obs[:, i] for i, q in enumerate(model.observables)}
+        out.observables = {name: obs[:, i] for i, name in enumerate(shape.observables)}
     if "frames" in which:
-        out.frames = fr[:, : len(model.frames)]
+        out.frames = fr
     return out
 
 

@@ -3,10 +3,14 @@
 1. The largest real-time factor of each system recording at 100 Hz output: one instance with
    default parameters, run through the real node graph as fast as possible (``run_scene``)
    with the bag writer attached, so every message is built, published, serialized and
-   written. Real-time factor = simulated seconds / wall seconds after start-up, measured
-   after a warm-up recording (compilation excluded).
+   written. Real-time factor = simulated seconds / wall seconds after start-up, up to the bag
+   being complete on disk (the writer's queue drained), measured after a warm-up recording
+   (compilation excluded). The per-sample cost split: wall time per sample in each stage
+   (integrate, evaluate, encode, publish incl. the hand-off to the recorder, diagnostics,
+   and write: the bag writer's thread, which overlaps the others on a second core).
 2. The CPU share of a scene with every system streaming in real time at 100 Hz (one instance
-   each, no recording): process CPU time / wall time over the run, so 1.0 is one full core.
+   each, no recording): process CPU time / wall time from the first sample to the end (start-up
+   excluded; also given with it), so 1.0 is one full core.
 3. Start-up: wall time from launching ``mechsim run pendulum`` in a new process to the first
    ``/pendulum/state`` message arriving in this process (warm kernel cache), median of 3.
 
@@ -38,13 +42,23 @@ def recording_rtf(system: str, duration: float) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         # Warm-up: kernels loaded or compiled (numba compiles a loop at its first call).
         run_with_outputs(scene, fast=True, duration=0.2, bag=os.path.join(tmp, "warm"))
+        t0 = time.monotonic()
         run, _ = run_with_outputs(scene, fast=True, duration=duration,
                                   bag=os.path.join(tmp, "bag"))
+        wall = time.monotonic() - t0 - run.startup_time  # to the bag closed
     messages = sum(run.messages.values())
-    return {"system": system, "sim_s": run.sim_time, "wall_s": run.wall_time,
-            "startup_s": run.startup_time, "rtf": run.sim_time / run.wall_time,
-            "messages": messages, "us_per_sample": 1e6 * run.wall_time / max(1, sum(
-                run.samples.values()))}
+    samples = max(1, sum(run.samples.values()))
+    return {"system": system, "sim_s": run.sim_time, "wall_s": wall,
+            "startup_s": run.startup_time, "rtf": run.sim_time / wall,
+            "messages": messages, "us_per_sample": 1e6 * wall / samples,
+            "split_us": {k: 1e6 * v / samples for k, v in run.costs.items()}}
+
+
+STAGES = ("integrate", "evaluate", "encode", "publish", "diagnostics", "write")
+
+
+def _split(split: dict[str, float]) -> str:
+    return " ".join(f"{k} {split.get(k, 0.0):.1f}" for k in STAGES)
 
 
 def all_systems_realtime(duration: float) -> dict[str, Any]:
@@ -57,13 +71,21 @@ def all_systems_realtime(duration: float) -> dict[str, Any]:
                          "publish_rate": 100.0,
                          "systems": [{"system": s, "origin": [3.0 * i, 0.0, 0.0]}
                                      for i, s in enumerate(ids)]})
+    marks: list[tuple[float, float]] = []
+
+    def progress(t: float, d: float) -> None:
+        # The first call follows the first sample (start-up is over): kept as marks[0];
+        # marks[1] is the latest.
+        marks[1:] = [(_cpu(), time.monotonic())]
+
     cpu0, wall0 = _cpu(), time.monotonic()
-    run = run_scene(scene, duration=duration)
+    run = run_scene(scene, duration=duration, progress=progress)
     cpu1, wall1 = _cpu(), time.monotonic()
-    # Start-up (kernel loading) is in both differences; report the run part separately too.
+    (c0, w0), (c1, w1) = marks[0], marks[-1]
     return {"systems": len(ids), "sim_s": run.sim_time, "wall_s": run.wall_time,
             "startup_s": run.startup_time, "cpu_s_total": cpu1 - cpu0,
             "cpu_share_total": (cpu1 - cpu0) / (wall1 - wall0),
+            "cpu_share_run": (c1 - c0) / max(w1 - w0, 1e-9),
             "samples": sum(run.samples.values()), "failures": run.failures}
 
 
@@ -107,7 +129,7 @@ def first_message_latency(repeats: int = 3) -> list[float]:
     return out
 
 
-def run_streaming(out: Path, systems: list[str], duration: float = 5.0,
+def run_streaming(out: Path, systems: list[str], duration: float = 100.0,
                   realtime_duration: float = 10.0) -> dict[str, Any]:
     from mechsim.systems import system_ids
 
@@ -116,8 +138,8 @@ def run_streaming(out: Path, systems: list[str], duration: float = 5.0,
     rows = []
     for s in ids:
         row = recording_rtf(s, duration)
-        print(f"  {s:22s} RTF {row['rtf']:8.1f}  ({row['us_per_sample']:.0f} µs/sample)",
-              file=sys.stderr)
+        print(f"  {s:22s} RTF {row['rtf']:8.1f}  ({row['us_per_sample']:.1f} µs/sample: "
+              f"{_split(row['split_us'])})", file=sys.stderr)
         rows.append(row)
     # CPU share of the real-time run, measured on the run alone: subtract a start-up-only
     # measurement is not possible inside run_scene, so time the run part with process CPU
@@ -132,16 +154,22 @@ def run_streaming(out: Path, systems: list[str], duration: float = 5.0,
     lines = ["# Streaming throughput", "",
              f"Recording at 100 Hz output, as fast as possible, bag writer attached "
              f"({duration:g} s simulated per system; real-time factor = simulated / wall "
-             f"seconds after start-up; load average at the end {os.getloadavg()[0]:.1f} on "
+             f"seconds after start-up, to the bag complete on disk; load average at the end "
+             f"{os.getloadavg()[0]:.1f} on "
              f"{os.cpu_count()} cores).", "",
-             "| system | real-time factor | µs per sample | messages |", "|---|---|---|---|"]
+             "Per-sample cost split, µs of wall time per sample in each stage (write runs in "
+             "the bag writer's thread, alongside the others).", "",
+             "| system | real-time factor | µs per sample | " + " | ".join(STAGES)
+             + " | messages |", "|---|---|---|" + "---|" * len(STAGES) + "---|"]
     for r in sorted(rows, key=lambda r: r["rtf"]):
-        lines.append(f"| {r['system']} | {r['rtf']:.0f} | {r['us_per_sample']:.0f} | "
-                     f"{r['messages']} |")
+        split = r["split_us"]
+        lines.append(f"| {r['system']} | {r['rtf']:.0f} | {r['us_per_sample']:.1f} | "
+                     + " | ".join(f"{split.get(k, 0.0):.1f}" for k in STAGES)
+                     + f" | {r['messages']} |")
     lines += ["", f"All {cpu['systems']} systems streaming together in real time at 100 Hz "
-              f"(one process, {cpu['sim_s']:g} s): CPU share {cpu['cpu_share_total']:.2f} "
-              f"of one core ({cpu['cpu_s_total']:.2f} s CPU over the run, start-up "
-              f"{cpu['startup_s']:.2f} s included), {cpu['samples']} samples.", "",
+              f"(one process, {cpu['sim_s']:g} s): CPU share {cpu['cpu_share_run']:.2f} of one "
+              f"core after start-up ({cpu['cpu_share_total']:.2f} with the "
+              f"{cpu['startup_s']:.2f} s start-up), {cpu['samples']} samples.", "",
               "Start-up: launch of `mechsim run pendulum` in a new process to its first "
               "/pendulum/state message here (warm kernel cache): "
               + ", ".join(f"{x:.2f} s" for x in latency) + "."]

@@ -18,6 +18,7 @@ from the stamps. A new ``.msg`` needs no code here: only its prototype.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -25,16 +26,22 @@ from typing import Any
 import numpy as np
 
 from mechsim.errors import MechsimError
-from mechsim.outputs.bag.typeinfo import split_type, typestore_with
+from mechsim.outputs.bag.typeinfo import (
+    DEPTH_LIMIT,
+    DTYPES,
+    HEADER,
+    PRIMITIVES,
+    STRUCTS,
+    TIME_TYPE,
+    U32,
+    split_type,
+    typestore_with,
+)
 
-HEADER = b"\x00\x01\x00\x00"  # CDR little-endian, no options
-TIME_TYPE = "builtin_interfaces/msg/Time"
-_PRIMITIVES: dict[str, str] = {
-    "bool": "u1", "byte": "u1", "char": "u1", "octet": "u1", "int8": "i1", "uint8": "u1",
-    "int16": "<i2", "uint16": "<u2", "int32": "<i4", "uint32": "<u4", "int64": "<i8",
-    "uint64": "<u8", "float32": "<f4", "float64": "<f8",
-}
-_DEPTH_LIMIT = 50
+_TIME = struct.Struct("<iI")  # builtin_interfaces/Time: int32 sec, uint32 nanosec
+#: struct codes of the numpy types a block can have.
+_CODES = {np.dtype(v).str: st.format[-1] for v, st in
+          ((PRIMITIVES[k], STRUCTS[k]) for k in PRIMITIVES)}
 
 
 def _field(obj: Any, name: str) -> Any:
@@ -60,21 +67,24 @@ class _Writer:
                 raise MechsimError(f"{path}: wstring fields are not supported")
             data = str(value).encode()
             self.align(4)
-            self.buf += np.uint32(len(data) + 1).astype("<u4").tobytes() + data + b"\x00"
+            self.buf += U32.pack(len(data) + 1) + data + b"\x00"
             return
-        if typ not in _PRIMITIVES:
+        if typ not in PRIMITIVES:
             raise MechsimError(f"{path}: unknown primitive type {typ}")
-        dt = np.dtype(_PRIMITIVES[typ])
+        dt = DTYPES[typ]
         self.align(dt.itemsize)
         self.slots[path] = (len(self.buf), dt)
         if isinstance(value, (bytes, bytearray)):
             value = value[0]
-        self.buf += np.array(value).astype(dt).tobytes()
+        try:
+            self.buf += STRUCTS[typ].pack(value)
+        except (struct.error, TypeError):  # a numpy scalar or an out-of-range value
+            self.buf += np.array(value).astype(dt).tobytes()
 
     def node(self, kind: Any, arg: Any, value: Any, path: str, depth: int) -> None:
         from rosbags.interfaces import Nodetype
 
-        if depth > _DEPTH_LIMIT:
+        if depth > DEPTH_LIMIT:
             raise MechsimError(f"{path}: message nested too deep")
         if kind == Nodetype.BASE:
             self.base(arg[0], value, path)
@@ -87,7 +97,7 @@ class _Writer:
                 raise MechsimError(f"{path}: {len(items)} elements, the array has {length}")
             if kind == Nodetype.SEQUENCE:
                 self.align(4)
-                self.buf += np.uint32(len(items)).astype("<u4").tobytes()
+                self.buf += U32.pack(len(items))
             for k, item in enumerate(items):
                 self.node(sub_kind, sub_arg, item, f"{path}.{k}" if path else str(k), depth)
         else:
@@ -122,7 +132,8 @@ class Layout:
         store = typestore_with(self.type_name)
         w = _Writer(store)
         w.message(self.type_name, prototype, "")
-        self.template = np.frombuffer(bytes(w.buf), dtype=np.uint8)
+        self._template_bytes = bytes(w.buf)
+        self.template = np.frombuffer(self._template_bytes, dtype=np.uint8)
         self.size = self.template.size
         self.slots = w.slots
         self.time_offsets = tuple(w.times)
@@ -152,6 +163,8 @@ class Layout:
         """(N, size) uint8: one message per row, Time fields from ``ns`` (int64 nanoseconds)
         and each block from its (N, k) matrix (a 1-D array for k = 1)."""
         n = int(np.shape(ns)[0])
+        if n == 1:
+            return self._encode_one(int(np.asarray(ns).reshape(-1)[0]), blocks)
         out = np.empty((n, self.size), dtype=np.uint8)
         out[:] = self.template
         if self.time_offsets:
@@ -169,6 +182,20 @@ class Layout:
                 out[:, off:off + size * (b - a)] = \
                     np.ascontiguousarray(m[:, a:b]).view(np.uint8)
         return out
+
+    def _encode_one(self, ns: int, blocks: Sequence[tuple[Block, np.ndarray]]) -> np.ndarray:
+        """:meth:`encode` of one message, with ``struct`` (a paced run encodes one sample at
+        a time, where numpy's per-call cost would dominate)."""
+        buf = bytearray(self._template_bytes)
+        sec, nanosec = divmod(ns, 1_000_000_000)
+        for off in self.time_offsets:
+            _TIME.pack_into(buf, off, sec, nanosec)
+        for block, values in blocks:
+            row = np.asarray(values, dtype=block.dtype).reshape(-1).tolist()
+            code = block.dtype.str
+            for a, b, off in block.runs:
+                struct.pack_into(f"<{b - a}{_CODES[code]}", buf, off, *row[a:b])
+        return np.frombuffer(bytes(buf), dtype=np.uint8).reshape(1, self.size)
 
     def payloads(self, rows: np.ndarray) -> list[bytes]:
         """The rows of :meth:`encode` as ``bytes`` (what rclpy publishes and MCAP records)."""

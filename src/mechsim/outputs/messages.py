@@ -202,6 +202,29 @@ class Chunk:
     frames: np.ndarray | None = None  # (N, frames, 7), as the model computes them
 
 
+@dataclass
+class EnergyColumns:
+    """The Energy fields of a chunk, one array each (what an energy ``Law`` reads)."""
+
+    kinetic: np.ndarray
+    potential: np.ndarray
+    total: np.ndarray
+    energy_function: np.ndarray
+    work_external: np.ndarray
+    work_dissipated: np.ndarray
+
+    @classmethod
+    def of(cls, c: Chunk) -> EnergyColumns:
+        assert c.energy is not None
+        e = c.energy
+        return cls(e[:, 0], e[:, 1], e[:, 0] + e[:, 1], e[:, 2], c.work[:, 0], c.work[:, 1])
+
+    def rows(self, rows: slice) -> EnergyColumns:
+        return EnergyColumns(self.kinetic[rows], self.potential[rows], self.total[rows],
+                             self.energy_function[rows], self.work_external[rows],
+                             self.work_dissipated[rows])
+
+
 class ChunkEncoder:
     """The CDR payloads of a chunk, per topic, as :class:`MessageFactory` would fill the
     messages (see ``mechsim.outputs.cdr``): the layouts are made once from the factory's own
@@ -264,8 +287,9 @@ class ChunkEncoder:
             return self.twist.encode(c.ns, [(self.angular, a.angular_velocity(c.q, c.v))])
         if topic == "energy":
             assert c.energy is not None
-            e = c.energy
-            terms = np.column_stack([e[:, 0], e[:, 1], e[:, 0] + e[:, 1], e[:, 2], c.work])
+            e = EnergyColumns.of(c)
+            terms = np.column_stack([e.kinetic, e.potential, e.total, e.energy_function,
+                                     e.work_external, e.work_dissipated])
             return self.energy.encode(c.ns, [(self.energy_terms, terms)])
         if topic == "invariants":
             assert c.invariants is not None

@@ -10,6 +10,11 @@ class Sink(Protocol):
     """Receives every message an outlet sends: ``write(topic, type_name, msg, qos, ns)``.
 
     A sink may also define ``wants(topic) -> bool``; without it, it wants every topic (a
-    recorder). Outputs nobody wants are not computed."""
+    recorder). Outputs nobody wants are not computed. Optional faster paths (see
+    ``mechsim.ros.outlet.Outlet``), used instead of ``write`` where a sink has them:
+    ``write_chunk(ns, [(topic, type_name, qos, rows)])`` a chunk of samples as CDR rows,
+    ``write_columns(topic, ns, values)`` a chunk's evaluated values (energy, invariants),
+    ``write_bytes(topic, type_name, qos, ns, data)`` one message already encoded,
+    ``write_serialized(topic, type_name, msg, qos, ns, data)`` a message with its bytes."""
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None: ...

@@ -25,7 +25,8 @@ At most ``max_systems`` namespaces are followed (those that also have an energy 
 followed namespace silent for ``expire_timeout`` (or for ``stale_timeout`` once its topics have
 left the graph) is forgotten, subscriptions destroyed; namespaces are followed in turns, and a
 silent one not again before ``expire_timeout`` has passed. Messages fed in-process
-(:meth:`feed`) are trusted.
+(:meth:`feed`, or as arrays of a chunk of samples with :meth:`feed_chunk`: no message objects,
+the same law tracking, vectorised over the chunk) are trusted.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -46,9 +48,11 @@ from rcl_interfaces.msg import (
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from std_msgs.msg import Header
 
+from mechsim.outputs.bag.typeinfo import encode_message
 from mechsim.outputs.sink import Sink
 from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet
 from mechsim.systems.base import LEVEL_NAMES, Law
@@ -102,19 +106,30 @@ class LawState:
         self.nonfinite = 0
         self.finite_now = True
 
-    def update(self, value: float) -> None:
-        self.samples += 1
-        self.current = value
-        if not math.isfinite(value):
-            self.nonfinite += 1
-            self.finite_now = False
-            self.drift = math.inf
+    def update(self, values: Any) -> None:
+        """Take the law's values of consecutive samples of one epoch (a float or an array):
+        the drift of each finite one from the epoch's first finite value."""
+        v = np.asarray(values, dtype=float).reshape(-1)
+        if v.size == 0:
             return
-        self.finite_now = True
-        if self.initial is None:
-            self.initial = value
-        self.drift = float(self.law.drift(value, self.initial, self.scale))
-        self.max_drift = max(self.max_drift, self.drift)
+        self.samples += v.size
+        self.current = float(v[-1])
+        finite = np.isfinite(v)
+        if finite.all():
+            ok = v
+            self.finite_now = True
+        else:
+            ok = v[finite]
+            self.nonfinite += int(v.size - ok.size)
+            self.finite_now = bool(finite[-1])
+        self.drift = math.inf
+        if ok.size:
+            if self.initial is None:
+                self.initial = float(ok[0])
+            drifts = self.law.drift(ok, self.initial, self.scale)
+            self.max_drift = max(self.max_drift, float(drifts.max()))
+            if self.finite_now:
+                self.drift = float(drifts[-1])
 
 
 @dataclass
@@ -123,7 +138,7 @@ class SystemState:
     info: SystemInfo
     laws: dict[str, LawState] = field(default_factory=dict)
     last_seen: float = field(default_factory=time.monotonic)
-    last_stamp: Header | None = None
+    last_stamp: int | None = None  # ns of the latest energy sample
     epoch: int = 0
     #: Per stream: the publisher it belongs to (absent: not heard yet) and its last stamp.
     publishers: dict[str, bytes] = field(default_factory=dict)
@@ -283,6 +298,18 @@ class DiagnosticsNode(Node):
         if stream in STREAMS:
             self._receive(ns, stream, msg, None)
 
+    def feed_chunk(self, ns: str, stream: str, stamps: np.ndarray, values: Any) -> None:
+        """Hand consecutive samples of ``ns``'s ``stream`` ("energy" or "invariants") to the
+        node in-process, as arrays (trusted): ``stamps`` int64 nanoseconds; ``values`` for
+        "energy" anything with ``total``, ``energy_function``, ``work_external`` and
+        ``work_dissipated`` arrays (``mechsim.outputs.messages.EnergyColumns``), for
+        "invariants" a mapping name -> array."""
+        st = self.systems.get(ns)
+        if st is None or stream not in ("energy", "invariants") or len(stamps) == 0:
+            return
+        self._seen(st, ns)
+        self._samples(st, stream, np.asarray(stamps, dtype=np.int64), values)
+
     def _on_info(self, ns: str, info: SystemInfo) -> None:
         self.feed(ns, "system_info", info)
 
@@ -318,30 +345,49 @@ class DiagnosticsNode(Node):
             self._set_laws(st, msg)
         elif st is None or not self._owns(st, ns, stream, publisher):
             return
+        self._seen(st, ns)
+        if stream == "system_info":
+            return
+        stamp = np.array([_stamp_ns(msg.header)], dtype=np.int64)
+        if stream == "energy":
+            self._samples(st, stream, stamp, msg)
+        else:
+            self._samples(st, stream, stamp, {s.name: s.value for s in msg.scalars})
+
+    def _seen(self, st: SystemState, ns: str) -> None:
         now = time.monotonic()
         st.last_seen = now
         follow = self._follows.get(ns)
         if follow is not None:
             follow.last_heard = now
-        if stream == "system_info":
-            return
-        stamp = _stamp_ns(msg.header)
+
+    def _samples(self, st: SystemState, stream: str, stamps: np.ndarray, values: Any) -> None:
+        """Samples of one stream, in the order they were sent (one message, or a chunk):
+        ``values`` as :meth:`feed_chunk` takes them (or an Energy message). A stamp not later
+        than the one before it starts a new epoch there."""
         previous = st.stamps.get(stream)
-        st.stamps[stream] = stamp
+        st.stamps[stream] = int(stamps[-1])
         laws = [law for law in st.laws.values() if law.law.stream == stream]
-        if previous is not None and stamp <= previous:  # a new epoch starts here
-            st.epoch += 1
-            for law in laws:
-                law.rebase()
+        before = np.concatenate([[stamps[0] - 1 if previous is None else previous],
+                                 stamps[:-1]])
+        starts = np.flatnonzero(stamps <= before)  # a new epoch starts at each
         if stream == "energy":
-            st.last_stamp = msg.header
+            st.last_stamp = int(stamps[-1])
+        columns = {}
+        for law in laws:
+            if stream == "energy":
+                columns[law.key] = np.atleast_1d(law.law.value(energy=values))
+            elif law.law.name in values:
+                columns[law.key] = np.atleast_1d(np.asarray(law.law.value(invariants=values)))
+        bounds = sorted({0, *starts.tolist(), len(stamps)})
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            if a in starts:
+                st.epoch += 1
+                for law in laws:
+                    law.rebase()
             for law in laws:
-                law.update(float(law.law.value(energy=msg)))
-        else:
-            values = {s.name: s.value for s in msg.scalars}
-            for law in laws:
-                if law.law.name in values:
-                    law.update(float(law.law.value(invariants=values)))
+                if law.key in columns and b > a:
+                    law.update(columns[law.key][a:b])
 
     def _set_laws(self, st: SystemState, info: SystemInfo) -> None:
         """Adopt the laws and scales of ``info``; laws that go on keep their epoch."""
@@ -367,7 +413,9 @@ class DiagnosticsNode(Node):
         return law.law.level(law.max_drift, self._param("warn_drift"),
                              self._param("error_drift"))
 
-    def statuses(self) -> list[DiagnosticStatus]:
+    def status_fields(self) -> list[dict[str, Any]]:
+        """The report: one DiagnosticStatus per law per system, as nested dicts (the fields
+        of diagnostic_msgs/DiagnosticStatus; encoded without building rclpy messages)."""
         out = []
         timeout = self._param("stale_timeout")
         now = time.monotonic()
@@ -385,32 +433,40 @@ class DiagnosticsNode(Node):
                     if law.nonfinite:
                         text += f", {law.nonfinite} non-finite sample(s)"
                 label = key.replace(":", "/")
-                out.append(DiagnosticStatus(
-                    level=bytes([level]), name=f"mechsim/{st.name}/{label}", message=text,
-                    hardware_id=st.name, values=[
-                        KeyValue(key="drift", value=f"{law.drift:.6e}"),
-                        KeyValue(key="max_drift", value=f"{law.max_drift:.6e}"),
-                        KeyValue(key="initial", value=f"{law.initial!r}"),
-                        KeyValue(key="current", value=f"{law.current!r}"),
-                        KeyValue(key="scale", value=f"{law.scale!r}"),
-                        KeyValue(key="samples", value=str(law.samples)),
-                        KeyValue(key="nonfinite", value=str(law.nonfinite)),
-                        KeyValue(key="epoch", value=str(st.epoch)),
-                        KeyValue(key="system", value=st.info.system),
-                        KeyValue(key="integrator", value=st.info.integrator)]))
+                out.append({
+                    "level": level, "name": f"mechsim/{st.name}/{label}", "message": text,
+                    "hardware_id": st.name, "values": [
+                        {"key": k, "value": v} for k, v in (
+                            ("drift", f"{law.drift:.6e}"),
+                            ("max_drift", f"{law.max_drift:.6e}"),
+                            ("initial", f"{law.initial!r}"),
+                            ("current", f"{law.current!r}"),
+                            ("scale", f"{law.scale!r}"),
+                            ("samples", str(law.samples)),
+                            ("nonfinite", str(law.nonfinite)),
+                            ("epoch", str(st.epoch)),
+                            ("system", st.info.system),
+                            ("integrator", st.info.integrator))]})
         return out
+
+    def statuses(self) -> list[DiagnosticStatus]:
+        """:meth:`status_fields` as rclpy messages."""
+        return [DiagnosticStatus(level=bytes([f["level"]]), name=f["name"],
+                                 message=f["message"], hardware_id=f["hardware_id"],
+                                 values=[KeyValue(**kv) for kv in f["values"]])
+                for f in self.status_fields()]
 
     def publish_now(self) -> None:
         if not self.systems:
             return
-        last = max((s.last_stamp for s in self.systems.values() if s.last_stamp is not None),
-                   key=lambda h: (h.stamp.sec, h.stamp.nanosec), default=None)
-        header = Header(frame_id="")
-        if last is not None:
-            header.stamp = last.stamp
-        msg = DiagnosticArray(header=header, status=self.statuses())
-        ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
-        self.outlet.publish(self.t_diag, msg, ns)
+        ns = max((s.last_stamp for s in self.systems.values() if s.last_stamp is not None),
+                 default=0)
+        sec, nanosec = divmod(ns, 1_000_000_000)
+        fields = {"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": ""},
+                  "status": self.status_fields()}
+        data = encode_message(self.outlet.channels[self.t_diag].type_name, fields)
+        self.outlet.publish_serialized(
+            self.t_diag, data, ns, lambda: deserialize_message(data, DiagnosticArray))
         self.published += 1
 
     def summary(self) -> list[tuple[str, str, float, int]]:

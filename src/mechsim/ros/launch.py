@@ -32,6 +32,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from mechsim.errors import MechsimError, ParameterError
 from mechsim.ros.process import (
     die_with_parent,
@@ -52,6 +54,9 @@ if TYPE_CHECKING:
 GRAPH_WAIT = 2.0
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go).
 FAST_CHUNK = 500
+#: Wall seconds between two turns of the executor in a fast run (a service or parameter
+#: request waits this long at most, plus a chunk).
+SERVE_PERIOD = 0.1
 #: Seconds a node found in the graph has to answer before it counts as gone (killed).
 LIVENESS_TIMEOUT = 2.0
 
@@ -69,6 +74,10 @@ class SceneRun:
     summary: list[tuple[str, str, float, int]] = field(default_factory=list)
     failures: dict[str, str] = field(default_factory=dict)
     interrupted: bool = False
+    #: Wall seconds per stage of the sample pipeline, all nodes together: integrate,
+    #: evaluate, encode, publish (including the hand-off to sinks), diagnostics (the
+    #: in-process law tracking and reports); a recording adds write (the bag writer thread).
+    costs: dict[str, float] = field(default_factory=dict)
 
 
 class _Stop(BaseException):
@@ -76,18 +85,45 @@ class _Stop(BaseException):
 
 
 class DiagnosticsFeed:
-    """In-process sink that hands energy/invariant/system_info messages straight to the
-    diagnostics node: lossless, whatever the executor's pace."""
+    """In-process sink that hands system_info messages and the energy/invariant values of
+    each chunk straight to the diagnostics node: lossless, whatever the executor's pace.
+    Values are held until :meth:`deliver` (the runner reports in between, at the stamps of
+    its diagnostics period, however long the chunks)."""
 
     def __init__(self, diag: Any) -> None:
         self.diag = diag
+        self.pending: list[tuple[str, str, Any, Any]] = []
 
     def wants(self, topic: str) -> bool:
         return topic.rpartition("/")[2] in ("system_info", "energy", "invariants")
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        self.deliver()  # a system_info applies to the samples after it
         base, _, leaf = topic.rpartition("/")
         self.diag.feed(base, leaf, msg)
+
+    def write_columns(self, topic: str, ns: Any, values: Any) -> None:
+        """A chunk's evaluated energy or invariants (no message objects: see the Outlet)."""
+        base, _, leaf = topic.rpartition("/")
+        self.pending.append((base, leaf, ns, values))
+
+    def deliver(self, until_ns: int | None = None) -> None:
+        """Feed the held samples stamped ``until_ns`` or earlier (all without it)."""
+        keep = []
+        for base, leaf, ns, values in self.pending:
+            n = len(ns) if until_ns is None else int(np.searchsorted(ns, until_ns, "right"))
+            if n:
+                self.diag.feed_chunk(base, leaf, ns[:n], _rows(values, slice(0, n)))
+            if n < len(ns):
+                keep.append((base, leaf, ns[n:], _rows(values, slice(n, None))))
+        self.pending = keep
+
+
+def _rows(values: Any, rows: slice) -> Any:
+    """Rows of a chunk's values (a mapping name -> array, or EnergyColumns)."""
+    if isinstance(values, dict):
+        return {k: v[rows] for k, v in values.items()}
+    return values.rows(rows)
 
 
 # --- graph hygiene ------------------------------------------------------------------------
@@ -183,6 +219,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
+    from mechsim.outputs.messages import stamp_ns
     from mechsim.ros.diagnostics import DiagnosticsNode
     from mechsim.ros.simulator import SimulatorNode
 
@@ -200,7 +237,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     diag = DiagnosticsNode(context=context, warn_drift=scene.warn_drift,
                            error_drift=scene.error_drift, period=3600.0, sinks=sinks,
                            discover=False)
-    diag_sinks = [*sinks, DiagnosticsFeed(diag)]
+    feed = DiagnosticsFeed(diag)
+    diag_sinks = [*sinks, feed]
     main_thread = threading.current_thread() is threading.main_thread()
     previous_term = signal.getsignal(signal.SIGTERM)
 
@@ -210,6 +248,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     interrupted = False
     start = time.monotonic()
     startup = 0.0
+    diag_cost = 0.0
     t = 0.0
     try:
         if main_thread:
@@ -237,13 +276,14 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         start = time.monotonic()
         dt = 1.0 / scene.publish_rate
         next_diag = diagnostics_period
+        offset = nodes[0].time_offset if nodes else 0.0
         wall0 = time.monotonic()
         next_spin = wall0
         k = 0
         while duration is None or t < duration - 1e-12:
             if fast:
                 # A chunk of samples per call (compiled stepping, evaluation and encoding of
-                # the whole chunk), ending at the next diagnostics report.
+                # the whole chunk).
                 k_next = k + FAST_CHUNK
             else:
                 # As many samples as the wall clock has made due (at least the next one,
@@ -254,7 +294,6 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
                     wait = wall0 + (k + 1) * dt / scene.real_time_factor - time.monotonic()
                 due = (time.monotonic() - wall0) * scene.real_time_factor / dt
                 k_next = max(k + 1, int(math.floor(due + 1e-9)))
-            k_next = min(k_next, int(math.floor(next_diag / dt + 1e-9)))
             k_next = max(k_next, k + 1)
             t_next = k_next * dt if duration is None else min(k_next * dt, duration)
             for n in nodes:
@@ -262,15 +301,20 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
             k, t = k_next, t_next
             if all(n.failed for n in nodes):
                 break  # every system stopped with an error: nothing left to run
-            # Services and parameter requests are served between chunks, every 20 ms of
-            # wall time at most (building the executor's wait set costs ~0.5 ms).
+            # Services and parameter requests are served between chunks, every SERVE_PERIOD
+            # of wall time at most (building the executor's wait set costs 0.5-2.5 ms).
             now = time.monotonic()
             if now >= next_spin:
                 executor.spin_once(timeout_sec=0)
-                next_spin = now + 0.02
-            if t >= next_diag - 1e-12:
+                next_spin = time.monotonic() + SERVE_PERIOD
+            # A report per diagnostics period of simulated time, on the samples up to it.
+            t0 = time.perf_counter()
+            while t >= next_diag - 1e-12:
+                feed.deliver(stamp_ns(next_diag, offset))
                 diag.publish_now()
                 next_diag += diagnostics_period
+            feed.deliver()
+            diag_cost += time.perf_counter() - t0
             if progress is not None and duration is not None:
                 progress(t, duration)
     except (KeyboardInterrupt, _Stop):
@@ -279,6 +323,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         if main_thread:
             signal.signal(signal.SIGTERM, previous_term)
         try:
+            feed.deliver()
             diag.publish_now()
         except Exception:  # noqa: BLE001 - shutting down: the run's data matters more
             pass
@@ -293,6 +338,10 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         for n in [*nodes, diag]:
             for topic, count in n.outlet.counts.items():
                 run.messages[topic] = run.messages.get(topic, 0) + count
+        for n in nodes:
+            for stage, seconds in n.costs.items():
+                run.costs[stage] = run.costs.get(stage, 0.0) + seconds
+        run.costs["diagnostics"] = diag_cost
         executor.shutdown()
         for n in [*nodes, diag]:
             n.destroy_node()

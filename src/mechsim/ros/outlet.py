@@ -5,7 +5,7 @@ Rerun logger). In-process sinks see every message, so a recording cannot drop on
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -101,35 +101,39 @@ class Outlet:
         return self.channels[topic].publisher.get_subscription_count() > 0
 
     def publish_chunk(self, ns: np.ndarray,
-                      topics: list[tuple[str, np.ndarray, Callable[[int], Any]]]) -> None:
+                      topics: list[tuple[str, np.ndarray, Callable[[int], Any]]],
+                      columns: Mapping[str, Any] | None = None) -> None:
         """The messages of a chunk of samples stamped ``ns``, already encoded: for each
         (topic, rows, message), row i holds the CDR bytes of sample i. The same bytes are
-        published (only on topics something subscribes to) and handed to batch sinks
-        (``write_batch``: the recorder), a topic at a time; a sink that takes messages gets
-        ``message(i)``, built only for the topics it wants, sample by sample in time order."""
-        stamps: list[int] | None = None
-        batch_sinks = [s for s in self.sinks if hasattr(s, "write_batch")]
+        published (only on topics something subscribes to) and handed to chunk sinks
+        (``write_chunk``: the recorder) in one call. ``columns``: per topic, the evaluated
+        values the rows were encoded from; a sink with ``write_columns`` gets those (one call
+        per topic) instead of messages. Any other sink gets ``message(i)``, built only for
+        the topics it wants, sample by sample in time order."""
+        recorded = []
         for topic, rows, _ in topics:
             ch = self.channels[topic]
-            payloads: list[bytes] | None = None
             if ch.publisher.get_subscription_count() > 0:
-                payloads = [r.tobytes() for r in rows]
                 publish = ch.publisher.publish
-                for data in payloads:
-                    publish(data)
+                for r in rows:
+                    publish(r.tobytes())
             self.counts[topic] += len(ns)
-            for sink in batch_sinks:
-                if payloads is None:
-                    payloads = [r.tobytes() for r in rows]
-                if stamps is None:
-                    stamps = ns.tolist()
-                sink.write_batch(topic, ch.type_name, ch.qos, stamps, payloads)
+            recorded.append((topic, ch.type_name, ch.qos, rows))
+        columns = columns or {}
         for sink in self.sinks:
-            if sink in batch_sinks:
+            write_chunk = getattr(sink, "write_chunk", None)
+            if write_chunk is not None:
+                write_chunk(ns, recorded)
                 continue
             wants = getattr(sink, "wants", None)
             chosen = [(topic, message) for topic, _, message in topics
                       if wants is None or wants(topic)]
+            write_columns = getattr(sink, "write_columns", None)
+            if write_columns is not None:
+                for topic, _ in chosen:
+                    if topic in columns:
+                        write_columns(topic, ns, columns[topic])
+                chosen = [(t, m) for t, m in chosen if t not in columns]
             for i in range(len(ns)):
                 for topic, message in chosen:
                     sink.write(topic, self.channels[topic].type_name, message(i),
@@ -137,19 +141,34 @@ class Outlet:
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
         ch = self.channels[topic]
-        data: bytes | None = None
-        if any(hasattr(sink, "write_serialized") for sink in self.sinks):
-            # A recorder wants the CDR bytes: make them once and publish those same bytes
-            # (rclpy publishes serialized messages as they are).
-            data = cdr_bytes(msg)
-            ch.publisher.publish(data)
-        else:
-            ch.publisher.publish(msg)
+        # The CDR bytes with zero padding (reproducible), made once: published as they are
+        # and handed to a recorder.
+        data = cdr_bytes(msg)
+        ch.publisher.publish(data)
         self.counts[topic] += 1
         for sink in self.sinks:
-            if data is not None and hasattr(sink, "write_serialized"):
+            if hasattr(sink, "write_serialized"):
                 sink.write_serialized(topic, ch.type_name, msg, ch.qos, ns, data)
             else:
+                sink.write(topic, ch.type_name, msg, ch.qos, ns)
+
+    def publish_serialized(self, topic: str, data: bytes, ns: int,
+                           message: Callable[[], Any]) -> None:
+        """Publish a message already encoded (``data``: CDR bytes, padding zero). A sink that
+        records bytes (``write_bytes``) gets them; any other gets ``message()``, made only if
+        it wants the topic."""
+        ch = self.channels[topic]
+        ch.publisher.publish(data)
+        self.counts[topic] += 1
+        msg = None
+        for sink in self.sinks:
+            write_bytes = getattr(sink, "write_bytes", None)
+            if write_bytes is not None:
+                write_bytes(topic, ch.type_name, ch.qos, ns, data)
+                continue
+            wants = getattr(sink, "wants", None)
+            if wants is None or wants(topic):
+                msg = message() if msg is None else msg
                 sink.write(topic, ch.type_name, msg, ch.qos, ns)
 
     def record(self, topic: str, msg: Any, qos: QoSProfile, ns: int) -> None:

@@ -68,11 +68,14 @@ class _Counted:
         else:
             self.sink.write(topic, type_name, msg, qos, ns)
 
-    def write_batch(self, topic: str, type_name: str, qos: Any, ns: list[int],
-                    payloads: list[bytes]) -> None:
-        """Serialized messages of one topic (the recorder takes batches: see the Outlet)."""
-        self.count += len(payloads)
-        self.sink.write_batch(topic, type_name, qos, ns, payloads)
+    def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
+        self.count += 1
+        self.sink.write_bytes(topic, type_name, qos, ns, data)
+
+    def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
+        """Serialized messages of a chunk (the recorder takes chunks: see the Outlet)."""
+        self.count += len(ns) * len(topics)
+        self.sink.write_chunk(ns, topics)
 
 
 @dataclass
@@ -264,8 +267,11 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
             out = open_outputs(scene, bag, rrd, live)
         run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks,
                         progress=progress)
+        bag = out.bag
         with held_signals():
             lines = out.close()
+        if bag is not None:
+            run.costs["write"] = bag.write_seconds
     except KeyboardInterrupt:
         if out is not None:
             with held_signals():

@@ -106,7 +106,7 @@ from mechsim.ros.parameters import descriptor
 from mechsim.ros.prepare import PREPARE_TIMEOUT, prepare_model
 from mechsim.ros.process import held_signals, raise_if_stop
 from mechsim.scene import Instance, instance_name
-from mechsim.simulate import Outputs, evaluate
+from mechsim.simulate import OutputShape, evaluate, evaluate_arrays
 from mechsim.systems import system_class
 from mechsim.systems.base import Model
 from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
@@ -201,6 +201,8 @@ class SimulatorNode(Node):
         self.samples_published = 0
         self.epoch = 0
         self.computed = {"energy": 0, "invariants": 0, "observables": 0, "frames": 0}
+        #: Wall seconds spent per stage of the sample pipeline (``mechsim bench --streaming``).
+        self.costs = {"integrate": 0.0, "evaluate": 0.0, "encode": 0.0, "publish": 0.0}
         self._pending: _Change | None = None
 
         self.declare_parameter("system", instance.system, ParameterDescriptor(
@@ -259,6 +261,8 @@ class SimulatorNode(Node):
             self.t_pose = self.outlet.channel("pose", PoseStamped, STATE_QOS)
             self.t_twist = self.outlet.channel("twist", TwistStamped, STATE_QOS)
         self.p = model.parameter_vector()
+        self._shape = OutputShape.of(model)
+        self._dynamic_frames = any(not fr.static for fr in model.frames)
         self._set_constraints()
         self.t = 0.0
         self._y = stepper.y.copy()
@@ -300,15 +304,15 @@ class SimulatorNode(Node):
 
     def _wanted(self) -> tuple[str, ...]:
         """The outputs something consumes now (asked once per block of samples)."""
-        o, m = self.outlet, self.model
+        o, shape = self.outlet, self._shape
         want = []
         if o.wanted(self.t_energy):
             want.append("energy")
-        if m.invariants and o.wanted(self.t_inv):
+        if shape.invariants and o.wanted(self.t_inv):
             want.append("invariants")
-        if m.observables and o.wanted(self.t_obs):
+        if shape.observables and o.wanted(self.t_obs):
             want.append("observables")
-        if any(not fr.static for fr in m.frames) and o.wanted(self.t_tf):
+        if self._dynamic_frames and o.wanted(self.t_tf):
             want.append("frames")
         return tuple(want)
 
@@ -316,6 +320,7 @@ class SimulatorNode(Node):
         """Check the rows of ``Y`` against the guards and publish them, in order, up to the
         first bad one (which stops the system). Returns the number of rows published."""
         at = self.model.layout
+        t0 = time.perf_counter()
         good = times.size
         if not np.isfinite(Y).all():
             good = int(np.argmin(np.all(np.isfinite(Y), axis=1)))
@@ -323,13 +328,9 @@ class SimulatorNode(Node):
         want = self._wanted()
         which = want + (("invariants",) if self._constraints and "invariants" not in want
                         else ())
-        out = evaluate(self.model, times[:good], Y[:good], self.p, which) \
-            if good and which else Outputs()
-        inv = None
-        if out.invariants:
-            names = [q.name for q in self.model.invariants]
-            inv = out.invariants[names[0]][:, None] if len(names) == 1 else np.column_stack(
-                [out.invariants[name] for name in names])
+        out = evaluate_arrays(self.model, self._shape, times[:good], Y[:good], self.p, which) \
+            if good and which else None
+        inv = out[1] if out is not None and "invariants" in which else None
         if self._constraints and good and inv is not None:
             r = inv[:, self._constraints]
             limit = self.constraint_limit * np.maximum(1.0, np.max(np.abs(Y[:good, at.q]),
@@ -339,10 +340,11 @@ class SimulatorNode(Node):
                 good = int(np.argmax(bad))
                 j = self._constraints[int(np.argmax(~(np.isfinite(r[good]) & (
                     np.abs(r[good]) <= limit[good]))))]
-                name = self.model.invariants[j].name
+                name = self._shape.invariants[j]
                 reason = (f"constraint residual {name} = {inv[good, j]:.3g} past the hard "
                           f"limit {limit[good]:.3g} at t = {times[good]:.6g} (projection "
                           "cannot restore the constraint)")
+        self.costs["evaluate"] += time.perf_counter() - t0
         if good:  # a stop waits for the chunk: what was published and self.t agree
             with held_signals():
                 self._publish_chunk(times[:good], Y[:good], out, inv, want)
@@ -352,24 +354,25 @@ class SimulatorNode(Node):
             self._fail(reason)
         return good
 
-    def _publish_chunk(self, times: np.ndarray, Y: np.ndarray, out: Outputs,
-                       inv: np.ndarray | None, want: tuple[str, ...]) -> None:
+    def _publish_chunk(self, times: np.ndarray, Y: np.ndarray,
+                       out: tuple[np.ndarray, ...] | None, inv: np.ndarray | None,
+                       want: tuple[str, ...]) -> None:
         """Every topic of the samples ``times`` (rows of ``Y``): each encoded for the whole
         chunk at once (``ChunkEncoder``), then published and recorded (``publish_chunk``)."""
-        o, f, at, m = self.outlet, self.factory, self.model.layout, self.model
+        o, f, at = self.outlet, self.factory, self.model.layout
+        t0 = time.perf_counter()
         n = times.size
         ns = messages.stamps_ns(times, self.time_offset)
         c = Chunk(ns, Y[:, at.q], Y[:, at.v], Y[:, [at.work_external, at.work_dissipated]])
-        if "energy" in want:
-            assert out.kinetic is not None and out.potential is not None
-            assert out.energy_function is not None
-            c.energy = np.column_stack([out.kinetic, out.potential, out.energy_function])
-        if "invariants" in want and inv is not None:
-            c.invariants = inv
-        if "observables" in want:
-            c.observables = np.column_stack([out.observables[q.name] for q in m.observables])
-        if "frames" in want and out.frames is not None:
-            c.frames = out.frames
+        if out is not None:
+            if "energy" in want:
+                c.energy = out[0]
+            if "invariants" in want:
+                c.invariants = inv
+            if "observables" in want:
+                c.observables = out[2]
+            if "frames" in want:
+                c.frames = out[3]
 
         def sample(i: int) -> Sample:
             return Sample(float(times[i]), c.q[i], c.v[i], float(c.work[i, 0]),
@@ -380,6 +383,12 @@ class SimulatorNode(Node):
                           None if c.frames is None else c.frames[i])
 
         enc = self.encoder
+        columns: dict[str, Any] = {}
+        if c.energy is not None:
+            columns[self.t_energy] = messages.EnergyColumns.of(c)
+        if c.invariants is not None:
+            columns[self.t_inv] = {name: c.invariants[:, j]
+                                   for j, name in enumerate(self._shape.invariants)}
         topics: list[tuple[str, np.ndarray, Callable[[int], Any]]] = []
         if self.publish_clock:
             topics.append((self.t_clock, enc.encode("clock", c),
@@ -399,7 +408,10 @@ class SimulatorNode(Node):
                 continue
             self.computed["frames" if key == "tf" else key] += n
             topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
-        o.publish_chunk(ns, topics)
+        t1 = time.perf_counter()
+        o.publish_chunk(ns, topics, columns)
+        self.costs["encode"] += t1 - t0
+        self.costs["publish"] += time.perf_counter() - t1
         self.samples_published += n
 
     def advance_to(self, t_target: float) -> int:
@@ -418,7 +430,9 @@ class SimulatorNode(Node):
                 n = 1
             times = self.t + dt * np.arange(1, n + 1)
             try:
+                t0 = time.perf_counter()
                 Y = self.stepper.advance(times)
+                self.costs["integrate"] += time.perf_counter() - t0
             except IntegrationError as e:
                 self._fail(str(e))
                 break

@@ -57,10 +57,12 @@ class BagStats:
     def message_count(self) -> int:
         return sum(t.count for t in self.topics.values())
 
-    def add(self, topic: str, ns: int) -> None:
-        self.topics[topic].count += 1
+    def add(self, topic: str, ns: int, count: int = 1, last_ns: int | None = None) -> None:
+        """``count`` messages of ``topic`` stamped from ``ns`` to ``last_ns`` (default ``ns``)."""
+        last = ns if last_ns is None else last_ns
+        self.topics[topic].count += count
         self.start_ns = ns if self.start_ns is None else min(self.start_ns, ns)
-        self.end_ns = ns if self.end_ns is None else max(self.end_ns, ns)
+        self.end_ns = last if self.end_ns is None else max(self.end_ns, last)
 
 
 def system_info_custom(info: Any) -> dict[str, str]:

@@ -7,11 +7,13 @@
   assembled here; the dependencies come from rosbags' ``.msg`` parser.
 - :func:`type_description_hash`: the REP-2011 ``RIHS01_`` hash, computed by rosbags from the same
   ``.msg`` files (it equals ``share/<pkg>/msg/<Type>.json`` of rosidl).
-- :func:`cdr_bytes`: a message's CDR payload. ``rclpy.serialization.serialize_message`` returns
-  rmw's *estimated* size, which counts alignment padding after an empty trailing sequence of
-  8-byte values (sensor_msgs/JointState without effort: 84 bytes where the DDS payload is 80);
-  readers that check the length (rosbags) reject such bytes, so the payload is cut at the real
-  end, which rosbags' size function of the type computes from the message.
+- :func:`cdr_bytes` / :func:`encode_message`: a message's CDR payload, encoded here from the
+  type's definition with every padding byte zero (rclpy's ``serialize_message`` leaves padding
+  uninitialised, so equal messages could differ in their bytes; it also returns rmw's
+  *estimated* size, which counts alignment padding after an empty trailing sequence of 8-byte
+  values: sensor_msgs/JointState without effort, 84 bytes where the DDS payload is 80). For a
+  type without a known definition, rclpy's bytes are cut at the real end, which rosbags' size
+  function of the type computes from the message.
 - :func:`message_class`: the rclpy class.
 
 All types live in one rosbags type store built from the environment's ``.msg`` files (the ones
@@ -22,17 +24,35 @@ from __future__ import annotations
 
 import importlib
 import os
+import struct
 import sys
 import threading
 from functools import cache
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mechsim.errors import MechsimError
 
 SEPARATOR = "=" * 80
-_DEPTH_LIMIT = 50
 _store_lock = threading.Lock()
+
+# CDR (XCDR1 little-endian, as rmw encodes): shared with ``mechsim.outputs.cdr``.
+HEADER = b"\x00\x01\x00\x00"  # CDR little-endian, no options
+TIME_TYPE = "builtin_interfaces/msg/Time"
+PRIMITIVES: dict[str, str] = {
+    "bool": "u1", "byte": "u1", "char": "u1", "octet": "u1", "int8": "i1", "uint8": "u1",
+    "int16": "<i2", "uint16": "<u2", "int32": "<i4", "uint32": "<u4", "int64": "<i8",
+    "uint64": "<u8", "float32": "<f4", "float64": "<f8",
+}
+DTYPES = {k: np.dtype(v) for k, v in PRIMITIVES.items()}
+STRUCTS = {k: struct.Struct("<" + {"u1": "B", "i1": "b", "<i2": "h", "<u2": "H", "<i4": "i",
+                                     "<u4": "I", "<i8": "q", "<u8": "Q", "<f4": "f",
+                                     "<f8": "d"}[v]) for k, v in PRIMITIVES.items()}
+U32 = struct.Struct("<I")
+DEPTH_LIMIT = 50
+_STR = "string"
 
 
 def _share_dirs() -> list[Path]:
@@ -98,7 +118,7 @@ def _closure(name: str) -> list[str]:
     order: list[str] = []
 
     def visit(n: str, depth: int) -> None:
-        if depth > _DEPTH_LIMIT:
+        if depth > DEPTH_LIMIT:
             raise MechsimError(f"message type {name}: dependencies nested too deep")
         for dep in _dependencies(n):
             if dep not in seen:
@@ -178,9 +198,108 @@ def _size_function(cls: type) -> Any:
         return None
 
 
+@cache
+def _plan(type_name: str) -> tuple[tuple[str, Any], ...]:
+    """How to encode ``type_name``: per field (name, op), op being "string", a
+    ``struct.Struct`` (a primitive), ("msg", plan, is Time), ("seq", op) or ("arr", length,
+    op). Made once per type from its definition."""
+    from rosbags.interfaces import Nodetype
+
+    store = typestore_with(type_name)
+
+    def op(kind: Any, arg: Any, depth: int) -> Any:
+        if depth > DEPTH_LIMIT:
+            raise MechsimError(f"{type_name}: message nested too deep")
+        if kind == Nodetype.BASE:
+            typ = arg[0]
+            if typ == "string":
+                return _STR
+            if typ not in STRUCTS:
+                raise MechsimError(f"{type_name}: unsupported primitive type {typ}")
+            return STRUCTS[typ]
+        if kind == Nodetype.NAME:
+            return ("msg", message(str(arg), depth + 1), str(arg) == TIME_TYPE)
+        if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+            (sub_kind, sub_arg), length = arg
+            sub = op(sub_kind, sub_arg, depth + 1)
+            return ("seq", sub) if kind == Nodetype.SEQUENCE else ("arr", length, sub)
+        raise MechsimError(f"{type_name}: unsupported field kind {kind}")
+
+    def message(name: str, depth: int) -> tuple[tuple[str, Any], ...]:
+        return tuple((field, op(kind, arg, depth)) for field, (kind, arg)
+                     in store.fielddefs[name][1])
+
+    return message(type_name, 0)
+
+
+def _put(buf: bytearray, op: Any, v: Any) -> None:
+    """Append ``v`` encoded by ``op`` (see :func:`_plan`) to ``buf``, aligned, padding zero."""
+    if op is _STR:
+        data = str(v).encode()
+        extra = -(len(buf) - 4) % 4
+        if extra:
+            buf += bytes(extra)
+        buf += U32.pack(len(data) + 1)
+        buf += data
+        buf += b"\x00"
+    elif isinstance(op, struct.Struct):
+        extra = -(len(buf) - 4) % op.size
+        if extra:
+            buf += bytes(extra)
+        if isinstance(v, (bytes, bytearray)):
+            v = v[0]
+        try:
+            buf += op.pack(v)
+        except (struct.error, TypeError):  # a numpy scalar
+            buf += op.pack(np.asarray(v).item())
+    elif op[0] == "msg":
+        if op[2]:  # builtin_interfaces/Time: 4-aligned
+            extra = -(len(buf) - 4) % 4
+            if extra:
+                buf += bytes(extra)
+        get = v.__getitem__ if isinstance(v, dict) else v.__getattribute__
+        for name, sub in op[1]:
+            _put(buf, sub, get(name))
+    else:
+        items = list(v)
+        if op[0] == "seq":
+            extra = -(len(buf) - 4) % 4
+            if extra:
+                buf += bytes(extra)
+            buf += U32.pack(len(items))
+        elif len(items) != op[1]:
+            raise MechsimError(f"{len(items)} elements, the array has {op[1]}")
+        sub = op[-1]
+        for item in items:
+            _put(buf, sub, item)
+
+
+def encode_message(type_name: str, value: Any) -> bytes:
+    """The CDR payload (with the encapsulation header, padding zero) of one message of
+    ``type_name`` (an rclpy message, or nested dicts and lists): the path for single
+    messages (:func:`cdr_bytes`); same rules as ``mechsim.outputs.cdr.Layout``."""
+    pkg, typ = split_type(type_name)
+    buf = bytearray(HEADER)
+    _put(buf, ("msg", _plan(f"{pkg}/msg/{typ}"), False), value)
+    return bytes(buf)
+
+
 def cdr_bytes(msg: Any) -> bytes:
-    """The CDR payload of ``msg`` as DDS carries it: rclpy's serialization, cut at the end of
-    the data (see the module docstring); rclpy's bytes unchanged if the size is unknown."""
+    """The CDR payload of ``msg`` as DDS carries it, every padding byte zero: encoded from the
+    type's definition (``mechsim.outputs.cdr``; rclpy's serializer leaves its padding bytes
+    uninitialised, so equal messages could differ in their bytes). For a type without a known
+    definition, rclpy's serialization cut at the end of the data (see the module docstring)."""
+    cls = type(msg)
+    pkg = cls.__module__.split(".")[0]
+    try:
+        return encode_message(f"{pkg}/msg/{cls.__name__}", msg)
+    except (MechsimError, KeyError, AttributeError, TypeError, ValueError):
+        return _rclpy_bytes(msg)
+
+
+def _rclpy_bytes(msg: Any) -> bytes:
+    """rclpy's serialization of ``msg``, cut at the end of the data (unchanged if the size
+    is unknown)."""
     from rclpy.serialization import serialize_message
 
     data: bytes = serialize_message(msg)

@@ -8,9 +8,10 @@ exclusive temporary renamed into place; then the lock is removed.
 
 Robustness. Records are written by a writer thread (Python runs signal handlers in the main
 thread only, so Ctrl-C / SIGTERM can never interrupt a half-written record); the sink only
-serializes and queues. A chunk is closed and flushed to the file at least every second of
-simulation time and every second of wall time (``mcap.Writer.flush``), so after a hard kill
-every chunk but the last is in the file and ``mechsim bag repair`` completes the bag.
+serializes and queues (a chunk of samples, already encoded by the nodes, is one item: see
+``mcapfile``). A chunk is closed and flushed to the file at least every second of simulation
+time and every second of wall time (``McapFile.flush``), so after a hard kill every chunk but
+the last is in the file and ``mechsim bag repair`` completes the bag.
 
 A recording is never deleted after its first message: :meth:`BagWriter.abort` (after an error
 anywhere) completes the bag if the writer is healthy; after a write error (disk full, ...) the
@@ -28,9 +29,12 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mechsim.errors import MechsimError
 from mechsim.files import make_dir, open_exclusive, write_atomic
 from mechsim.outputs.bag.lock import LOCK_FILE, BagLock
+from mechsim.outputs.bag.mcapfile import McapFile
 from mechsim.outputs.bag.metadata import (
     METADATA_FILE,
     SERIALIZATION,
@@ -52,7 +56,7 @@ SCHEMA_ENCODING = "ros2msg"
 FLUSH_SIM_NS = 1_000_000_000
 FLUSH_WALL_S = 1.0
 CHUNK_SIZE = 512 * 1024
-#: Items (a message, or a batch of up to a chunk of samples) queued for the writer thread at
+#: Items (a message, or a chunk of samples on several topics) queued for the writer thread at
 #: most; a producer faster than the disk waits (memory stays bounded however long the run).
 QUEUE_ITEMS = 64
 _STOP = object()
@@ -122,6 +126,8 @@ class BagWriter:
         self._closed = False
         self._finished = False
         self._chunk_size = chunk_size
+        #: Seconds the writer thread spent writing (not waiting for work).
+        self.write_seconds = 0.0
         self._thread = threading.Thread(target=self._run, name="bag-writer", daemon=False)
         try:
             self._file = open_exclusive(self.path / self.file_name)
@@ -151,18 +157,32 @@ class BagWriter:
                 self._queue.put(("custom", key, value))
         self._queue.put((topic, ns, data))
 
-    def write_batch(self, topic: str, type_name: str, qos: Any, ns: list[int],
-                    payloads: list[bytes]) -> None:
-        """Messages of one topic (not system_info) already serialized, in time order: one
-        hand-off to the writer thread for the whole batch."""
+    def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
+        """One message already serialized (not system_info)."""
         if self.error is not None:
             raise self.error
-        if self._closed or not payloads:
+        if self._closed:
             return
         if topic not in self._types:
             self._types[topic] = type_name
             self._queue.put(("channel", topic, type_name, qos_dict(qos)))
-        self._queue.put(("batch", topic, ns, payloads))
+        self._queue.put((topic, ns, data))
+
+    def write_chunk(self, ns: np.ndarray, topics: list[tuple[str, str, Any, np.ndarray]]
+                    ) -> None:
+        """A chunk of N samples stamped ``ns`` (int64, in time order): for each (topic,
+        type_name, qos, rows), rows is the (N, size) uint8 array of the topic's CDR payloads
+        (none of them system_info). One hand-off to the writer thread for the whole chunk;
+        the arrays must not be changed afterwards."""
+        if self.error is not None:
+            raise self.error
+        if self._closed or not topics or len(ns) == 0:
+            return
+        for topic, type_name, qos, _ in topics:
+            if topic not in self._types:
+                self._types[topic] = type_name
+                self._queue.put(("channel", topic, type_name, qos_dict(qos)))
+        self._queue.put(("chunk", ns, [(t, rows) for t, _, _, rows in topics]))
 
     def set_custom(self, key: str, value: Any) -> None:
         self._queue.put(("custom", key, str(value)))
@@ -229,56 +249,77 @@ class BagWriter:
         return MechsimError(f"bag {self.path}: write failed ({e.strerror or e}){kept}")
 
     def _write_loop(self) -> None:
-        from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+        from mcap.writer import LIBRARY_IDENTIFIER
 
         from mechsim import __version__
 
-        w = Writer(self._file, chunk_size=self._chunk_size, compression=CompressionType.ZSTD)
+        w = McapFile(self._file, chunk_size=self._chunk_size)
         w.start(profile=PROFILE, library=f"mechsim {__version__}; {LIBRARY_IDENTIFIER}")
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(
             bag_metadata(BagStats(custom_data=dict(self.stats.custom_data)), self.file_name))})
         self._file.flush()
-        schemas: dict[str, int] = {}
-        channels: dict[str, int] = {}
-        last_flush_ns: int | None = None
-        last_flush_wall = time.monotonic()
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._last_flush_ns: int | None = None
+        self._last_flush_wall = time.monotonic()
         while True:
             item = self._queue.get()
             if item is _STOP:
                 break
-            if item[0] == "channel":
-                _, topic, type_name, qos = item
-                if type_name not in schemas:
-                    schemas[type_name] = w.register_schema(
-                        type_name, SCHEMA_ENCODING, message_definition(type_name).encode())
-                h = type_description_hash(type_name)
-                channels[topic] = w.register_channel(
-                    topic, SERIALIZATION, schemas[type_name],
-                    {"offered_qos_profiles": dump_yaml([qos]), "topic_type_hash": h})
-                self.stats.topics[topic] = TopicInfo(topic, type_name, [qos], h)
-                continue
-            if item[0] == "custom":
-                self.stats.custom_data[item[1]] = item[2]
-                continue
-            if item[0] == "batch":
-                _, topic, stamps, payloads = item
-            else:
-                topic, ns, data = item
-                stamps, payloads = (ns,), (data,)
-            channel = channels[topic]
-            for ns, data in zip(stamps, payloads, strict=True):
-                w.add_message(channel, log_time=ns, data=data, publish_time=ns)
-                self.stats.add(topic, ns)
-            if last_flush_ns is None:
-                last_flush_ns = stamps[0]
-            now = time.monotonic()
-            if stamps[-1] - last_flush_ns >= FLUSH_SIM_NS or \
-                    now - last_flush_wall >= FLUSH_WALL_S:
-                w.flush()  # closes the chunk in progress and flushes the stream
-                last_flush_ns, last_flush_wall = stamps[-1], now
+            started = time.perf_counter()
+            self._write_item(w, item)
+            self.write_seconds += time.perf_counter() - started
         meta = bag_metadata(self.stats, self.file_name)
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
         w.finish()
         self._file.flush()
         os.fsync(self._file.fileno())
         write_atomic(self.path / METADATA_FILE, metadata_text(meta))
+
+    def _write_item(self, w: McapFile, item: Any) -> None:
+        channels = self._channels
+        if item[0] == "channel":
+            _, topic, type_name, qos = item
+            if type_name not in self._schemas:
+                self._schemas[type_name] = w.register_schema(
+                    type_name, SCHEMA_ENCODING, message_definition(type_name).encode())
+            h = type_description_hash(type_name)
+            channels[topic] = w.register_channel(
+                topic, SERIALIZATION, self._schemas[type_name],
+                {"offered_qos_profiles": dump_yaml([qos]), "topic_type_hash": h})
+            self.stats.topics[topic] = TopicInfo(topic, type_name, [qos], h)
+            return
+        if item[0] == "custom":
+            self.stats.custom_data[item[1]] = item[2]
+            return
+        if item[0] == "chunk":
+            _, ns, rows = item
+            topics = [(channels[topic], r) for topic, r in rows]
+            start = 0
+            while start < len(ns):
+                # Up to the next flush in simulation time (a chunk spans a second at most).
+                if self._last_flush_ns is None:
+                    self._last_flush_ns = int(ns[start])
+                end = int(np.searchsorted(ns, self._last_flush_ns + FLUSH_SIM_NS, "left"))
+                end = max(end, start + 1)
+                w.add_batch(ns[start:end], [(c, r[start:end]) for c, r in topics])
+                first, last = int(ns[start]), int(ns[end - 1])
+                for topic, _ in rows:
+                    self.stats.add(topic, first, end - start, last)
+                start = end
+                if start < len(ns):
+                    w.flush()
+                    self._last_flush_ns, self._last_flush_wall = int(ns[start]), \
+                        time.monotonic()
+        else:
+            topic, first, data = item
+            last = first
+            w.add_message(channels[topic], first, data)
+            self.stats.add(topic, first)
+            if self._last_flush_ns is None:
+                self._last_flush_ns = first
+        now = time.monotonic()
+        if last - self._last_flush_ns >= FLUSH_SIM_NS or \
+                now - self._last_flush_wall >= FLUSH_WALL_S:
+            w.flush()  # closes the chunk in progress and flushes the stream
+            self._last_flush_ns, self._last_flush_wall = last, now

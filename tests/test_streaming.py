@@ -1,0 +1,255 @@
+"""The batched sample pipeline: reproducible bytes, lossless counts, the paced clock, services
+served during a fast run, and the diagnostics node's chunk feed."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+DEADLINE = 120.0
+
+
+def _mcap_messages(path: Path) -> list[tuple[str, int, bytes]]:
+    """(topic, log time, payload) of every message, in file order, read with the mcap
+    library's reader (independent of the writer)."""
+    from mcap.reader import make_reader
+
+    with open(path / f"{path.name}_0.mcap", "rb") as f:
+        return [(ch.topic, m.log_time, bytes(m.data))
+                for _, ch, m in make_reader(f).iter_messages(log_time_order=True)]
+
+
+def _record(path: Path, duration: float) -> Any:
+    from mechsim.ros import record
+    from mechsim.scene import scene_from_target
+
+    scene = scene_from_target(str(REPO / "scenes" / "default.yaml"), [])
+    run, _ = record.run_with_outputs(scene, fast=True, duration=duration, bag=str(path))
+    return run
+
+
+def test_identical_runs_give_identical_bytes_and_lossless_counts(tmp_path: Path) -> None:
+    """Two fast recordings of the same scene hold byte-identical payloads on every topic
+    (/diagnostics included: a fast run's reports have no wall-clock content), and the counts
+    agree: published (SceneRun.messages) == metadata.yaml == an independent reader."""
+    from rosbags.highlevel import AnyReader
+
+    # 12 s: several fast chunks, several diagnostics reports inside one chunk.
+    runs = [_record(tmp_path / f"run{i}", 12.0) for i in range(2)]
+    bags = [_mcap_messages(tmp_path / f"run{i}") for i in range(2)]
+    assert len(bags[0]) == len(bags[1]) > 0
+    topics = {t for t, _, _ in bags[0]}
+    for topic in ("/diagnostics", "/tf_static", "/pendulum/system_info", "/clock",
+                  "/pendulum/state", "/kepler/energy", "/tf"):
+        assert topic in topics, topic
+    for topic in sorted(topics):
+        a = [(ts, d) for t, ts, d in bags[0] if t == topic]
+        b = [(ts, d) for t, ts, d in bags[1] if t == topic]
+        assert a == b, f"{topic}: the two runs differ"
+    for i, run in enumerate(runs):
+        path = tmp_path / f"run{i}"
+        published = {t: n for t, n in run.messages.items() if n}
+        meta = yaml.safe_load((path / "metadata.yaml").read_text())[
+            "rosbag2_bagfile_information"]
+        meta_counts = {t["topic_metadata"]["name"]: t["message_count"]
+                       for t in meta["topics_with_message_count"]}
+        with AnyReader([path]) as reader:
+            read = Counter(con.topic for con, _, _ in reader.messages())
+        assert published == meta_counts == dict(read) == dict(Counter(t for t, _, _ in bags[i]))
+        # Every sample of the 12 s, once: t = 0, 0.01, ..., 12.0.
+        assert published["/pendulum/state"] == 1201
+        assert published["/diagnostics"] >= 12
+
+
+class _Capture:
+    """A sink keeping (topic, stamp) of every message handed to it."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[str, int]] = []
+
+    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        self.items.append((topic, ns))
+
+
+def test_paced_run_keeps_clock_monotone_and_stamps_on_the_sample_grid(ros_context: Any
+                                                                       ) -> None:
+    from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
+    from mechsim.ros.launch import run_scene
+    from mechsim.scene import parse_scene
+
+    scene = parse_scene({"name": "paced", "pacing": "realtime", "real_time_factor": 1.0,
+                         "publish_rate": 100.0,
+                         "systems": [{"system": "pendulum"},
+                                     {"system": "rigid_body", "origin": [2.0, 0.0, 0.0]}]})
+    capture = _Capture()
+    run = run_scene(scene, duration=1.0, sinks=[capture], context=ros_context)
+    assert not run.failures and not run.interrupted
+    offset = int(DEFAULT_TIME_OFFSET * 1e9)
+    period = 10_000_000
+    clock = [ns for t, ns in capture.items if t == "/clock"]
+    # Every sample of the second, in order, each once: monotone, nothing skipped.
+    assert clock == [offset + k * period for k in range(101)]
+    sampled = [(t, ns) for t, ns in capture.items
+               if t.rpartition("/")[2] in ("state", "energy", "invariants", "observables",
+                                           "pose", "twist", "tf")]
+    assert {t for t, _ in sampled} >= {"/pendulum/state", "/rigid_body/pose", "/tf"}
+    for topic, ns in sampled:
+        assert (ns - offset) % period == 0 and 0 <= ns - offset <= 100 * period, (topic, ns)
+    grid = [offset + k * period for k in range(101)]
+    for topic in {t for t, _ in sampled} - {"/tf"}:
+        stamps = [ns for t, ns in sampled if t == topic]
+        assert stamps == grid, topic  # one node's topic: every sample once, in order
+    tf = Counter(ns for t, ns in sampled if t == "/tf")  # both systems publish /tf
+    assert sorted(tf) == grid and set(tf.values()) == {2}
+
+
+def test_reset_pause_and_parameters_answered_during_a_fast_run(ros_context: Any) -> None:
+    """Services and a parameter set are served between the chunks of a fast run (no wall-clock
+    target: a generous deadline)."""
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_srvs.srv import SetBool, Trigger
+
+    from mechsim.ros.launch import run_scene
+    from mechsim.scene import parse_scene
+
+    scene = parse_scene({"name": "busy", "pacing": "fast", "publish_rate": 100.0,
+                         "systems": [{"system": "pendulum", "name": "busy"}]})
+    stop = threading.Event()
+    reached: list[float] = []
+    result: dict[str, Any] = {}
+
+    def progress(t: float, duration: float) -> None:
+        reached.append(t)
+        if stop.is_set():
+            raise KeyboardInterrupt  # the run's own stop path
+
+    def body() -> None:
+        result["run"] = run_scene(scene, fast=True, duration=1e7, context=ros_context,
+                                  progress=progress)
+
+    runner = threading.Thread(target=body, daemon=True)
+    runner.start()
+    probe = Node("busy_probe", context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(probe)
+    try:
+        def wait(done: Any, what: str) -> None:
+            end = time.monotonic() + DEADLINE
+            while not done():
+                assert time.monotonic() < end, f"no answer: {what}"
+                assert runner.is_alive(), "the run ended"
+                ex.spin_once(timeout_sec=0.05)
+
+        pause = probe.create_client(SetBool, "/busy/simulator/pause")
+        reset = probe.create_client(Trigger, "/busy/simulator/reset")
+        params = probe.create_client(SetParameters, "/busy/simulator/set_parameters")
+        wait(lambda: pause.service_is_ready() and reset.service_is_ready()
+             and params.service_is_ready() and len(reached) > 2, "services")
+        fut = reset.call_async(Trigger.Request())
+        wait(fut.done, "~/reset")
+        assert fut.result().success
+        req = SetParameters.Request(parameters=[Parameter(name="gravity", value=ParameterValue(
+            type=ParameterType.PARAMETER_DOUBLE, double_value=3.0))])
+        fut = params.call_async(req)
+        wait(fut.done, "set_parameters")
+        assert fut.result().results[0].successful
+        fut = pause.call_async(SetBool.Request(data=True))
+        wait(fut.done, "~/pause")
+        assert fut.result().success
+        assert runner.is_alive()  # answered while the fast run went on
+    finally:
+        stop.set()
+        runner.join(DEADLINE)
+        ex.shutdown()
+        probe.destroy_node()
+    assert not runner.is_alive() and result["run"].interrupted
+
+
+def test_chunk_feed_tracks_drift_and_epochs(ros_context: Any) -> None:
+    """A chunk of energy samples whose stamps go back in the middle (a reset): the law
+    re-bases there; drifts are |E - E0| / scale of the new epoch; a non-finite sample counts
+    and makes the level ERROR until a finite one follows."""
+    from mechsim.outputs.messages import EnergyColumns
+    from mechsim.ros.diagnostics import DiagnosticsNode
+    from mechsim_msgs.msg import SystemInfo
+
+    diag = DiagnosticsNode(context=ros_context, period=3600.0, stale_timeout=3600.0,
+                           discover=False)
+    try:
+        diag.feed("/s", "system_info", SystemInfo(instance="s", system="x",
+                                                  laws=["energy"], law_scales=[2.0]))
+        total = np.array([1.0, 1.1, 0.9, 5.0, 5.2, math.nan])
+        zero = np.zeros_like(total)
+        stamps = np.array([10, 20, 30, 10, 20, 30], dtype=np.int64)
+        diag.feed_chunk("/s", "energy", stamps,
+                        EnergyColumns(total, zero, total, total, zero, zero))
+        st = diag.systems["/s"]
+        law = st.laws["energy"]
+        assert st.epoch == 1 and law.samples == 6 and law.nonfinite == 1
+        assert law.initial == 5.0 and law.max_drift == pytest.approx(0.2 / 2.0)
+        assert law.worst == math.inf and diag.level(law, False) == 2
+        diag.feed_chunk("/s", "energy", np.array([40], dtype=np.int64),
+                        EnergyColumns(*(np.array([v]) for v in (5.1, 0.0, 5.1, 5.1, 0, 0))))
+        assert law.drift == pytest.approx(0.05) and diag.level(law, False) == 2  # 0.1 ≥ 1e-3
+        assert st.epoch == 1 and law.nonfinite == 1
+    finally:
+        diag.destroy_node()
+
+
+def test_mcap_batches_read_back_by_the_mcap_library(tmp_path: Path) -> None:
+    """Messages written a batch at a time (and one at a time) come back from the mcap
+    library's reader, through the chunk indexes and message indexes and by a plain scan, with
+    their stamps, payloads and the summary statistics."""
+    from mcap.reader import make_reader
+    from mcap.stream_reader import StreamReader
+
+    from mechsim.outputs.bag.mcapfile import McapFile
+
+    rng = np.random.default_rng(1)
+    f = tmp_path / "x.mcap"
+    expected: list[tuple[str, int, bytes]] = []
+    with open(f, "wb") as stream:
+        w = McapFile(stream, chunk_size=4000)
+        w.start("ros2", "test")
+        sid = w.register_schema("pkg/msg/T", "ros2msg", b"float64 x")
+        a = w.register_channel("/a", "cdr", sid, {})
+        b = w.register_channel("/b", "cdr", sid, {"k": "v"})
+        for k in range(5):
+            ns = np.arange(k * 30, k * 30 + 30, dtype=np.int64) * 1000 + 7
+            ra = rng.integers(0, 256, (30, 12), dtype=np.uint8)
+            rb = rng.integers(0, 256, (30, 37), dtype=np.uint8)
+            w.add_batch(ns, [(a, ra), (b, rb)])
+            for i in range(30):
+                expected += [("/a", int(ns[i]), ra[i].tobytes()), ("/b", int(ns[i]),
+                                                                     rb[i].tobytes())]
+            w.add_message(b, int(ns[-1]) + 1, b"single")
+            expected.append(("/b", int(ns[-1]) + 1, b"single"))
+            if k == 2:
+                w.flush()
+        w.add_metadata("m", {"x": "y"})
+        w.finish()
+    with open(f, "rb") as stream:
+        reader = make_reader(stream)
+        got = [(ch.topic, m.log_time, bytes(m.data)) for _, ch, m in reader.iter_messages()]
+        summary = reader.get_summary()
+    assert got == expected  # file order is time order here
+    assert summary is not None and summary.statistics is not None
+    assert summary.statistics.message_count == len(expected)
+    assert dict(summary.statistics.channel_message_counts) == {a: 150, b: 155}
+    assert len(summary.chunk_indexes) >= 3 and summary.channels[b].metadata == {"k": "v"}
+    with open(f, "rb") as stream:  # a scan of every record (chunks opened), CRCs checked
+        records = list(StreamReader(stream, validate_crcs=True).records)
+    assert [(r.log_time, bytes(r.data)) for r in records if type(r).__name__ == "Message"] \
+        == [(ts, d) for _, ts, d in expected]
