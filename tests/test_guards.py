@@ -19,10 +19,12 @@ from typing import Any
 import pytest
 import yaml
 
+from mechsim.ros.launch import FAST_CHUNK
 from mechsim.scene import parse_scene
 
 RATE = 50.0
-DURATION = 2.0
+# Several fast chunks, so that a fault injected while one is published is met by the next.
+DURATION = 2.5 * FAST_CHUNK / RATE
 FAULT_AT = 0.5
 
 
