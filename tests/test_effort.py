@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -15,6 +14,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from mechsim.environment import import_rclpy
+from mechsim.testing import wait_until
 
 rclpy = import_rclpy()
 from rcl_interfaces.msg import Log  # noqa: E402
@@ -92,11 +92,8 @@ class Loop:
         self.spin_until(lambda: self.pub.get_subscription_count() > 0, "effort subscription")
 
     def spin_until(self, cond: Callable[[], bool], what: str, timeout: float = 120.0) -> None:
-        end = time.monotonic() + timeout
-        while not cond():
-            if time.monotonic() > end:
-                pytest.fail(f"timed out waiting for {what}")
-            self.ex.spin_once(timeout_sec=0.02)
+        if not wait_until(self.ex, cond, timeout):
+            pytest.fail(f"timed out waiting for {what}")
 
     def set(self, **values: Any) -> None:
         results = self.node.set_parameters([Parameter(k, value=v) for k, v in values.items()])
@@ -262,11 +259,9 @@ def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any, tmp_p
         probe = Node("probe", context=ros_context)
         ex = SingleThreadedExecutor(context=ros_context)
         ex.add_node(probe)
-        end = time.monotonic() + 120
-        while probe.count_subscribers(f"/{ns}/state") == 0 or probe.count_publishers(
-                f"/{ns}/effort") == 0:
-            assert time.monotonic() < end, "controller not in the graph"
-            ex.spin_once(timeout_sec=0.02)
+        assert wait_until(ex, lambda: probe.count_subscribers(f"/{ns}/state") > 0
+                          and probe.count_publishers(f"/{ns}/effort") > 0), \
+            "controller not in the graph"
         ex.shutdown()
         probe.destroy_node()
         run = run_scene(scene, fast=True, duration=2.0, sinks=[rec, bag], context=ros_context)

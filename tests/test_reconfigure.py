@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from mechsim.environment import import_rclpy
+from mechsim.testing import wait_until
 
 rclpy = import_rclpy()
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -182,12 +183,7 @@ def _reset(ctx: Any, node: SimulatorNode) -> None:
 
 
 def _spin_until(ex: Any, cond: Callable[[], bool], timeout: float = 120.0) -> None:
-    import time
-
-    end = time.monotonic() + timeout
-    while not cond():
-        assert time.monotonic() < end, "condition not met"
-        ex.spin_once(timeout_sec=0.05)
+    assert wait_until(ex, cond, timeout), "condition not met"
 
 
 def test_epochs_and_when_initial_values_take_effect(ros_context: Any) -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -13,6 +12,8 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+
+from mechsim.testing import wait_until
 
 REPO = Path(__file__).resolve().parents[1]
 DEADLINE = 120.0
@@ -146,11 +147,11 @@ def test_reset_pause_and_parameters_answered_during_a_fast_run(ros_context: Any)
     ex.add_node(probe)
     try:
         def wait(done: Any, what: str) -> None:
-            end = time.monotonic() + DEADLINE
-            while not done():
-                assert time.monotonic() < end, f"no answer: {what}"
+            def answered() -> bool:
                 assert runner.is_alive(), "the run ended"
-                ex.spin_once(timeout_sec=0.05)
+                return bool(done())
+
+            assert wait_until(ex, answered, DEADLINE), f"no answer: {what}"
 
         pause = probe.create_client(SetBool, "/busy/simulator/pause")
         reset = probe.create_client(Trigger, "/busy/simulator/reset")

@@ -83,6 +83,17 @@ def pytest_report_header(config: pytest.Config) -> str:
             f"FASTDDS_DEFAULT_PROFILES_FILE={os.environ.get('FASTDDS_DEFAULT_PROFILES_FILE')}")
 
 
+def wait_until(executor: Any, done: Callable[[], bool], timeout: float = 120.0) -> bool:
+    """Spin ``executor`` until ``done()`` holds: True, or False once ``timeout`` seconds passed
+    without it (a generous deadline for a condition, never a duration under test)."""
+    end = time.monotonic() + timeout
+    while not done():
+        if time.monotonic() > end:
+            return False
+        executor.spin_once(timeout_sec=0.05)
+    return True
+
+
 @pytest.fixture(scope="session")
 def ros_domain_id() -> int:
     """The ROS domain id of this test session."""
@@ -246,15 +257,15 @@ class Graph:
 
     # --- waiting ------------------------------------------------------------------------------
     def spin_until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
-        end = time.monotonic() + timeout
-        while not done():
-            if time.monotonic() > end:
-                pytest.fail(f"timed out: {what}{self._child_logs()}")
+        def alive() -> bool:
             for run in self._running:
                 if run.process is not None and run.process.poll() is not None:
                     pytest.fail(f"child process of {run.namespaces} exited with "
                                 f"{run.process.returncode}{self._child_logs()}")
-            self._probe_ex.spin_once(timeout_sec=0.05)
+            return True
+
+        if not wait_until(self._probe_ex, lambda: alive() and done(), timeout):
+            pytest.fail(f"timed out: {what}{self._child_logs()}")
 
     def _child_logs(self) -> str:
         tails = [f"\n--- {r.log.name}:\n" + r.log.read_text(errors="replace")[-2000:]

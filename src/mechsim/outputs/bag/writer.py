@@ -145,20 +145,14 @@ class BagWriter:
                          data: bytes) -> None:
         """``write`` with the CDR payload already made (by the Outlet, which publishes the
         same bytes, so each message is serialized once)."""
-        if self.error is not None:
-            raise self.error
-        if self._closed:
-            return
-        if topic not in self._types:
-            self._types[topic] = type_name
-            self._queue.put(("channel", topic, type_name, qos_dict(qos)))
-        if type_name == SYSTEM_INFO:
+        if type_name == SYSTEM_INFO and self.error is None and not self._closed:
             for key, value in system_info_custom(msg).items():
                 self._queue.put(("custom", key, value))
-        self._queue.put((topic, ns, data))
+        self.write_bytes(topic, type_name, qos, ns, data)
 
     def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
-        """One message already serialized (not system_info)."""
+        """One message already serialized (system_info goes through ``write_serialized``,
+        which also stores its fields in the bag's custom data)."""
         if self.error is not None:
             raise self.error
         if self._closed:
