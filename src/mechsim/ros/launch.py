@@ -424,7 +424,8 @@ def run_processes(target: str, scene: Scene, sets: list[str], duration: float | 
     finally:
         wall = time.monotonic() - start
         # Simulators first (they let their readers acknowledge), then the consumers drain.
-        for group in (list(sims.values()), consumers):
+        # (diagnostics before the recorder: its last report is recorded too).
+        for group in (list(sims.values()), *([c] for c in consumers)):
             for p in group:
                 if p.poll() is None:
                     p.send_signal(signal.SIGTERM)
@@ -596,6 +597,7 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
                 wait_acked([ch.publisher for ch in node.outlet.channels.values()])
             elif node is not None and report is not None:
                 drain(executor, lambda: node.received)
+                wait_acked([ch.publisher for ch in node.outlet.channels.values()])
         except KeyboardInterrupt:
             pass
         if node is not None:
