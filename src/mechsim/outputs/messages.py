@@ -225,6 +225,14 @@ class EnergyColumns:
                              self.work_dissipated[rows])
 
 
+def column_rows(values: EnergyColumns | dict[str, np.ndarray], rows: slice
+                ) -> EnergyColumns | dict[str, np.ndarray]:
+    """Rows of a chunk's evaluated values (``EnergyColumns``, or name -> array)."""
+    if isinstance(values, dict):
+        return {k: v[rows] for k, v in values.items()}
+    return values.rows(rows)
+
+
 class ChunkEncoder:
     """The CDR payloads of a chunk, per topic, as :class:`MessageFactory` would fill the
     messages (see ``mechsim.outputs.cdr``): the layouts are made once from the factory's own

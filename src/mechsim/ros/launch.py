@@ -38,6 +38,7 @@ from mechsim.errors import MechsimError, ParameterError
 from mechsim.ros.process import (
     die_with_parent,
     drain,
+    held_signals,
     stop_on_sigterm,
     stopping,
     write_report,
@@ -54,9 +55,6 @@ if TYPE_CHECKING:
 GRAPH_WAIT = 2.0
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go).
 FAST_CHUNK = 500
-#: Wall seconds between two turns of the executor in a fast run (a service or parameter
-#: request waits this long at most, plus a chunk).
-SERVE_PERIOD = 0.1
 #: Seconds a node found in the graph has to answer before it counts as gone (killed).
 LIVENESS_TIMEOUT = 2.0
 
@@ -221,7 +219,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
 
     from mechsim.outputs.messages import stamp_ns
     from mechsim.ros.diagnostics import DiagnosticsNode
-    from mechsim.ros.simulator import SimulatorNode
+    from mechsim.ros.serving import Serving
+    from mechsim.ros.simulator import SimulatorNode, paced_lookahead
 
     own_context = context is None
     if own_context:
@@ -270,53 +269,53 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         executor.add_node(diag)
         for n in nodes:
             executor.add_node(n)
+        serving = Serving(executor)
+        for n in nodes:
             # A node stepping a closed loop waits for its controller's commands in between.
-            n.serve = lambda timeout: executor.spin_once(timeout_sec=timeout)
+            n.serve = serving.wait
+            if not fast:  # computed ahead, published as the wall clock makes them due
+                n.lookahead = paced_lookahead(scene.publish_rate, scene.real_time_factor)
         startup = time.monotonic() - start
         start = time.monotonic()
         dt = 1.0 / scene.publish_rate
         next_diag = diagnostics_period
         offset = nodes[0].time_offset if nodes else 0.0
-        wall0 = time.monotonic()
-        next_spin = wall0
         k = 0
-        while duration is None or t < duration - 1e-12:
-            if fast:
-                # A chunk of samples per call (compiled stepping, evaluation and encoding of
-                # the whole chunk).
-                k_next = k + FAST_CHUNK
-            else:
-                # As many samples as the wall clock has made due (at least the next one,
-                # waited for): latency within one sample period, however slow a chunk.
-                wait = wall0 + (k + 1) * dt / scene.real_time_factor - time.monotonic()
-                while wait > 0:
-                    executor.spin_once(timeout_sec=min(wait, 0.05))
+        with serving:
+            wall0 = time.monotonic()
+            while duration is None or t < duration - 1e-12:
+                if fast:
+                    # A chunk of samples per call (compiled stepping, evaluation and
+                    # encoding of the whole chunk).
+                    k_next = k + FAST_CHUNK
+                else:
+                    # As many samples as the wall clock has made due (at least the next one,
+                    # waited for with callbacks served): latency within one sample period.
                     wait = wall0 + (k + 1) * dt / scene.real_time_factor - time.monotonic()
-                due = (time.monotonic() - wall0) * scene.real_time_factor / dt
-                k_next = max(k + 1, int(math.floor(due + 1e-9)))
-            k_next = max(k_next, k + 1)
-            t_next = k_next * dt if duration is None else min(k_next * dt, duration)
-            for n in nodes:
-                n.advance_to(t_next)
-            k, t = k_next, t_next
-            if all(n.failed for n in nodes):
-                break  # every system stopped with an error: nothing left to run
-            # Services and parameter requests are served between chunks, every SERVE_PERIOD
-            # of wall time at most (building the executor's wait set costs 0.5-2.5 ms).
-            now = time.monotonic()
-            if now >= next_spin:
-                executor.spin_once(timeout_sec=0)
-                next_spin = time.monotonic() + SERVE_PERIOD
-            # A report per diagnostics period of simulated time, on the samples up to it.
-            t0 = time.perf_counter()
-            while t >= next_diag - 1e-12:
-                feed.deliver(stamp_ns(next_diag, offset))
-                diag.publish_now()
-                next_diag += diagnostics_period
-            feed.deliver()
-            diag_cost += time.perf_counter() - t0
-            if progress is not None and duration is not None:
-                progress(t, duration)
+                    while wait > 0:
+                        serving.wait(wait)
+                        wait = wall0 + (k + 1) * dt / scene.real_time_factor \
+                            - time.monotonic()
+                    due = (time.monotonic() - wall0) * scene.real_time_factor / dt
+                    k_next = max(k + 1, int(math.floor(due + 1e-9)))
+                k_next = max(k_next, k + 1)
+                t_next = k_next * dt if duration is None else min(k_next * dt, duration)
+                with held_signals():
+                    for n in nodes:
+                        n.advance_to(t_next)
+                k, t = k_next, t_next
+                if all(n.failed for n in nodes):
+                    break  # every system stopped with an error: nothing left to run
+                serving.let_in()  # a service or parameter request waits one chunk at most
+                # A report per diagnostics period of simulated time, on the samples up to it.
+                t0 = time.perf_counter()
+                while t >= next_diag - 1e-12:
+                    feed.deliver(stamp_ns(next_diag, offset))
+                    diag.publish_now()
+                    next_diag += diagnostics_period
+                diag_cost += time.perf_counter() - t0
+                if progress is not None and duration is not None:
+                    progress(t, duration)
     except (KeyboardInterrupt, _Stop):
         interrupted = True
     finally:

@@ -83,6 +83,9 @@ class Outlet:
         self.sinks: list[Sink] = sinks if sinks is not None else []
         self.channels: dict[str, _Channel] = {}
         self.counts: dict[str, int] = {}
+        #: Subscribers per topic as last counted (``refresh``): asking the middleware costs
+        #: microseconds per topic, too much for every sample of a paced run.
+        self.subscribers: dict[str, int] = {}
 
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         resolved = self.node.resolve_topic_name(topic)
@@ -92,20 +95,27 @@ class Outlet:
             self.counts[resolved] = 0
         return resolved
 
+    def refresh(self) -> None:
+        """Count every topic's subscribers now (read by ``wanted`` and ``publish_chunk``)."""
+        for topic, ch in self.channels.items():
+            self.subscribers[topic] = ch.publisher.get_subscription_count()
+
     def wanted(self, topic: str) -> bool:
-        """Does anything consume ``topic`` (a subscriber anywhere, or a sink)? Cheap (~µs)."""
+        """Does anything consume ``topic`` (a sink, or a subscriber anywhere as counted at the
+        last ``refresh``)?"""
         for sink in self.sinks:
             wants = getattr(sink, "wants", None)
             if wants is None or wants(topic):
                 return True
-        return self.channels[topic].publisher.get_subscription_count() > 0
+        return self.subscribers.get(topic, 0) > 0
 
     def publish_chunk(self, ns: np.ndarray,
                       topics: list[tuple[str, np.ndarray, Callable[[int], Any]]],
                       columns: Mapping[str, Any] | None = None) -> None:
         """The messages of a chunk of samples stamped ``ns``, already encoded: for each
         (topic, rows, message), row i holds the CDR bytes of sample i. The same bytes are
-        published (only on topics something subscribes to) and handed to chunk sinks
+        published (only on topics with subscribers at the last ``refresh``) and handed to
+        chunk sinks
         (``write_chunk``: the recorder) in one call. ``columns``: per topic, the evaluated
         values the rows were encoded from; a sink with ``write_columns`` gets those (one call
         per topic) instead of messages. Any other sink gets ``message(i)``, built only for
@@ -113,7 +123,7 @@ class Outlet:
         recorded = []
         for topic, rows, _ in topics:
             ch = self.channels[topic]
-            if ch.publisher.get_subscription_count() > 0:
+            if self.subscribers.get(topic, 0) > 0:
                 publish = ch.publisher.publish
                 for r in rows:
                     publish(r.tobytes())

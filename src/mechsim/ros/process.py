@@ -60,19 +60,26 @@ def raise_if_stop(error: BaseException) -> None:
         e = e.__cause__ or e.__context__
 
 
+_held = threading.local()
+
+
 @contextmanager
 def held_signals() -> Iterator[None]:
     """Hold SIGINT and SIGTERM for the block (files being created or completed) and raise
-    KeyboardInterrupt after it if one came. Main thread only (elsewhere: no effect)."""
-    if threading.current_thread() is not threading.main_thread():
+    KeyboardInterrupt after it if one came. Main thread only (elsewhere: no effect). Nested
+    blocks cost nothing: the outermost one holds them."""
+    if threading.current_thread() is not threading.main_thread() \
+            or getattr(_held, "depth", 0):
         yield
         return
     got: list[int] = []
     previous = {s: signal.signal(s, lambda n, f: got.append(n))
                 for s in (signal.SIGINT, signal.SIGTERM)}
+    _held.depth = 1
     try:
         yield
     finally:
+        _held.depth = 0
         for s, handler in previous.items():
             signal.signal(s, handler)
     if got:

@@ -121,6 +121,10 @@ SETTINGS: dict[str, Parameter] = {p.name: p for p in (TOLERANCE, PUBLISH_RATE, R
 CONSTRAINT_LIMIT_DEFAULT = float(CONSTRAINT_LIMIT.default)
 #: Samples integrated per call of the kernels (bounds the memory of a long advance).
 _BLOCK = 1000
+#: Wall seconds of samples a paced node computes ahead (published when due): the cost of a
+#: call into the kernels is shared by that many samples. A new subscriber gets the outputs
+#: nobody consumed before within this time.
+LOOKAHEAD = 0.25
 #: Wall seconds between two warnings of the same kind about rejected effort commands.
 _EFFORT_LOG_PERIOD = 5.0
 
@@ -135,6 +139,16 @@ def _builder(build: Callable[[Sample, int], Any], sample: Callable[[int], Sample
              ns: np.ndarray) -> Callable[[int], Any]:
     """The message of sample i, built only for a sink that takes messages."""
     return lambda i: build(sample(i), int(ns[i]))
+
+
+def _shifted(message: Callable[[int], Any], a: int) -> Callable[[int], Any]:
+    """``message`` of the rows from ``a`` on, numbered from 0."""
+    return lambda i: message(i + a)
+
+
+def paced_lookahead(publish_rate: float, real_time_factor: float) -> int:
+    """Samples a paced node computes ahead (``LOOKAHEAD`` wall seconds of them)."""
+    return max(1, min(_BLOCK, int(LOOKAHEAD * publish_rate * real_time_factor)))
 
 
 @dataclass
@@ -153,6 +167,25 @@ class _Change:
     model: Model | None = None  # new model (values changed)
     structural: bool = False  # new equations of motion: restart at t = 0
     stepper: Stepper | None = None  # new stepper (method, tolerance or structure changed)
+
+
+@dataclass
+class _Block:
+    """Consecutive samples checked, evaluated and encoded, released to the topics and sinks in
+    order (``_release``), all at once or, computed ahead in a paced run, as the wall clock makes
+    them due."""
+
+    times: np.ndarray
+    Y: np.ndarray  # rows that passed the guards
+    ns: np.ndarray
+    topics: list[tuple[str, np.ndarray, Callable[[int], Any]]]
+    columns: dict[str, Any]
+    reason: str | None  # why the system stops after the last row (a guard), if it does
+    released: int = 0
+
+    @property
+    def left(self) -> int:
+        return self.times.size - self.released
 
 
 def _key(params: list[RosParameter]) -> tuple[tuple[str, str], ...]:
@@ -204,6 +237,10 @@ class SimulatorNode(Node):
         #: Wall seconds spent per stage of the sample pipeline (``mechsim bench --streaming``).
         self.costs = {"integrate": 0.0, "evaluate": 0.0, "encode": 0.0, "publish": 0.0}
         self._pending: _Change | None = None
+        #: Samples computed ahead of the wall clock by a paced run (0: only the due ones).
+        self.lookahead = 0
+        self._ahead: _Block | None = None
+        self._ahead_failed = False
 
         self.declare_parameter("system", instance.system, ParameterDescriptor(
             description="system id (see `mechsim systems`)", read_only=True))
@@ -267,6 +304,7 @@ class SimulatorNode(Node):
         self.t = 0.0
         self._y = stepper.y.copy()
         self.failed = None
+        self._ahead, self._ahead_failed = None, False
         self._effort_reset(new_epoch=True)
         self._publish_static()
         self._emit(np.zeros(1), stepper.y.copy()[None, :])
@@ -319,12 +357,19 @@ class SimulatorNode(Node):
     def _emit(self, times: np.ndarray, Y: np.ndarray) -> int:
         """Check the rows of ``Y`` against the guards and publish them, in order, up to the
         first bad one (which stops the system). Returns the number of rows published."""
+        block = self._prepare(times, Y)
+        return self._release(block, block.left)
+
+    def _prepare(self, times: np.ndarray, Y: np.ndarray) -> _Block:
+        """The rows of ``Y`` up to the first that fails a guard, evaluated (only the outputs
+        something consumes) and encoded for every topic, not yet published."""
         at = self.model.layout
         t0 = time.perf_counter()
         good = times.size
         if not np.isfinite(Y).all():
             good = int(np.argmin(np.all(np.isfinite(Y), axis=1)))
         reason = None if good == times.size else f"non-finite state at t = {times[good]:.6g}"
+        self.outlet.refresh()
         want = self._wanted()
         which = want + (("invariants",) if self._constraints and "invariants" not in want
                         else ())
@@ -345,21 +390,16 @@ class SimulatorNode(Node):
                           f"limit {limit[good]:.3g} at t = {times[good]:.6g} (projection "
                           "cannot restore the constraint)")
         self.costs["evaluate"] += time.perf_counter() - t0
-        if good:  # a stop waits for the chunk: what was published and self.t agree
-            with held_signals():
-                self._publish_chunk(times[:good], Y[:good], out, inv, want)
-                self.t = float(times[good - 1])
-                self._y = Y[good - 1].copy()
-        if reason is not None:
-            self._fail(reason)
-        return good
+        if out is not None and good < times.size:
+            out = tuple(a[:good] for a in out)
+            inv = inv[:good] if inv is not None else None
+        return self._encode(times[:good], Y[:good], out, inv, want, reason)
 
-    def _publish_chunk(self, times: np.ndarray, Y: np.ndarray,
-                       out: tuple[np.ndarray, ...] | None, inv: np.ndarray | None,
-                       want: tuple[str, ...]) -> None:
-        """Every topic of the samples ``times`` (rows of ``Y``): each encoded for the whole
-        chunk at once (``ChunkEncoder``), then published and recorded (``publish_chunk``)."""
-        o, f, at = self.outlet, self.factory, self.model.layout
+    def _encode(self, times: np.ndarray, Y: np.ndarray, out: tuple[np.ndarray, ...] | None,
+                inv: np.ndarray | None, want: tuple[str, ...], reason: str | None) -> _Block:
+        """Every topic of the samples ``times`` (rows of ``Y``), each encoded for the whole
+        block at once (``ChunkEncoder``)."""
+        f, at = self.factory, self.model.layout
         t0 = time.perf_counter()
         n = times.size
         ns = messages.stamps_ns(times, self.time_offset)
@@ -384,63 +424,127 @@ class SimulatorNode(Node):
 
         enc = self.encoder
         columns: dict[str, Any] = {}
-        if c.energy is not None:
-            columns[self.t_energy] = messages.EnergyColumns.of(c)
-        if c.invariants is not None:
-            columns[self.t_inv] = {name: c.invariants[:, j]
-                                   for j, name in enumerate(self._shape.invariants)}
         topics: list[tuple[str, np.ndarray, Callable[[int], Any]]] = []
-        if self.publish_clock:
-            topics.append((self.t_clock, enc.encode("clock", c),
-                           lambda i: messages.clock(int(ns[i]))))
-        if f.joints:
-            topics.append((self.t_state, enc.encode("state", c),
-                           _builder(f.state, sample, ns)))
-        if f.attitude is not None:
-            topics.append((self.t_pose, enc.encode("pose", c), _builder(f.pose, sample, ns)))
-            topics.append((self.t_twist, enc.encode("twist", c),
-                           _builder(f.twist, sample, ns)))
-        for key, topic, build in (("energy", self.t_energy, f.energy),
-                                  ("invariants", self.t_inv, f.invariants),
-                                  ("observables", self.t_obs, f.observables),
-                                  ("tf", self.t_tf, f.tf)):
-            if getattr(c, "frames" if key == "tf" else key) is None:
-                continue
-            self.computed["frames" if key == "tf" else key] += n
-            topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
-        t1 = time.perf_counter()
-        o.publish_chunk(ns, topics, columns)
-        self.costs["encode"] += t1 - t0
-        self.costs["publish"] += time.perf_counter() - t1
-        self.samples_published += n
+        if n:
+            if c.energy is not None:
+                columns[self.t_energy] = messages.EnergyColumns.of(c)
+            if c.invariants is not None:
+                columns[self.t_inv] = {name: c.invariants[:, j]
+                                       for j, name in enumerate(self._shape.invariants)}
+            if self.publish_clock:
+                topics.append((self.t_clock, enc.encode("clock", c),
+                               lambda i: messages.clock(int(ns[i]))))
+            if f.joints:
+                topics.append((self.t_state, enc.encode("state", c),
+                               _builder(f.state, sample, ns)))
+            if f.attitude is not None:
+                topics.append((self.t_pose, enc.encode("pose", c),
+                               _builder(f.pose, sample, ns)))
+                topics.append((self.t_twist, enc.encode("twist", c),
+                               _builder(f.twist, sample, ns)))
+            for key, topic, build in (("energy", self.t_energy, f.energy),
+                                      ("invariants", self.t_inv, f.invariants),
+                                      ("observables", self.t_obs, f.observables),
+                                      ("tf", self.t_tf, f.tf)):
+                if getattr(c, "frames" if key == "tf" else key) is None:
+                    continue
+                self.computed["frames" if key == "tf" else key] += n
+                topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
+        self.costs["encode"] += time.perf_counter() - t0
+        return _Block(times, Y, ns, topics, columns, reason)
+
+    def _release(self, block: _Block, k: int) -> int:
+        """Publish and record the next ``k`` samples of ``block``; after its last one, stop
+        the system if a guard failed there. Returns ``k``."""
+        a, b = block.released, block.released + k
+        if k:
+            t0 = time.perf_counter()
+            if a == 0 and b == block.times.size:
+                ns, topics, columns = block.ns, block.topics, block.columns
+            else:
+                ns = block.ns[a:b]
+                topics = [(topic, rows[a:b], _shifted(message, a))
+                          for topic, rows, message in block.topics]
+                columns = {topic: messages.column_rows(values, slice(a, b))
+                           for topic, values in block.columns.items()}
+            # A stop waits for the samples: what was published and self.t agree.
+            with held_signals():
+                self.outlet.publish_chunk(ns, topics, columns)
+                block.released = b
+                self.samples_published += k
+                self.t = float(block.times[b - 1])
+                self._y = block.Y[b - 1].copy()
+            self.costs["publish"] += time.perf_counter() - t0
+        if block.left == 0 and block.reason is not None:
+            self._fail(block.reason)
+        return k
+
+    def _drop_ahead(self) -> None:
+        """Forget the samples computed ahead and not published (a change applies from the
+        next sample)."""
+        block, self._ahead = self._ahead, None
+        if block is not None and block.left and not self.failed:
+            self._rewind()
+
+    def _rewind(self) -> None:
+        """The stepper, which ran ahead, goes on from the last published sample."""
+        if self.stepper.method in Stepper.TAKES_INPUTS:
+            self.stepper.restart(self.t, self._y, self.p)
+        else:
+            self.stepper = make_stepper(self.model, self.method, self.tolerance, t0=self.t,
+                                        y0=self._y.copy())
 
     def advance_to(self, t_target: float) -> int:
         """Integrate to ``t_target`` (simulation time; never past ``end_time``), publishing
         every sample on the way. Returns the number of samples published. A failed or paused
-        system publishes none."""
+        system publishes none. With ``lookahead`` > 0 (a paced run) up to that many samples
+        are computed in one go and published as they become due; any change (a parameter
+        set, a reset, an effort command) drops the ones not yet published."""
         if self.end_time is not None:
             t_target = min(t_target, self.end_time)
         published = 0
         while not (self.failed or self.paused):
             dt = 1.0 / self.publish_rate
-            n = min(int(math.floor((t_target - self.t) / dt + 1e-9)), _BLOCK)
-            if n <= 0:
+            due = min(int(math.floor((t_target - self.t) / dt + 1e-9)), _BLOCK)
+            if due <= 0:
                 break
+            ahead = self._ahead
+            if ahead is not None and ahead.left:
+                if self._inbox is None:
+                    published += self._release(ahead, min(due, ahead.left))
+                    continue
+                self._drop_ahead()  # a command applies from the next sample
+            n = due
             if self._effort_step():
                 n = 1
+            elif self.lookahead > due and not self._ahead_failed:
+                last = _BLOCK if self.end_time is None else int(math.floor(
+                    (self.end_time - self.t) / dt + 1e-9))
+                n = max(due, min(self.lookahead, last, _BLOCK))
             times = self.t + dt * np.arange(1, n + 1)
             try:
                 t0 = time.perf_counter()
                 Y = self.stepper.advance(times)
                 self.costs["integrate"] += time.perf_counter() - t0
-            except IntegrationError as e:
-                self._fail(str(e))
-                break
             except Exception as e:  # noqa: BLE001 - e.g. numba errors from extreme values:
                 raise_if_stop(e)
-                self._fail(f"integration failed: {_reason(e)}")  # this system only
+                if n > due:
+                    # Computing ahead failed: go on with the due samples only, from the last
+                    # published one, so the failure stops the system where it would anyway.
+                    self._ahead_failed = True
+                    try:
+                        self._rewind()
+                        continue
+                    except Exception as again:  # noqa: BLE001 - as above
+                        raise_if_stop(again)
+                        e = again
+                self._fail(str(e) if isinstance(e, IntegrationError)
+                           else f"integration failed: {_reason(e)}")  # this system only
                 break
-            published += self._emit(times, Y)
+            block = self._prepare(times, Y)
+            if n > due:
+                self._ahead = block
+            published += self._release(block, min(due, block.left))
         return published
 
     @property
@@ -471,6 +575,7 @@ class SimulatorNode(Node):
             return
         self._wall0 = time.monotonic()
         self._sim0 = self.t
+        self.lookahead = paced_lookahead(self.publish_rate, self.real_time_factor)
         period = max(1.0 / (self.publish_rate * self.real_time_factor), 0.005)
         self._timer = self.create_timer(period, self._on_tick, clock=self._steady)
 
@@ -584,6 +689,7 @@ class SimulatorNode(Node):
             self._fail(f"applying {', '.join(p.name for p in params)} failed: {_reason(e)}")
 
     def _commit(self, c: _Change) -> None:
+        self._drop_ahead()  # every change applies from the next sample
         repace = (c.publish_rate != self.publish_rate
                   or c.real_time_factor != self.real_time_factor)
         self.values, self.method, self.tolerance = c.values, c.method, c.tolerance
