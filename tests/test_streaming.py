@@ -254,3 +254,74 @@ def test_mcap_batches_read_back_by_the_mcap_library(tmp_path: Path) -> None:
         records = list(StreamReader(stream, validate_crcs=True).records)
     assert [(r.log_time, bytes(r.data)) for r in records if type(r).__name__ == "Message"] \
         == [(ts, d) for _, ts, d in expected]
+
+
+class _Messages:
+    """A sink keeping (topic, stamp, message) of the state and energy messages."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[str, int, Any]] = []
+
+    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        if topic.rpartition("/")[2] in ("state", "energy"):
+            self.items.append((topic, ns, msg))
+
+
+def test_paced_parameter_set_applies_from_the_next_sample(ros_context: Any) -> None:
+    """A paced node computes samples ahead of the wall clock; a parameter set arriving
+    meanwhile drops them: every energy published after the change is the new gravity's
+    V = m g R (1 − cos φ) of its own state, every one before it the old one's, and the
+    samples stay on the grid (the current one published again: the new epoch)."""
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from mechsim.ros.launch import run_scene
+    from mechsim.scene import parse_scene
+
+    scene = parse_scene({"name": "paced_change", "pacing": "realtime",
+                         "real_time_factor": 1.0, "publish_rate": 100.0,
+                         "systems": [{"system": "pendulum", "name": "swing"}]})
+    sink = _Messages()
+    result: dict[str, Any] = {}
+    runner = threading.Thread(target=lambda: result.update(run=run_scene(
+        scene, duration=4.0, sinks=[sink], context=ros_context)), daemon=True)
+    runner.start()
+    probe = Node("paced_probe", context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(probe)
+    try:
+        params = probe.create_client(SetParameters, "/swing/simulator/set_parameters")
+        assert wait_until(ex, lambda: params.service_is_ready() and len(sink.items) > 40
+                          and runner.is_alive(), DEADLINE)
+        fut = params.call_async(SetParameters.Request(parameters=[Parameter(
+            name="gravity", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                                 double_value=3.0))]))
+        assert wait_until(ex, fut.done, DEADLINE)
+        assert fut.result().results[0].successful
+    finally:
+        runner.join(DEADLINE)
+        ex.shutdown()
+        probe.destroy_node()
+    run = result["run"]
+    assert not run.failures and not run.interrupted
+    states = [(ns, m) for t, ns, m in sink.items if t == "/swing/state"]
+    energies = [(ns, m) for t, ns, m in sink.items if t == "/swing/energy"]
+    stamps = [ns for ns, _ in states]
+    assert stamps == [ns for ns, _ in energies]
+    again = [i for i in range(1, len(stamps)) if stamps[i] <= stamps[i - 1]]
+    assert len(again) == 1, "one new epoch: the current sample published again"
+    change = again[0]
+    assert stamps[change] == stamps[change - 1]
+    assert states[change][1].position[0] == states[change - 1][1].position[0]
+    period = 10_000_000
+    grid = sorted(set(stamps))
+    assert grid == [grid[0] + k * period for k in range(len(grid))] and len(grid) == 401
+    m, R = 1.0, 1.0
+    for i, ((_, state), (_, energy)) in enumerate(zip(states, energies, strict=True)):
+        g = 9.81 if i < change else 3.0
+        phi = state.position[0]
+        assert energy.potential == pytest.approx(m * g * R * (1 - math.cos(phi)),
+                                                 rel=1e-12, abs=1e-12), (i, change)
+    assert change < len(states) - 50, "the change came early enough to test what follows"
