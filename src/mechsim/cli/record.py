@@ -35,7 +35,8 @@ def cmd_record(a: argparse.Namespace) -> int:
     say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {duration:g} s "
         f"simulated, as fast as possible)")
     run, lines = run_with_outputs(scene, fast=True, duration=duration, bag=bag,
-                                  rrd=a.rrd or scene.rrd, progress=show)
+                                  rrd=a.rrd or scene.rrd, progress=show,
+                                  lossless=a.lossless)
     if run.interrupted:
         say(f"interrupted at t = {run.sim_time:g} s; outputs completed up to there")
     print_summary(run)
@@ -59,4 +60,6 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--bag", metavar="DIR", help="new bag directory (strftime fields expanded; "
                    f"default: scene outputs.bag, else {DEFAULT_BAG.replace('%', '%%')})")
     r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording")
+    r.add_argument("--lossless", action="store_true", help="live reliable subscribers get "
+                   "every sample too (the run waits for the slowest one's acknowledgments)")
     r.set_defaults(func=cmd_record)

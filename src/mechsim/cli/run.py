@@ -26,6 +26,9 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.only is not None:  # one node of the scene, e.g. one per host
         from mechsim.ros.launch import run_single_node
 
+        if a.lossless:
+            raise ParameterError("--lossless", "not with --only (a lone simulator waits for "
+                                 "its recorder with --wait-for recorder)")
         names = [i.name for i in scene.systems]
         if a.only not in ("diagnostics", "recorder") and a.only not in names:
             raise ParameterError("--only", f"no instance {a.only!r} in the scene (instances: "
@@ -56,7 +59,8 @@ def cmd_run(a: argparse.Namespace) -> int:
                                fast=a.fast, duration=duration, readers=len(set(waits)),
                                recorder="recorder" in waits)
     if a.processes:
-        for flag, given in (("--viewer", a.viewer), ("--connect", a.connect)):
+        for flag, given in (("--viewer", a.viewer), ("--connect", a.connect),
+                            ("--lossless", a.lossless)):
             if given:
                 raise ParameterError(flag, "not available with --processes (view in-process)")
         from mechsim.ros.launch import run_processes
@@ -86,9 +90,11 @@ def cmd_run(a: argparse.Namespace) -> int:
         if bag is not None or rrd is not None or live is not None:
             from mechsim.ros.record import run_with_outputs
             run, lines = run_with_outputs(scene, fast=fast, duration=duration, bag=bag,
-                                          rrd=rrd, live=live, progress=show)
+                                          rrd=rrd, live=live, progress=show,
+                                          lossless=a.lossless)
         else:
-            run = run_scene(scene, fast=fast, duration=duration, progress=show)
+            run = run_scene(scene, fast=fast, duration=duration, progress=show,
+                            lossless=a.lossless)
         print_summary(run)
         for line in lines:
             print(f"  outputs: {line}")
@@ -141,6 +147,10 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--fast", action="store_true", help="as fast as possible")
     r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
     r.add_argument("--processes", action="store_true", help="one process per node")
+    r.add_argument("--lossless", action="store_true", help="every reliable subscriber gets "
+                   "every sample: the run waits for the slowest one's acknowledgments "
+                   "(default: a slow subscriber misses what its history cannot hold, as in "
+                   "ROS)")
     r.add_argument("--only", metavar="NODE", help="run only this instance's simulator (or "
                    "`diagnostics`) of the scene: one node per host with the several-hosts "
                    "DDS profile; `recorder`: record the scene from the graph (--bag/--rrd)")

@@ -205,12 +205,16 @@ def _warm(scene: Scene) -> None:
 def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None = None,
               sinks: list[Any] | None = None, context: Any = None,
               progress: Callable[[float, float], None] | None = None,
-              diagnostics_period: float = 1.0, graph_wait: float | None = None) -> SceneRun:
+              diagnostics_period: float = 1.0, graph_wait: float | None = None,
+              lossless: bool = False,
+              before_first_message: Callable[[Any], None] | None = None) -> SceneRun:
     """Run every system of ``scene`` in this process until ``duration`` (simulated seconds)
     or Ctrl-C / SIGTERM. ``fast``: as fast as possible instead of the scene's pacing.
     ``graph_wait``: discovery seconds before the graph check (0: no check); by default
     ``GRAPH_WAIT`` when this call makes its own context (a command), none with a caller's
-    context (the caller, e.g. a test or a host application, owns its graph)."""
+    context (the caller, e.g. a test or a host application, owns its graph).
+    ``lossless``: every reliable subscriber gets every sample (the run waits for the slowest);
+    ``before_first_message``: called with each simulator node before it publishes."""
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
@@ -265,7 +269,9 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
             # itself) and never past the duration.
             nodes.append(SimulatorNode(inst, context=context, publish_rate=scene.publish_rate,
                                        real_time_factor=0.0, publish_clock=(i == 0),
-                                       sinks=diag_sinks, end_time=duration))
+                                       sinks=diag_sinks, end_time=duration,
+                                       lossless=lossless,
+                                       before_first_message=before_first_message))
         executor.add_node(diag)
         for n in nodes:
             executor.add_node(n)

@@ -254,7 +254,7 @@ def _failure(where: str, e: BaseException, kept: str) -> MechsimError:
 
 def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
                      bag: str | None, rrd: str | None = None, live: str | None = None,
-                     progress: Any = None) -> tuple[Any, list[str]]:
+                     progress: Any = None, lossless: bool = False) -> tuple[Any, list[str]]:
     """``run_scene`` with the bag / rrd / live Rerun sinks attached (``open_outputs``);
     returns (SceneRun, output lines).
     An error is a MechsimError (one line: the output, the reason, what was kept); Ctrl-C or
@@ -265,7 +265,7 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
     try:
         with held_signals():
             out = open_outputs(scene, bag, rrd, live)
-        run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks,
+        run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks, lossless=lossless,
                         progress=progress)
         bag = out.bag
         with held_signals():

@@ -200,12 +200,14 @@ class SimulatorNode(Node):
                  constraint_limit: float = CONSTRAINT_LIMIT_DEFAULT,
                  end_time: float | None = None,
                  prepare_timeout: float = PREPARE_TIMEOUT,
-                 before_first_message: Callable[[SimulatorNode], None] | None = None) -> None:
+                 before_first_message: Callable[[SimulatorNode], None] | None = None,
+                 lossless: bool = False) -> None:
         """``real_time_factor`` 0: the caller steps the node (``advance_to``), which then never
         paces itself (the parameter is read-only). ``end_time``: the node never integrates
         past this simulation time (a scene's duration), whatever its pacing.
         ``before_first_message``: called once the publishers exist, before anything is
-        published (a runner of separate processes waits there for its consumers)."""
+        published (a runner of separate processes waits there for its consumers).
+        ``lossless``: every reliable subscriber receives every sample (``Outlet``)."""
         # Same ranges as the CLI and scenes: a bad value is a ParameterError, before ROS.
         publish_rate = float(PUBLISH_RATE.check(publish_rate, "publish_rate"))
         real_time_factor = float(REAL_TIME_FACTOR.check(real_time_factor, "real_time_factor"))
@@ -261,7 +263,7 @@ class SimulatorNode(Node):
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        self.outlet = Outlet(self, sinks)
+        self.outlet = Outlet(self, sinks, lossless=lossless)
         o = self.outlet
         self.t_state = o.channel("state", JointState, STATE_QOS)
         self.t_energy = o.channel("energy", Energy, STATE_QOS)

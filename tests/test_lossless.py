@@ -1,0 +1,88 @@
+"""``--lossless``: a live subscriber in another process gets every sample of a fast run.
+
+Without it a fast run sends chunks of hundreds of samples at once and the publishers' history
+(depth 10, as ROS nodes usually keep) overwrites what a Python subscriber has not yet
+received; with it every chunk goes out in slices that every reliable subscriber acknowledges
+before the next."""
+
+from __future__ import annotations
+
+import select
+import subprocess
+import sys
+from typing import Any
+
+from mechsim.ros.launch import run_scene
+from mechsim.scene import parse_scene
+
+_COUNTER = """
+import sys
+from mechsim.environment import import_rclpy
+rclpy = import_rclpy()
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from mechsim_msgs.msg import Energy
+from sensor_msgs.msg import JointState
+rclpy.init()
+n = rclpy.create_node("lossless_counter")
+qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
+                 reliability=ReliabilityPolicy.RELIABLE)
+got = {"/swing/state": [], "/swing/energy": []}
+def keep(topic):
+    return lambda m: got[topic].append((m.header.stamp.sec, m.header.stamp.nanosec))
+n.create_subscription(JointState, "/swing/state", keep("/swing/state"), qos)
+n.create_subscription(Energy, "/swing/energy", keep("/swing/energy"), qos)
+print("ready", flush=True)
+quiet = 0
+while quiet < 50 or sum(map(len, got.values())) == 0:  # 5 s without a message: done
+    before = sum(map(len, got.values()))
+    rclpy.spin_once(n, timeout_sec=0.1)
+    quiet = 0 if sum(map(len, got.values())) != before else quiet + 1
+for topic, stamps in got.items():
+    print(topic, len(stamps), len(set(stamps)), flush=True)
+"""
+
+
+def _line(proc: subprocess.Popen[str], timeout: float = 300.0) -> str:
+    assert proc.stdout is not None
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    assert ready, f"no line from the counter within {timeout:g} s"
+    return proc.stdout.readline().strip()
+
+
+def test_a_lossless_fast_run_reaches_a_live_subscriber_with_every_sample(
+        ros_context: Any, ros_env: dict[str, str]) -> None:
+    from mechsim.testing import wait_until
+
+    counter = subprocess.Popen([sys.executable, "-c", _COUNTER], env=ros_env,
+                               stdout=subprocess.PIPE, text=True)
+    try:
+        assert _line(counter) == "ready"
+        scene = parse_scene({"name": "lossless", "pacing": "fast", "publish_rate": 100.0,
+                             "systems": [{"system": "pendulum", "name": "swing"}]})
+
+        def matched(node: Any) -> None:
+            """Before the first sample: both topics matched with the counter."""
+            from rclpy.executors import SingleThreadedExecutor
+
+            ex = SingleThreadedExecutor(context=ros_context)
+            pubs = [node.outlet.channels[t].publisher for t in (node.t_state, node.t_energy)]
+            try:
+                assert wait_until(ex, lambda: all(p.get_subscription_count() for p in pubs),
+                                  120.0), "the counter never matched"
+            finally:
+                ex.shutdown()
+
+        run = run_scene(scene, fast=True, duration=30.0, context=ros_context, lossless=True,
+                        before_first_message=matched)
+        assert not run.failures
+        published = {t: run.messages[t] for t in ("/swing/state", "/swing/energy")}
+        assert published["/swing/state"] == 3001  # t = 0, 0.01, ..., 30
+        counts = {}
+        for _ in published:
+            topic, received, distinct = _line(counter).split()
+            counts[topic] = (int(received), int(distinct))
+        assert counts == {t: (n, n) for t, n in published.items()}
+    finally:
+        if counter.poll() is None:
+            counter.kill()
+        counter.wait()
