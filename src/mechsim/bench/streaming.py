@@ -8,6 +8,8 @@
    (compilation excluded). The per-sample cost split: wall time per sample in each stage
    (integrate, evaluate, encode, publish incl. the hand-off to the recorder, diagnostics,
    and write: the bag writer's thread, which overlaps the others on a second core).
+   The same without the bag, ``--lossless``, with one live subscriber per streamed topic in
+   another process (Python, raw): the real-time factor and whether every message arrived.
 2. The CPU share of a scene with every system streaming in real time at 100 Hz (one instance
    each, no recording): process CPU time / wall time from the first sample to the end (start-up
    excluded; also given with it), so 1.0 is one full core.
@@ -52,6 +54,85 @@ def recording_rtf(system: str, duration: float) -> dict[str, Any]:
             "startup_s": run.startup_time, "rtf": run.sim_time / wall,
             "messages": messages, "us_per_sample": 1e6 * wall / samples,
             "split_us": {k: 1e6 * v / samples for k, v in run.costs.items()}}
+
+
+#: A live subscriber in another process: raw (no deserialisation), reliable, KEEP_ALL, one
+#: subscription per streamed topic given as JSON [[topic, type], ...]; prints "ready", then,
+#: once nothing arrived for 3 s, the count per topic as JSON.
+_SUBSCRIBER = """
+import importlib, json, sys
+from mechsim.environment import import_rclpy
+rclpy = import_rclpy()
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+rclpy.init()
+node = rclpy.create_node("live_subscriber")
+qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
+                 reliability=ReliabilityPolicy.RELIABLE)
+got = {}
+for topic, type_name in json.loads(sys.argv[1]):
+    pkg, _, name = type_name.split("/")
+    cls = getattr(importlib.import_module(f"{pkg}.msg"), name)
+    got[topic] = 0
+    def take(data, topic=topic):
+        got[topic] += 1
+    node.create_subscription(cls, topic, take, qos, raw=True)
+print("ready", flush=True)
+quiet = 0
+while quiet < 30 or not any(got.values()):
+    before = sum(got.values())
+    rclpy.spin_once(node, timeout_sec=0.1)
+    quiet = 0 if sum(got.values()) != before else quiet + 1
+print(json.dumps(got), flush=True)
+"""
+
+
+def live_subscriber_rtf(system: str, duration: float) -> dict[str, Any]:
+    """Real-time factor of a fast, lossless run (no recording) with one live subscriber per
+    streamed topic in another process, and whether every message arrived."""
+    import json as json_
+    import subprocess
+
+    from mechsim.ros.launch import run_scene
+    from mechsim.ros.outlet import streamed
+    from mechsim.scene import single_system_scene
+
+    scene = single_system_scene(system)
+    topics: list[list[str]] = []
+
+    def listed(node: Any) -> None:
+        topics[:] = [[t, ch.type_name] for t, ch in node.outlet.channels.items()
+                     if streamed(ch.qos)]
+
+    run_scene(scene, fast=True, duration=0.2, before_first_message=listed)  # warm-up
+    sub = subprocess.Popen([sys.executable, "-c", _SUBSCRIBER, json_.dumps(topics)],
+                           stdout=subprocess.PIPE, text=True)
+    try:
+        assert sub.stdout is not None
+        if sub.stdout.readline().strip() != "ready":
+            raise RuntimeError("the live subscriber did not start")
+
+        def matched(node: Any) -> None:
+            pubs = [node.outlet.channels[t].publisher for t, _ in topics]
+            end = time.monotonic() + 60
+            while not all(p.get_subscription_count() for p in pubs):
+                if time.monotonic() > end:
+                    raise RuntimeError("the live subscriber never matched")
+                time.sleep(0.01)
+
+        t0 = time.monotonic()
+        run = run_scene(scene, fast=True, duration=duration, lossless=True,
+                        before_first_message=matched)
+        wall = time.monotonic() - t0 - run.startup_time
+        received = json_.loads(sub.stdout.readline())
+    finally:
+        if sub.poll() is None:
+            sub.kill()
+        sub.wait()
+    published = {t: run.messages.get(t, 0) for t, _ in topics}
+    return {"system": system, "sim_s": run.sim_time, "wall_s": wall,
+            "rtf": run.sim_time / wall, "messages": sum(published.values()),
+            "every_message": received == published,
+            "lost": sum(published.values()) - sum(received.values())}
 
 
 STAGES = ("integrate", "evaluate", "encode", "publish", "diagnostics", "write")
@@ -144,10 +225,17 @@ def run_streaming(out: Path, systems: list[str], duration: float = 100.0,
     # CPU share of the real-time run, measured on the run alone: subtract a start-up-only
     # measurement is not possible inside run_scene, so time the run part with process CPU
     # deltas around a second, identical run whose kernels are now loaded (start-up ~0).
+    live = []
+    for s in ids:
+        row = live_subscriber_rtf(s, duration)
+        print(f"  {s:22s} live subscriber: RTF {row['rtf']:8.1f}, every message: "
+              f"{row['every_message']}", file=sys.stderr)
+        live.append(row)
     all_systems_realtime(1.0)  # warm: load every kernel once
     cpu = all_systems_realtime(realtime_duration)
     latency = first_message_latency()
-    result = {"schema": "mechsim-streaming/1", "recording": rows, "realtime_all": cpu,
+    result = {"schema": "mechsim-streaming/1", "recording": rows, "live": live,
+              "realtime_all": cpu,
               "first_message_s": latency,
               "host": {"cores": os.cpu_count(), "loadavg": os.getloadavg()}}
     (out / "streaming.json").write_text(json.dumps(result, indent=2))
@@ -166,6 +254,14 @@ def run_streaming(out: Path, systems: list[str], duration: float = 100.0,
         lines.append(f"| {r['system']} | {r['rtf']:.0f} | {r['us_per_sample']:.1f} | "
                      + " | ".join(f"{split.get(k, 0.0):.1f}" for k in STAGES)
                      + f" | {r['messages']} |")
+    lines += ["", "With one live subscriber per streamed topic in another process (rclpy, raw, "
+              "reliable, KEEP_ALL) and `--lossless` (no bag): real-time factor until every "
+              "message was acknowledged, and whether every message arrived.", "",
+              "| system | real-time factor | messages | every message arrived |",
+              "|---|---|---|---|"]
+    for r in sorted(live, key=lambda r: r["rtf"]):
+        lines.append(f"| {r['system']} | {r['rtf']:.0f} | {r['messages']} | "
+                     + ("yes" if r["every_message"] else f"no ({r['lost']} lost)") + " |")
     lines += ["", f"All {cpu['systems']} systems streaming together in real time at 100 Hz "
               f"(one process, {cpu['sim_s']:g} s): CPU share {cpu['cpu_share_run']:.2f} of one "
               f"core after start-up ({cpu['cpu_share_total']:.2f} with the "

@@ -72,7 +72,7 @@ def wait_acked(pubs: list[Any], timeout: float = 2.0) -> None:
                 pass
 
 
-def _streamed(qos: QoSProfile) -> bool:
+def streamed(qos: QoSProfile) -> bool:
     """A reliable, volatile topic (a sample stream, as opposed to latched or best effort)."""
     return (qos.reliability == ReliabilityPolicy.RELIABLE
             and qos.durability == DurabilityPolicy.VOLATILE)
@@ -112,7 +112,7 @@ class Outlet:
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         resolved = self.node.resolve_topic_name(topic)
         if resolved not in self.channels:
-            if self.lossless and _streamed(qos):
+            if self.lossless and streamed(qos):
                 qos = QoSProfile(depth=max(qos.depth, LOSSLESS_DEPTH), history=qos.history,
                                  reliability=qos.reliability, durability=qos.durability)
             pub = self.node.create_publisher(msg_type, resolved, qos)
@@ -187,7 +187,7 @@ class Outlet:
 
         for ch in channels:
             topic = ch.publisher.topic_name
-            if not _streamed(ch.qos) or topic in self._gave_up:
+            if not streamed(ch.qos) or topic in self._gave_up:
                 continue
             if not ch.publisher.wait_for_all_acked(Duration(seconds=LOSSLESS_WAIT)):
                 self._gave_up.add(topic)

@@ -279,9 +279,10 @@ class SimulatorNode(Node):
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(SetBool, "~/pause", self._on_pause)
         self._setup_effort()
+        model = self.cls(**self.values)
+        self._attitude_channels(model)
         if before_first_message is not None:
             before_first_message(self)
-        model = self.cls(**self.values)
         self._install(model, make_stepper(model, self.method, self.tolerance))
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timer = None
@@ -296,9 +297,7 @@ class SimulatorNode(Node):
         self.factory = MessageFactory(model, self.instance.name, self.instance.origin,
                                       self.time_offset)
         self.encoder = ChunkEncoder(self.factory)
-        if model.attitude is not None:  # made once, kept if a later formulation has none
-            self.t_pose = self.outlet.channel("pose", PoseStamped, STATE_QOS)
-            self.t_twist = self.outlet.channel("twist", TwistStamped, STATE_QOS)
+        self._attitude_channels(model)
         self.p = model.parameter_vector()
         self._shape = OutputShape.of(model)
         self._dynamic_frames = any(not fr.static for fr in model.frames)
@@ -310,6 +309,13 @@ class SimulatorNode(Node):
         self._effort_reset(new_epoch=True)
         self._publish_static()
         self._emit(np.zeros(1), stepper.y.copy()[None, :])
+
+    def _attitude_channels(self, model: Model) -> None:
+        """pose and twist for a model with an attitude (made once, kept if a later
+        formulation has none)."""
+        if model.attitude is not None:
+            self.t_pose = self.outlet.channel("pose", PoseStamped, STATE_QOS)
+            self.t_twist = self.outlet.channel("twist", TwistStamped, STATE_QOS)
 
     def _set_constraints(self) -> None:
         """Indices (among the invariants) of the residuals the stepper enforces: the
