@@ -233,6 +233,19 @@ def column_rows(values: EnergyColumns | dict[str, np.ndarray], rows: slice
     return values.rows(rows)
 
 
+def joined_columns(parts: list[EnergyColumns | dict[str, np.ndarray]]
+                   ) -> EnergyColumns | dict[str, np.ndarray]:
+    """Consecutive pieces of a chunk's evaluated values as one (see ``column_rows``)."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    if isinstance(first, dict):
+        return {k: np.concatenate([p[k] for p in parts]) for k in first}  # type: ignore[index]
+    return EnergyColumns(*(np.concatenate([getattr(p, f) for p in parts])
+                           for f in ("kinetic", "potential", "total", "energy_function",
+                                     "work_external", "work_dissipated")))
+
+
 class ChunkEncoder:
     """The CDR payloads of a chunk, per topic, as :class:`MessageFactory` would fill the
     messages (see ``mechsim.outputs.cdr``): the layouts are made once from the factory's own

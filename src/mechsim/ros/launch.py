@@ -106,22 +106,30 @@ class DiagnosticsFeed:
         self.pending.append((base, leaf, ns, values))
 
     def deliver(self, until_ns: int | None = None) -> None:
-        """Feed the held samples stamped ``until_ns`` or earlier (all without it)."""
-        keep = []
+        """Feed the held samples stamped ``until_ns`` or earlier (all without it). Pieces of
+        a stream whose stamps go on increasing are joined first (a paced run hands them over
+        a sample or two at a time); a new epoch (a stamp not later) starts a new piece."""
+        from mechsim.outputs.messages import column_rows, joined_columns
+
+        runs: list[tuple[str, str, list[Any], list[Any]]] = []
+        last: dict[tuple[str, str], tuple[str, str, list[Any], list[Any]]] = {}
         for base, leaf, ns, values in self.pending:
+            run = last.get((base, leaf))
+            if run is None or ns[0] <= run[2][-1][-1]:
+                run = last[base, leaf] = (base, leaf, [], [])
+                runs.append(run)
+            run[2].append(ns)
+            run[3].append(values)
+        keep = []
+        for base, leaf, pieces, parts in runs:
+            ns = np.concatenate(pieces) if len(pieces) > 1 else pieces[0]
+            values = joined_columns(parts)
             n = len(ns) if until_ns is None else int(np.searchsorted(ns, until_ns, "right"))
             if n:
-                self.diag.feed_chunk(base, leaf, ns[:n], _rows(values, slice(0, n)))
+                self.diag.feed_chunk(base, leaf, ns[:n], column_rows(values, slice(0, n)))
             if n < len(ns):
-                keep.append((base, leaf, ns[n:], _rows(values, slice(n, None))))
+                keep.append((base, leaf, ns[n:], column_rows(values, slice(n, None))))
         self.pending = keep
-
-
-def _rows(values: Any, rows: slice) -> Any:
-    """Rows of a chunk's values (a mapping name -> array, or EnergyColumns)."""
-    if isinstance(values, dict):
-        return {k: v[rows] for k, v in values.items()}
-    return values.rows(rows)
 
 
 # --- graph hygiene ------------------------------------------------------------------------
