@@ -117,24 +117,42 @@ class LawState:
 def track(laws: list[LawState], values: np.ndarray) -> None:
     """Take consecutive samples of one epoch for several laws at once: row i of ``values``
     (laws × samples, float) holds law i's values; each finite one drifts from its law's first
-    finite value of the epoch. Vectorised over the laws and the samples, one ``Law.drift`` per
-    law; a non-finite sample is counted, never taken as the initial value or a drift."""
+    finite value of the epoch. Vectorised over the laws and the samples; a non-finite sample
+    is counted, never taken as the initial value or a drift."""
     m = values.shape[1]
     finite = np.isfinite(values)
     all_finite = bool(finite.all())
     drifts = np.empty_like(values)
-    if all_finite:
-        first = values[:, 0].tolist()
-    else:
-        present = finite.any(axis=1).tolist()
-        first = values[np.arange(len(laws)), finite.argmax(axis=1)].tolist()
+    if any(law.initial is None for law in laws):
+        if all_finite:
+            first = values[:, 0].tolist()
+            present = [True] * len(laws)
+        else:
+            present = finite.any(axis=1).tolist()
+            first = values[np.arange(len(laws)), finite.argmax(axis=1)].tolist()
+        for i, law in enumerate(laws):
+            if law.initial is None and present[i]:
+                law.initial = first[i]
+    # Law.drift depends on the law only through is_constraint (a residual has no initial
+    # value): one call per such group, on its rows, initial values and scales as columns.
+    groups: dict[bool, list[int]] = {}
     for i, law in enumerate(laws):
-        if law.initial is None and (all_finite or present[i]):
-            law.initial = first[i]
         if law.initial is None:
             drifts[i] = -math.inf  # no finite value yet: no drift to take
         else:
-            drifts[i] = law.law.drift(values[i], law.initial, law.scale)
+            groups.setdefault(law.law.is_constraint, []).append(i)
+    for rows in groups.values():
+        law = laws[rows[0]].law
+        if len(rows) == 1:
+            i = rows[0]
+            drifts[i] = law.drift(values[i], laws[i].initial, laws[i].scale)
+            continue
+        initial = np.array([[laws[i].initial] for i in rows])
+        scale = np.array([[laws[i].scale] for i in rows])
+        if len(rows) == len(laws):
+            drifts[:] = law.drift(values, initial, scale)
+        else:
+            drifts[rows] = law.drift(values[rows], initial, scale)
     if all_finite:
         worst = drifts.max(axis=1).tolist()
         last_finite = [True] * len(laws)
@@ -396,7 +414,11 @@ class DiagnosticsNode(Node):
         st.stamps[stream] = last
         if stream == "energy":
             st.last_stamp = last
-        starts = (np.flatnonzero(stamps[1:] <= stamps[:-1]) + 1).tolist() if n > 1 else []
+        starts = []
+        if n > 1:
+            back = stamps[1:] <= stamps[:-1]
+            if back.any():
+                starts = (np.flatnonzero(back) + 1).tolist()
         if previous is not None and int(stamps[0]) <= previous:
             starts.insert(0, 0)
         laws = st.streams.get(stream, [])
@@ -410,9 +432,7 @@ class DiagnosticsNode(Node):
             else:
                 continue
             taken.append(law)
-        matrix = np.empty((len(rows), n))
-        for i, row in enumerate(rows):
-            matrix[i] = row
+        matrix = np.array(rows, dtype=float).reshape(len(rows), n)
         edges = starts if starts and starts[0] == 0 else [0, *starts]
         for a, b in zip(edges, [*edges[1:], n], strict=True):
             if a in starts:
@@ -474,21 +494,20 @@ class DiagnosticsNode(Node):
                             f"max {law.max_drift:.3g}")
                     if law.nonfinite:
                         text += f", {law.nonfinite} non-finite sample(s)"
-                label = key.replace(":", "/")
+                info = st.info
                 out.append({
-                    "level": level, "name": f"mechsim/{st.name}/{label}", "message": text,
-                    "hardware_id": st.name, "values": [
-                        {"key": k, "value": v} for k, v in (
-                            ("drift", f"{law.drift:.6e}"),
-                            ("max_drift", f"{law.max_drift:.6e}"),
-                            ("initial", f"{law.initial!r}"),
-                            ("current", f"{law.current!r}"),
-                            ("scale", f"{law.scale!r}"),
-                            ("samples", str(law.samples)),
-                            ("nonfinite", str(law.nonfinite)),
-                            ("epoch", str(st.epoch)),
-                            ("system", st.info.system),
-                            ("integrator", st.info.integrator))]})
+                    "level": level, "name": f"mechsim/{st.name}/{key.replace(':', '/')}",
+                    "message": text, "hardware_id": st.name, "values": [
+                        {"key": "drift", "value": f"{law.drift:.6e}"},
+                        {"key": "max_drift", "value": f"{law.max_drift:.6e}"},
+                        {"key": "initial", "value": f"{law.initial!r}"},
+                        {"key": "current", "value": f"{law.current!r}"},
+                        {"key": "scale", "value": f"{law.scale!r}"},
+                        {"key": "samples", "value": str(law.samples)},
+                        {"key": "nonfinite", "value": str(law.nonfinite)},
+                        {"key": "epoch", "value": str(st.epoch)},
+                        {"key": "system", "value": info.system},
+                        {"key": "integrator", "value": info.integrator}]})
         return out
 
     def statuses(self) -> list[DiagnosticStatus]:
