@@ -109,27 +109,68 @@ class LawState:
     def update(self, values: Any) -> None:
         """Take the law's values of consecutive samples of one epoch (a float or an array):
         the drift of each finite one from the epoch's first finite value."""
-        v = np.asarray(values, dtype=float).reshape(-1)
-        if v.size == 0:
-            return
-        self.samples += v.size
-        self.current = float(v[-1])
-        finite = np.isfinite(v)
-        if finite.all():
-            ok = v
-            self.finite_now = True
+        v = np.asarray(values, dtype=float).reshape(1, -1)
+        if v.size:
+            track([self], v)
+
+
+def track(laws: list[LawState], values: np.ndarray) -> None:
+    """Take consecutive samples of one epoch for several laws at once: row i of ``values``
+    (laws × samples, float) holds law i's values; each finite one drifts from its law's first
+    finite value of the epoch. Vectorised over the laws and the samples; a non-finite sample
+    is counted, never taken as the initial value or a drift."""
+    m = values.shape[1]
+    finite = np.isfinite(values)
+    all_finite = bool(finite.all())
+    drifts = np.empty_like(values)
+    if any(law.initial is None for law in laws):
+        if all_finite:
+            first = values[:, 0].tolist()
+            present = [True] * len(laws)
         else:
-            ok = v[finite]
-            self.nonfinite += int(v.size - ok.size)
-            self.finite_now = bool(finite[-1])
-        self.drift = math.inf
-        if ok.size:
-            if self.initial is None:
-                self.initial = float(ok[0])
-            drifts = self.law.drift(ok, self.initial, self.scale)
-            self.max_drift = max(self.max_drift, float(drifts.max()))
-            if self.finite_now:
-                self.drift = float(drifts[-1])
+            present = finite.any(axis=1).tolist()
+            first = values[np.arange(len(laws)), finite.argmax(axis=1)].tolist()
+        for i, law in enumerate(laws):
+            if law.initial is None and present[i]:
+                law.initial = first[i]
+    # Law.drift depends on the law only through is_constraint (a residual has no initial
+    # value): one call per such group, on its rows, initial values and scales as columns.
+    groups: dict[bool, list[int]] = {}
+    for i, law in enumerate(laws):
+        if law.initial is None:
+            drifts[i] = -math.inf  # no finite value yet: no drift to take
+        else:
+            groups.setdefault(law.law.is_constraint, []).append(i)
+    for rows in groups.values():
+        law = laws[rows[0]].law
+        if len(rows) == 1:
+            i = rows[0]
+            drifts[i] = law.drift(values[i], laws[i].initial, laws[i].scale)
+            continue
+        initial = np.array([[laws[i].initial] for i in rows])
+        scale = np.array([[laws[i].scale] for i in rows])
+        if len(rows) == len(laws):
+            drifts[:] = law.drift(values, initial, scale)
+        else:
+            drifts[rows] = law.drift(values[rows], initial, scale)
+    if all_finite:
+        worst = drifts.max(axis=1).tolist()
+        last_finite = [True] * len(laws)
+        nonfinite = [0] * len(laws)
+    else:
+        worst = np.where(finite, drifts, -math.inf).max(axis=1).tolist()
+        last_finite = finite[:, -1].tolist()
+        nonfinite = (m - finite.sum(axis=1)).tolist()
+    last = drifts[:, -1].tolist()
+    current = values[:, -1].tolist()
+    for i, law in enumerate(laws):
+        law.samples += m
+        law.current = current[i]
+        law.finite_now = last_finite[i]
+        law.nonfinite += nonfinite[i]
+        law.drift = last[i] if last_finite[i] else math.inf
+        if worst[i] > -math.inf:  # some sample was finite
+            law.max_drift = max(law.max_drift, worst[i])
 
 
 @dataclass
@@ -143,6 +184,8 @@ class SystemState:
     #: Per stream: the publisher it belongs to (absent: not heard yet) and its last stamp.
     publishers: dict[str, bytes] = field(default_factory=dict)
     stamps: dict[str, int] = field(default_factory=dict)
+    #: The laws of each stream ("energy", "invariants"), in the order of ``laws``.
+    streams: dict[str, list[LawState]] = field(default_factory=dict)
 
 
 @dataclass
@@ -365,29 +408,39 @@ class DiagnosticsNode(Node):
         """Samples of one stream, in the order they were sent (one message, or a chunk):
         ``values`` as :meth:`feed_chunk` takes them (or an Energy message). A stamp not later
         than the one before it starts a new epoch there."""
+        n = len(stamps)
         previous = st.stamps.get(stream)
-        st.stamps[stream] = int(stamps[-1])
-        laws = [law for law in st.laws.values() if law.law.stream == stream]
-        before = np.concatenate([[stamps[0] - 1 if previous is None else previous],
-                                 stamps[:-1]])
-        starts = np.flatnonzero(stamps <= before)  # a new epoch starts at each
+        last = int(stamps[-1])
+        st.stamps[stream] = last
         if stream == "energy":
-            st.last_stamp = int(stamps[-1])
-        columns = {}
+            st.last_stamp = last
+        starts = []
+        if n > 1:
+            back = stamps[1:] <= stamps[:-1]
+            if back.any():
+                starts = (np.flatnonzero(back) + 1).tolist()
+        if previous is not None and int(stamps[0]) <= previous:
+            starts.insert(0, 0)
+        laws = st.streams.get(stream, [])
+        taken: list[LawState] = []
+        rows = []
         for law in laws:
             if stream == "energy":
-                columns[law.key] = np.atleast_1d(law.law.value(energy=values))
+                rows.append(law.law.value(energy=values))
             elif law.law.name in values:
-                columns[law.key] = np.atleast_1d(np.asarray(law.law.value(invariants=values)))
-        bounds = sorted({0, *starts.tolist(), len(stamps)})
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+                rows.append(law.law.value(invariants=values))
+            else:
+                continue
+            taken.append(law)
+        matrix = np.array(rows, dtype=float).reshape(len(rows), n)
+        edges = starts if starts and starts[0] == 0 else [0, *starts]
+        for a, b in zip(edges, [*edges[1:], n], strict=True):
             if a in starts:
                 st.epoch += 1
                 for law in laws:
                     law.rebase()
-            for law in laws:
-                if law.key in columns and b > a:
-                    law.update(columns[law.key][a:b])
+            if taken and b > a:
+                track(taken, matrix[:, a:b])
 
     def _set_laws(self, st: SystemState, info: SystemInfo) -> None:
         """Adopt the laws and scales of ``info``; laws that go on keep their epoch."""
@@ -403,26 +456,35 @@ class DiagnosticsNode(Node):
             state.scale = scale
             laws[law.key] = state
         st.laws = laws
+        st.streams = {}
+        for state in laws.values():
+            st.streams.setdefault(state.law.stream, []).append(state)
 
     # --- output -------------------------------------------------------------------------------
-    def level(self, law: LawState, stale: bool) -> int:
+    def _thresholds(self) -> tuple[float, float]:
+        return self._param("warn_drift"), self._param("error_drift")
+
+    def level(self, law: LawState, stale: bool,
+              thresholds: tuple[float, float] | None = None) -> int:
+        """0 OK, 1 WARN, 2 ERROR, 3 STALE; ``thresholds``: (warn, error) drifts, read from
+        the parameters when not given."""
         if law.samples == 0 or stale:
             return 3
         if not law.finite_now:
             return 2
-        return law.law.level(law.max_drift, self._param("warn_drift"),
-                             self._param("error_drift"))
+        return law.law.level(law.max_drift, *(thresholds or self._thresholds()))
 
     def status_fields(self) -> list[dict[str, Any]]:
         """The report: one DiagnosticStatus per law per system, as nested dicts (the fields
         of diagnostic_msgs/DiagnosticStatus; encoded without building rclpy messages)."""
         out = []
         timeout = self._param("stale_timeout")
+        thresholds = self._thresholds()
         now = time.monotonic()
         for st in self.systems.values():
             stale = now - st.last_seen > timeout
             for key, law in st.laws.items():
-                level = self.level(law, stale)
+                level = self.level(law, stale, thresholds)
                 if law.samples == 0:
                     text = "no samples yet"
                 elif stale:
@@ -432,21 +494,20 @@ class DiagnosticsNode(Node):
                             f"max {law.max_drift:.3g}")
                     if law.nonfinite:
                         text += f", {law.nonfinite} non-finite sample(s)"
-                label = key.replace(":", "/")
+                info = st.info
                 out.append({
-                    "level": level, "name": f"mechsim/{st.name}/{label}", "message": text,
-                    "hardware_id": st.name, "values": [
-                        {"key": k, "value": v} for k, v in (
-                            ("drift", f"{law.drift:.6e}"),
-                            ("max_drift", f"{law.max_drift:.6e}"),
-                            ("initial", f"{law.initial!r}"),
-                            ("current", f"{law.current!r}"),
-                            ("scale", f"{law.scale!r}"),
-                            ("samples", str(law.samples)),
-                            ("nonfinite", str(law.nonfinite)),
-                            ("epoch", str(st.epoch)),
-                            ("system", st.info.system),
-                            ("integrator", st.info.integrator))]})
+                    "level": level, "name": f"mechsim/{st.name}/{key.replace(':', '/')}",
+                    "message": text, "hardware_id": st.name, "values": [
+                        {"key": "drift", "value": f"{law.drift:.6e}"},
+                        {"key": "max_drift", "value": f"{law.max_drift:.6e}"},
+                        {"key": "initial", "value": f"{law.initial!r}"},
+                        {"key": "current", "value": f"{law.current!r}"},
+                        {"key": "scale", "value": f"{law.scale!r}"},
+                        {"key": "samples", "value": str(law.samples)},
+                        {"key": "nonfinite", "value": str(law.nonfinite)},
+                        {"key": "epoch", "value": str(st.epoch)},
+                        {"key": "system", "value": info.system},
+                        {"key": "integrator", "value": info.integrator}]})
         return out
 
     def statuses(self) -> list[DiagnosticStatus]:
@@ -472,7 +533,8 @@ class DiagnosticsNode(Node):
     def summary(self) -> list[tuple[str, str, float, int]]:
         """(system, law, worst relative drift of the epoch, level) for every law, for tables."""
         rows = []
+        thresholds = self._thresholds()
         for st in self.systems.values():
             for key, law in st.laws.items():
-                rows.append((st.name, key, law.worst, self.level(law, False)))
+                rows.append((st.name, key, law.worst, self.level(law, False, thresholds)))
         return rows

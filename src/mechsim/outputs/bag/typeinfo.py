@@ -27,6 +27,7 @@ import os
 import struct
 import sys
 import threading
+from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -232,55 +233,122 @@ def _plan(type_name: str) -> tuple[tuple[str, Any], ...]:
     return message(type_name, 0)
 
 
-def _put(buf: bytearray, op: Any, v: Any) -> None:
-    """Append ``v`` encoded by ``op`` (see :func:`_plan`) to ``buf``, aligned, padding zero."""
-    if op is _STR:
-        data = str(v).encode()
-        extra = -(len(buf) - 4) % 4
-        if extra:
-            buf += bytes(extra)
-        buf += U32.pack(len(data) + 1)
-        buf += data
-        buf += b"\x00"
-    elif isinstance(op, struct.Struct):
-        extra = -(len(buf) - 4) % op.size
-        if extra:
-            buf += bytes(extra)
-        if isinstance(v, (bytes, bytearray)):
-            v = v[0]
-        try:
-            buf += op.pack(v)
-        except (struct.error, TypeError):  # a numpy scalar
-            buf += op.pack(np.asarray(v).item())
-    elif op[0] == "msg":
-        if op[2]:  # builtin_interfaces/Time: 4-aligned
-            extra = -(len(buf) - 4) % 4
-            if extra:
-                buf += bytes(extra)
-        get = v.__getitem__ if isinstance(v, dict) else v.__getattribute__
-        for name, sub in op[1]:
-            _put(buf, sub, get(name))
-    else:
-        items = list(v)
-        if op[0] == "seq":
-            extra = -(len(buf) - 4) % 4
-            if extra:
-                buf += bytes(extra)
-            buf += U32.pack(len(items))
-        elif len(items) != op[1]:
-            raise MechsimError(f"{len(items)} elements, the array has {op[1]}")
-        sub = op[-1]
-        for item in items:
-            _put(buf, sub, item)
+#: Encoded strings (length, bytes, NUL) by value: names, keys and labels recur from message
+#: to message. Short strings only, and emptied when full, so it stays within a few MB.
+_STRINGS: dict[str, bytes] = {}
+_STRINGS_MAX = 4096
+_STRING_MEMO_LENGTH = 256
+
+
+def _string(v: Any) -> bytes:
+    """A CDR string (uint32 length with the NUL, the UTF-8 bytes, NUL), remembered in
+    ``_STRINGS`` if it is a short ``str``."""
+    data = str(v).encode()
+    out = U32.pack(len(data) + 1) + data + b"\x00"
+    if v.__class__ is str and len(v) <= _STRING_MEMO_LENGTH:
+        if len(_STRINGS) >= _STRINGS_MAX:
+            _STRINGS.clear()
+        _STRINGS[v] = out
+    return out
+
+
+def _struct_value(op: struct.Struct, v: Any) -> bytes:
+    """``v`` packed by ``op`` (a byte field's ``bytes`` value is its first byte; a value
+    ``struct`` refuses, such as some numpy scalars, goes through numpy)."""
+    if isinstance(v, (bytes, bytearray)):
+        v = v[0]
+    try:
+        return op.pack(v)
+    except (struct.error, TypeError):
+        return op.pack(np.asarray(v).item())
+
+
+def _struct_run(op: struct.Struct, items: list[Any]) -> bytes:
+    """The elements of an array or sequence of one primitive type, back to back."""
+    try:
+        return struct.pack(f"<{len(items)}{op.format[-1]}", *items)
+    except (struct.error, TypeError):  # bytes elements, numpy scalars: one at a time
+        return b"".join(_struct_value(op, v) for v in items)
+
+
+def _array_length(items: list[Any], length: int) -> list[Any]:
+    if len(items) != length:
+        raise MechsimError(f"{len(items)} elements, the array has {length}")
+    return items
+
+
+@cache
+def _encoder(type_name: str) -> Callable[[bytearray, Any], None]:
+    """A function appending one message of ``type_name`` (an rclpy message, or nested dicts
+    and lists) to a buffer that starts with the 4-byte encapsulation header: Python source
+    generated once from :func:`_plan`, every field inline (no call or dispatch per field).
+    Alignment counts from the end of the header; padding bytes are zero."""
+    names: dict[str, Any] = {
+        "_strings": _STRINGS, "_string": _string, "_U32": U32.pack,
+        "_Z": [bytes(k) for k in range(8)], "_isdict": dict, "_error": struct.error,
+        "_struct_value": _struct_value, "_struct_run": _struct_run,
+        "_array_length": _array_length}
+    lines: list[str] = []
+    count = iter(range(1_000_000))
+
+    def pad(size: int, indent: str) -> None:
+        if size > 1:
+            lines.append(f"{indent}buf += _Z[(4 - len(buf)) & {size - 1}]")
+
+    def emit(op: Any, expr: str, indent: str) -> None:
+        k = next(count)
+        if op is _STR:
+            pad(4, indent)
+            lines.append(f"{indent}v{k} = {expr}")
+            lines.append(f"{indent}buf += (_strings.get(v{k}) or _string(v{k})) "
+                         f"if v{k}.__class__ is str else _string(v{k})")
+        elif isinstance(op, struct.Struct):
+            names[f"_s{k}"] = op
+            names[f"_pack{k}"] = op.pack
+            pad(op.size, indent)
+            lines.append(f"{indent}v{k} = {expr}")
+            lines.append(f"{indent}try:")
+            lines.append(f"{indent} buf += _pack{k}(v{k})")
+            lines.append(f"{indent}except (_error, TypeError):")
+            lines.append(f"{indent} buf += _struct_value(_s{k}, v{k})")
+        elif op[0] == "msg":
+            if op[2]:  # builtin_interfaces/Time: 4-aligned
+                pad(4, indent)
+            lines.append(f"{indent}m{k} = {expr}")
+            lines.append(f"{indent}g{k} = m{k}.__getitem__ if isinstance(m{k}, _isdict) "
+                         f"else m{k}.__getattribute__")
+            for name, sub in op[1]:
+                emit(sub, f"g{k}({name!r})", indent)
+        else:
+            sub = op[-1]
+            items = f"list({expr})"
+            if op[0] == "seq":
+                lines.append(f"{indent}items{k} = {items}")
+                pad(4, indent)
+                lines.append(f"{indent}buf += _U32(len(items{k}))")
+            else:
+                lines.append(f"{indent}items{k} = _array_length({items}, {int(op[1])})")
+            if isinstance(sub, struct.Struct):
+                names[f"_s{k}"] = sub
+                lines.append(f"{indent}if items{k}:")
+                pad(sub.size, indent + " ")
+                lines.append(f"{indent} buf += _struct_run(_s{k}, items{k})")
+            else:
+                lines.append(f"{indent}for x{k} in items{k}:")
+                emit(sub, f"x{k}", indent + " ")
+
+    pkg, typ = split_type(type_name)
+    emit(("msg", _plan(f"{pkg}/msg/{typ}"), False), "value", " ")
+    exec("def encode(buf, value):\n" + "\n".join(lines), names)  # noqa: S102 - our source
+    return names["encode"]  # type: ignore[no-any-return]
 
 
 def encode_message(type_name: str, value: Any) -> bytes:
     """The CDR payload (with the encapsulation header, padding zero) of one message of
     ``type_name`` (an rclpy message, or nested dicts and lists): the path for single
     messages (:func:`cdr_bytes`); same rules as ``mechsim.outputs.cdr.Layout``."""
-    pkg, typ = split_type(type_name)
     buf = bytearray(HEADER)
-    _put(buf, ("msg", _plan(f"{pkg}/msg/{typ}"), False), value)
+    _encoder(type_name)(buf, value)
     return bytes(buf)
 
 
