@@ -164,6 +164,15 @@ class MessageFactory:
             out.append(t)
         return out
 
+    def transform_columns(self, frames: np.ndarray) -> TransformColumns:
+        """The /tf transforms of a chunk (``frames``: (samples, frames, 7) as the model
+        computes them)."""
+        dynamic = [spec for spec in self.model.frames if not spec.static]
+        keep = [k for k, spec in enumerate(self.model.frames) if not spec.static]
+        return TransformColumns([self.frame_id(f.parent) for f in dynamic],
+                                [self.frame_id(f.child) for f in dynamic],
+                                self.placed(frames)[:, keep, :])
+
     def tf(self, s: Sample, ns: int) -> TFMessage:
         assert s.frames is not None
         return TFMessage(transforms=self.transforms(s.frames, ns, static=False))
@@ -225,22 +234,41 @@ class EnergyColumns:
                              self.work_dissipated[rows])
 
 
-def column_rows(values: EnergyColumns | dict[str, np.ndarray], rows: slice
-                ) -> EnergyColumns | dict[str, np.ndarray]:
-    """Rows of a chunk's evaluated values (``EnergyColumns``, or name -> array)."""
+@dataclass
+class TransformColumns:
+    """The /tf transforms of a chunk: frame ids as in the messages, and ``values[i, k]`` =
+    (x, y, z, qx, qy, qz, qw) of transform k at sample i, as published (placed)."""
+
+    parents: list[str]
+    children: list[str]
+    values: np.ndarray  # (N, transforms, 7)
+
+    def rows(self, rows: slice) -> TransformColumns:
+        return TransformColumns(self.parents, self.children, self.values[rows])
+
+
+#: What a sink's ``write_columns`` gets per topic: Energy fields (``EnergyColumns``), /tf
+#: (``TransformColumns``), or name -> values for JointState positions and NamedScalars.
+Columns = EnergyColumns | TransformColumns | dict[str, np.ndarray]
+
+
+def column_rows(values: Columns, rows: slice) -> Columns:
+    """Rows of a chunk's evaluated values."""
     if isinstance(values, dict):
         return {k: v[rows] for k, v in values.items()}
     return values.rows(rows)
 
 
-def joined_columns(parts: list[EnergyColumns | dict[str, np.ndarray]]
-                   ) -> EnergyColumns | dict[str, np.ndarray]:
+def joined_columns(parts: list[Columns]) -> Columns:
     """Consecutive pieces of a chunk's evaluated values as one (see ``column_rows``)."""
     if len(parts) == 1:
         return parts[0]
     first = parts[0]
     if isinstance(first, dict):
         return {k: np.concatenate([p[k] for p in parts]) for k in first}  # type: ignore[index]
+    if isinstance(first, TransformColumns):
+        return TransformColumns(first.parents, first.children,
+                                np.concatenate([p.values for p in parts]))  # type: ignore[union-attr]
     return EnergyColumns(*(np.concatenate([getattr(p, f) for p in parts])
                            for f in ("kinetic", "potential", "total", "energy_function",
                                      "work_external", "work_dissipated")))

@@ -13,7 +13,9 @@ class Sink(Protocol):
     recorder). Outputs nobody wants are not computed. Optional faster paths (see
     ``mechsim.ros.outlet.Outlet``), used instead of ``write`` where a sink has them:
     ``write_chunk(ns, [(topic, type_name, qos, rows)])`` a chunk of samples as CDR rows,
-    ``write_columns(topic, ns, values)`` a chunk's evaluated values (energy, invariants),
+    ``write_columns(topic, ns, values)`` a chunk's evaluated values, for the topics that
+    have them (``mechsim.outputs.messages.Columns``: state positions, energy, invariants,
+    observables, /tf), messages for the others,
     ``write_bytes(topic, type_name, qos, ns, data)`` one message already encoded,
     ``write_serialized(topic, type_name, msg, qos, ns, data)`` a message with its bytes."""
 

@@ -439,6 +439,13 @@ class SimulatorNode(Node):
             if c.invariants is not None:
                 columns[self.t_inv] = {name: c.invariants[:, j]
                                        for j, name in enumerate(self._shape.invariants)}
+            if c.observables is not None:
+                columns[self.t_obs] = {name: c.observables[:, j]
+                                       for j, name in enumerate(f.observable_names)}
+            if c.frames is not None:
+                columns[self.t_tf] = f.transform_columns(c.frames)
+            if f.joints:
+                columns[self.t_state] = {f.coordinate_names[j]: c.q[:, j] for j in f.joints}
             if self.publish_clock:
                 topics.append((self.t_clock, enc.encode("clock", c),
                                lambda i: messages.clock(int(ns[i]))))
