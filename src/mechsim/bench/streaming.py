@@ -11,8 +11,8 @@
    The same without the bag, ``--lossless``, with one live subscriber per streamed topic in
    another process (Python, raw): the real-time factor and whether every message arrived.
 2. The CPU share of a scene with every system streaming in real time at 100 Hz (one instance
-   each, no recording): process CPU time / wall time from the first sample to the end (start-up
-   excluded; also given with it), so 1.0 is one full core.
+   each), without and with a bag and a Rerun recording: process CPU time / wall time from the
+   first sample to the end (start-up excluded; also given with it), so 1.0 is one full core.
 3. Start-up: wall time from launching ``mechsim run pendulum`` in a new process to the first
    ``/pendulum/state`` message arriving in this process (warm kernel cache), median of 3.
 
@@ -86,6 +86,10 @@ print(json.dumps(got), flush=True)
 """
 
 
+#: Simulated seconds of a live-subscriber run (at most; the rate is far below a recording's).
+LIVE_DURATION = 200.0
+
+
 def live_subscriber_rtf(system: str, duration: float) -> dict[str, Any]:
     """Real-time factor of a fast, lossless run (no recording) with one live subscriber per
     streamed topic in another process, and whether every message arrived."""
@@ -142,8 +146,10 @@ def _split(split: dict[str, float]) -> str:
     return " ".join(f"{k} {split.get(k, 0.0):.1f}" for k in STAGES)
 
 
-def all_systems_realtime(duration: float) -> dict[str, Any]:
-    from mechsim.ros.launch import run_scene
+def all_systems_realtime(duration: float, record: bool = False) -> dict[str, Any]:
+    """CPU share of every system streaming in real time at 100 Hz in one process (``record``:
+    also writing a bag and a Rerun recording)."""
+    from mechsim.ros.record import run_with_outputs
     from mechsim.scene import parse_scene
     from mechsim.systems import system_ids
 
@@ -159,14 +165,18 @@ def all_systems_realtime(duration: float) -> dict[str, Any]:
         # marks[1] is the latest.
         marks[1:] = [(_cpu(), time.monotonic())]
 
-    cpu0, wall0 = _cpu(), time.monotonic()
-    run = run_scene(scene, duration=duration, progress=progress)
-    cpu1, wall1 = _cpu(), time.monotonic()
+    with tempfile.TemporaryDirectory() as tmp:
+        cpu0, wall0 = _cpu(), time.monotonic()
+        run, _ = run_with_outputs(scene, fast=False, duration=duration,
+                                  bag=os.path.join(tmp, "bag") if record else None,
+                                  rrd=os.path.join(tmp, "run.rrd") if record else None,
+                                  progress=progress)
+        cpu1, wall1 = _cpu(), time.monotonic()
     (c0, w0), (c1, w1) = marks[0], marks[-1]
     return {"systems": len(ids), "sim_s": run.sim_time, "wall_s": run.wall_time,
             "startup_s": run.startup_time, "cpu_s_total": cpu1 - cpu0,
             "cpu_share_total": (cpu1 - cpu0) / (wall1 - wall0),
-            "cpu_share_run": (c1 - c0) / max(w1 - w0, 1e-9),
+            "cpu_share_run": (c1 - c0) / max(w1 - w0, 1e-9), "recording": record,
             "samples": sum(run.samples.values()), "failures": run.failures}
 
 
@@ -210,7 +220,7 @@ def first_message_latency(repeats: int = 3) -> list[float]:
     return out
 
 
-def run_streaming(out: Path, systems: list[str], duration: float = 100.0,
+def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
                   realtime_duration: float = 10.0) -> dict[str, Any]:
     from mechsim.systems import system_ids
 
@@ -227,15 +237,16 @@ def run_streaming(out: Path, systems: list[str], duration: float = 100.0,
     # deltas around a second, identical run whose kernels are now loaded (start-up ~0).
     live = []
     for s in ids:
-        row = live_subscriber_rtf(s, duration)
+        row = live_subscriber_rtf(s, min(duration, LIVE_DURATION))
         print(f"  {s:22s} live subscriber: RTF {row['rtf']:8.1f}, every message: "
               f"{row['every_message']}", file=sys.stderr)
         live.append(row)
     all_systems_realtime(1.0)  # warm: load every kernel once
     cpu = all_systems_realtime(realtime_duration)
+    cpu_rec = all_systems_realtime(realtime_duration, record=True)
     latency = first_message_latency()
     result = {"schema": "mechsim-streaming/1", "recording": rows, "live": live,
-              "realtime_all": cpu,
+              "realtime_all": cpu, "realtime_all_recording": cpu_rec,
               "first_message_s": latency,
               "host": {"cores": os.cpu_count(), "loadavg": os.getloadavg()}}
     (out / "streaming.json").write_text(json.dumps(result, indent=2))
@@ -265,7 +276,8 @@ def run_streaming(out: Path, systems: list[str], duration: float = 100.0,
     lines += ["", f"All {cpu['systems']} systems streaming together in real time at 100 Hz "
               f"(one process, {cpu['sim_s']:g} s): CPU share {cpu['cpu_share_run']:.2f} of one "
               f"core after start-up ({cpu['cpu_share_total']:.2f} with the "
-              f"{cpu['startup_s']:.2f} s start-up), {cpu['samples']} samples.", "",
+              f"{cpu['startup_s']:.2f} s start-up), {cpu['samples']} samples; with a bag "
+              f"and a Rerun recording: {cpu_rec['cpu_share_run']:.2f} of one core.", "",
               "Start-up: launch of `mechsim run pendulum` in a new process to its first "
               "/pendulum/state message here (warm kernel cache): "
               + ", ".join(f"{x:.2f} s" for x in latency) + "."]

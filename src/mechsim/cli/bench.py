@@ -55,7 +55,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
     if a.streaming:
         from mechsim.bench.streaming import run_streaming
 
-        run_streaming(out, list(a.systems), duration=a.duration or 100.0)
+        run_streaming(out, list(a.systems), duration=a.duration or 1000.0)
         return 0
     if a.scene:
         if a.systems:
