@@ -14,7 +14,8 @@
    each), without and with a bag and a Rerun recording: process CPU time / wall time from the
    first sample to the end (start-up excluded; also given with it), so 1.0 is one full core.
 3. Start-up: wall time from launching ``mechsim run pendulum`` in a new process to the first
-   ``/pendulum/state`` message arriving in this process (warm kernel cache), median of 3.
+   ``/clock`` message arriving in this process (warm kernel cache), 3 runs; and for a few
+   systems the first run with the model not derived yet against the two after it.
 
 Writes ``streaming.json`` and ``streaming.md``; every figure is measured in the run.
 """
@@ -180,16 +181,47 @@ def all_systems_realtime(duration: float, record: bool = False) -> dict[str, Any
             "samples": sum(run.samples.values()), "failures": run.failures}
 
 
-def first_message_latency(repeats: int = 3) -> list[float]:
+def _first_message(executor: Any, got: list[float], system: str,
+                   env: dict[str, str] | None = None) -> float | None:
+    """Seconds from launching ``mechsim run SYSTEM`` to its first /clock message here."""
     import signal
     import subprocess
 
+    got.clear()
+    t0 = time.monotonic()
+    proc = subprocess.Popen([sys.executable, "-m", "mechsim.cli", "run", system,
+                             "--duration", "30"], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        while not got and time.monotonic() - t0 < 120:
+            executor.spin_once(timeout_sec=0.005)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=30)
+    return got[0] - t0 if got else None
+
+
+#: Systems whose start-up is measured with their model not yet derived (cold).
+COLD_SYSTEMS = ("pendulum", "kepler", "double_pendulum", "rigid_body")
+
+
+def first_message_latency(repeats: int = 3, cold: tuple[str, ...] = COLD_SYSTEMS
+                          ) -> dict[str, Any]:
+    """Start-up to the first message in another process: ``mechsim run pendulum`` warm
+    (``repeats`` times), and for each of ``cold`` its first run with the model not derived
+    yet (a copy of the kernel cache without that system's modules: the shared loops stay
+    compiled, as set-up leaves them) against the next two (warm)."""
+    import glob
+    import shutil
+
+    from mechsim.codegen import cache_dir
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
-    from sensor_msgs.msg import JointState
+    from rclpy.qos import qos_profile_sensor_data
+    from rosgraph_msgs.msg import Clock
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -197,27 +229,35 @@ def first_message_latency(repeats: int = 3) -> list[float]:
     executor = SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
     got: list[float] = []
-    node.create_subscription(JointState, "/pendulum/state",
-                             lambda m: got.append(time.monotonic()), 10)
-    out = []
+    node.create_subscription(Clock, "/clock", lambda m: got.append(time.monotonic()),
+                             qos_profile_sensor_data)
+    warm: list[float] = []
+    cold_rows = []
     try:
         for _ in range(repeats):
-            got.clear()
-            t0 = time.monotonic()
-            proc = subprocess.Popen([sys.executable, "-m", "mechsim.cli", "run", "pendulum",
-                                     "--duration", "30"], stdout=subprocess.DEVNULL,
-                                    stderr=subprocess.DEVNULL)
-            while not got and time.monotonic() - t0 < 30:
-                executor.spin_once(timeout_sec=0.005)
-            if got:
-                out.append(got[0] - t0)
-            proc.send_signal(signal.SIGINT)
-            proc.wait(timeout=15)
+            x = _first_message(executor, got, "pendulum")
+            if x is not None:
+                warm.append(x)
+        for system in cold:
+            with tempfile.TemporaryDirectory() as tmp:
+                cache = os.path.join(tmp, "cache")
+                shutil.copytree(cache_dir(), cache, symlinks=True)
+                for pattern in (f"kernels/mechsim_{system}_*",
+                                f"kernels/__pycache__/mechsim_{system}_*",
+                                f"derived/{system}_*"):
+                    for f in glob.glob(os.path.join(cache, pattern)):
+                        os.remove(f)
+                env = dict(os.environ, MECHSIM_CACHE_DIR=cache)
+                first = _first_message(executor, got, system, env)
+                after = [_first_message(executor, got, system, env) for _ in range(2)]
+            known = [x for x in after if x is not None]
+            cold_rows.append({"system": system, "cold_s": first, "warm_s": known,
+                              "ratio": first / min(known) if first and known else None})
     finally:
         executor.shutdown()
         node.destroy_node()
         ctx.try_shutdown()
-    return out
+    return {"warm_pendulum_s": warm, "cold": cold_rows}
 
 
 def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
@@ -279,8 +319,17 @@ def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
               f"{cpu['startup_s']:.2f} s start-up), {cpu['samples']} samples; with a bag "
               f"and a Rerun recording: {cpu_rec['cpu_share_run']:.2f} of one core.", "",
               "Start-up: launch of `mechsim run pendulum` in a new process to its first "
-              "/pendulum/state message here (warm kernel cache): "
-              + ", ".join(f"{x:.2f} s" for x in latency) + "."]
+              "/clock message here (warm kernel cache): "
+              + ", ".join(f"{x:.2f} s" for x in latency["warm_pendulum_s"]) + ".", "",
+              "Cold start (the model not derived yet, the shared loops compiled by set-up) "
+              "against the two runs after it:", "",
+              "| system | first message, cold [s] | warm [s] | cold / warm |",
+              "|---|---|---|---|"]
+    for r in latency["cold"]:
+        cold_s = "—" if r["cold_s"] is None else f"{r['cold_s']:.2f}"
+        ratio = "—" if r["ratio"] is None else f"{r['ratio']:.2f}"
+        lines.append(f"| {r['system']} | {cold_s} | "
+                     + ", ".join(f"{x:.2f}" for x in r["warm_s"]) + f" | {ratio} |")
     (out / "streaming.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return result
