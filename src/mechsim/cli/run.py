@@ -17,6 +17,10 @@ def cmd_run(a: argparse.Namespace) -> int:
     from mechsim.errors import ParameterError
     from mechsim.scene import scene_from_target
 
+    if a.only is None and not a.processes:
+        from mechsim.ros.launch import join_graph
+
+        join_graph()  # discovery runs while the scene is read
     scene = scene_from_target(a.target, a.set, a.name)
     if a.rate is not None:
         scene.publish_rate = check_rate(a.rate)

@@ -160,12 +160,13 @@ class GraphCheck:
     discovery (which starts with this probe's participant) runs meanwhile; :meth:`check` waits
     for the rest of ``GRAPH_WAIT``, then looks."""
 
-    def __init__(self, context: Any) -> None:
+    def __init__(self, context: Any, started: float | None = None) -> None:
+        """``started``: when ``context`` joined the graph (discovery began), if earlier."""
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
         self.context = context
-        self.started = time.monotonic()
+        self.started = time.monotonic() if started is None else started
         self.probe = Node(f"graph_check_{os.getpid()}", namespace="/mechsim", context=context,
                           start_parameter_services=False)
         self.executor = SingleThreadedExecutor(context=context)
@@ -198,6 +199,26 @@ class GraphCheck:
     def close(self) -> None:
         self.executor.shutdown()
         self.probe.destroy_node()
+
+
+#: A context that joined the graph early (``join_graph``) and when, for the next run_scene.
+_joined: tuple[Any, float] | None = None
+
+
+def join_graph() -> None:
+    """Join the ROS graph now: a command calls this first thing, so that discovery runs while
+    it imports the systems and parses its scene (over a second), and its run then waits only
+    for what is left of ``GRAPH_WAIT``. The next ``run_scene`` without a context takes it."""
+    global _joined
+    from mechsim.environment import import_rclpy
+
+    rclpy = import_rclpy()
+    from rclpy.signals import SignalHandlerOptions
+
+    if _joined is None:
+        context = rclpy.context.Context()
+        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+        _joined = (context, time.monotonic())
 
 
 def _warm(scene: Scene) -> None:
@@ -234,8 +255,12 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     from mechsim.ros.serving import Serving
     from mechsim.ros.simulator import SimulatorNode, paced_lookahead
 
+    global _joined
     own_context = context is None
-    if own_context:
+    joined_at = None
+    if own_context and _joined is not None:
+        (context, joined_at), _joined = _joined, None
+    elif own_context:
         context = rclpy.context.Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     if graph_wait is None:
@@ -264,7 +289,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     try:
         if main_thread:
             signal.signal(signal.SIGTERM, on_term)
-        graph = GraphCheck(context) if graph_wait > 0 else None
+        graph = GraphCheck(context, joined_at) if graph_wait > 0 else None
         try:
             _warm(scene)
             if graph is not None:
