@@ -63,6 +63,18 @@ class RecordBatch(NamedTuple):
     columns: np.ndarray  # (C,) byte offset of each channel's record within a row
 
 
+class _RowLayout(NamedTuple):
+    """The Message records of one sample on a set of topics (channel, payload size): a row's
+    bytes with every field but the stamps and payloads set, a structured dtype over a row
+    naming the stamps (log and publish time, ``t<i>``) and payloads (``d<i>``), and the
+    channels (ascending) with their records' byte offsets in the row."""
+
+    template: np.ndarray
+    row: np.dtype
+    channels: np.ndarray
+    columns: np.ndarray
+
+
 class Spill:
     """Bytes appended during a run and read back once at its end, memory bounded: beyond
     ``buffer`` bytes they go to an anonymous file in ``directory`` (``files.anonymous_file``:
@@ -124,6 +136,7 @@ class McapFile:
         self.message_end_time = 0
         self._counts = np.zeros(1, dtype=np.int64)  # messages per channel id
         self._pos = stream.tell()
+        self._layouts: dict[tuple[tuple[int, int], ...], _RowLayout] = {}
         # The chunk in progress: record bytes (buffers), the message index pieces
         # (channels, stamps, offsets; one entry per batch or message), its byte size and span.
         self._parts: list[Any] = []
@@ -186,31 +199,50 @@ class McapFile:
         self._add_to_chunk(c)
         return cid
 
-    @staticmethod
-    def layout(ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> RecordBatch:
+    def layout(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> RecordBatch:
         """The records of N samples stamped ``ns`` (int64, nondecreasing), each with one
         message on every (channel id, (N, size) uint8 payload rows) of ``topics`` (distinct
-        channels), in that order within a sample."""
+        channels), in that order within a sample: a row template (every header field but
+        the stamps) copied to every row, then the stamps and payloads as fields of a
+        structured view (a few numpy operations per topic)."""
         ns = np.asarray(ns, dtype=np.int64)
-        n = int(ns.shape[0])
-        widths = [_HEAD + rows.shape[1] for _, rows in topics]
-        out = np.empty((n, sum(widths)), dtype=np.uint8)
-        head = np.empty(n, dtype=_MESSAGE_HEAD)
-        head["op"] = _OP_MESSAGE
-        head["sequence"] = 0
-        head["log_time"] = ns
-        head["publish_time"] = ns
-        head_bytes = head.view(np.uint8).reshape(n, _HEAD)
-        columns = np.cumsum([0, *widths[:-1]], dtype=np.int64)
-        for (channel, rows), width, col in zip(topics, widths, columns.tolist(), strict=True):
-            out[:, col:col + _HEAD] = head_bytes
-            # The two fields that differ per topic, over the copied header (bytes 1-10).
-            out[:, col + 1:col + 11] = np.frombuffer(struct.pack("<QH", width - 9, channel),
-                                                     dtype=np.uint8)
-            out[:, col + _HEAD:col + width] = rows
-        channels = np.array([c for c, _ in topics], dtype=np.int64)
+        key = tuple((channel, rows.shape[1]) for channel, rows in topics)
+        if key not in self._layouts:
+            if len(self._layouts) >= 64:  # (one entry per set of topics: a few)
+                self._layouts.clear()
+            self._layouts[key] = self._row_layout(key)
+        lay = self._layouts[key]
+        out = np.empty((ns.shape[0], lay.template.shape[0]), dtype=np.uint8)
+        out[:] = lay.template
+        fields = out.view(lay.row)[:, 0]
+        for i, (_, rows) in enumerate(topics):
+            fields[f"t{i}"] = ns[:, None]
+            if rows.shape[1]:
+                payload = np.ascontiguousarray(rows)
+                fields[f"d{i}"] = payload.view(f"V{payload.shape[1]}")[:, 0]
+        return RecordBatch(ns, out, lay.channels, lay.columns)
+
+    @staticmethod
+    def _row_layout(key: tuple[tuple[int, int], ...]) -> _RowLayout:
+        template = bytearray()
+        names, formats, offsets, columns = [], [], [], []
+        for i, (channel, size) in enumerate(key):
+            columns.append(len(template))
+            names.append(f"t{i}")
+            formats.append(("<u8", (2,)))
+            offsets.append(len(template) + 15)
+            if size:
+                names.append(f"d{i}")
+                formats.append(f"V{size}")
+                offsets.append(len(template) + _HEAD)
+            template += struct.pack("<BQHIQQ", _OP_MESSAGE, _HEAD - 9 + size, channel, 0, 0,
+                                    0) + bytes(size)
+        row = np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                        "itemsize": len(template)})
+        channels = np.array([c for c, _ in key], dtype=np.int64)
         order = np.argsort(channels, kind="stable")
-        return RecordBatch(ns, out, channels[order], columns[order])
+        return _RowLayout(np.frombuffer(bytes(template), dtype=np.uint8), row,
+                          channels[order], np.array(columns, dtype=np.int64)[order])
 
     def add_batch(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> None:
         """N samples stamped ``ns`` (int64, nondecreasing), each with one message on every
@@ -259,10 +291,10 @@ class McapFile:
         self._start = first if self._start is None else min(self._start, first)
         self._end = max(self._end, last)
 
-    def _message_indexes(self, at: int) -> tuple[list[Any], list[int]]:
+    def _message_indexes(self, at: int) -> tuple[list[Any], list[int], int]:
         """The chunk's Message Index records (one per channel, ascending; pairs in file
         order), to be written at file offset ``at``: (pieces to write, [channel, offset,
-        ...] of the Chunk Index map)."""
+        ...] of the Chunk Index map, their total size)."""
         if len(self._index) == 1:  # one batch: channels ascending, each in file order
             channels, stamps, offsets = self._index[0]
         else:
@@ -277,17 +309,19 @@ class McapFile:
         ends = [*bounds.tolist(), channels.shape[0]]
         pieces: list[Any] = []
         index_map: list[int] = []
+        first = at
         for channel, lo, hi in zip(channels[starts].tolist(), starts, ends, strict=True):
             body = 16 * (hi - lo)
             pieces += (_MESSAGE_INDEX_HEAD.pack(_OP_MESSAGE_INDEX, 2 + 4 + body, channel,
                                                 body), pairs[lo:hi])
             index_map += (channel, at)
             at += _MESSAGE_INDEX_HEAD.size + body
-        return pieces, index_map
+        return pieces, index_map, at - first
 
     def flush_chunk(self) -> None:
         """Close the chunk in progress (if it holds a message): Chunk record, then one
-        Message Index record per channel, in one write; its Chunk Index to the spill."""
+        Message Index record per channel, in one write (a chunk reaches the file whole or
+        not at all: a full disk keeps every chunk before); its Chunk Index to the spill."""
         if self._start is None:
             return
         data = self._parts[0] if len(self._parts) == 1 else b"".join(self._parts)
@@ -297,16 +331,15 @@ class McapFile:
                                 4, b"zstd", len(compressed))
         chunk_start = self._pos
         chunk_length = len(head) + len(compressed)
-        pieces, index_map = self._message_indexes(chunk_start + chunk_length)
-        record = b"".join((head, compressed, *pieces))
-        self._write(record)
+        pieces, index_map, index_length = self._message_indexes(chunk_start + chunk_length)
+        self._write(b"".join((head, compressed, *pieces)))
         channels = len(index_map) // 2
         chunk_index = (
             _CHUNK_INDEX_HEAD.pack(_OP_CHUNK_INDEX, 8 * 4 + 4 + 10 * channels
                                    + _CHUNK_INDEX_TAIL.size, self._start, self._end,
                                    chunk_start, chunk_length, 10 * channels)
             + struct.pack("<" + "HQ" * channels, *index_map)
-            + _CHUNK_INDEX_TAIL.pack(len(record) - chunk_length, 4, b"zstd",
+            + _CHUNK_INDEX_TAIL.pack(index_length, 4, b"zstd",
                                      len(compressed), self._size))
         self.chunk_indexes.append(chunk_index)
         self.chunk_count += 1
