@@ -180,3 +180,26 @@ def test_long_recording_lists_every_chunk(tmp_path: Path, monkeypatch: pytest.Mo
         got = [(con.topic, ts) for con, ts, _ in reader.messages()]
     expected = [(t, k * SECOND) for k in range(items * n) for t in ("/a", "/b")]
     assert sorted(got) == sorted(expected)
+
+
+def test_chunks_mixing_batches_and_single_messages_are_indexed(tmp_path: Path) -> None:
+    """Chunks holding batches and single messages on the same channels, in any order: every
+    message index entry points at its message, the channels' entries in file order."""
+    from mechsim.outputs.bag.mcapfile import McapFile
+
+    f = tmp_path / "x.mcap"
+    with open(f, "wb") as stream:
+        w = McapFile(stream, chunk_size=1 << 20, scratch=tmp_path)
+        w.start("ros2", "test")
+        sid = w.register_schema("pkg/msg/T", "ros2msg", b"uint64 x")
+        for topic in ("/a", "/b", "/c"):
+            w.register_channel(topic, "cdr", sid, {})
+        for k in range(6):
+            w.add_message(3, k * 10 * SECOND, b"first" * k)
+            ns, topics = _layout_inputs(k, 10)
+            w.add_batch(ns, topics[::-1])  # channels given in descending order
+            w.add_message(2, (k * 10 + 9) * SECOND, b"last")
+            if k % 2:
+                w.flush_chunk()
+        w.finish()
+    assert _check_file(f) == {1: 60, 2: 66, 3: 6}

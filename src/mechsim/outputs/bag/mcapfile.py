@@ -48,6 +48,10 @@ _CHUNK_HEAD = struct.Struct("<BQQQQII4sQ")  # up to the compressed records ("zst
 #: Message Index record up to its pairs: opcode, length, channel, pairs' byte length.
 _MESSAGE_INDEX_HEAD = struct.Struct("<BQHI")
 _OP_MESSAGE_INDEX = 0x07
+_MESSAGE_INDEX_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
+                                 ("bytes", "<u4")])
+#: The Chunk Index's map from channel to the offset of its Message Index record.
+_INDEX_MAP_DTYPE = np.dtype([("channel", "<u2"), ("offset", "<u8")])
 _OP_CHUNK_INDEX = 0x08
 _CHUNK_INDEX_HEAD = struct.Struct("<BQQQQQI")  # up to the message index offsets
 _CHUNK_INDEX_TAIL = struct.Struct("<QI4sQQ")  # message index length ... uncompressed size
@@ -137,10 +141,11 @@ class McapFile:
         self._counts = np.zeros(1, dtype=np.int64)  # messages per channel id
         self._pos = stream.tell()
         self._layouts: dict[tuple[tuple[int, int], ...], _RowLayout] = {}
-        # The chunk in progress: record bytes (buffers), the message index pieces
-        # (channels, stamps, offsets; one entry per batch or message), its byte size and span.
+        # The chunk in progress: record bytes (buffers); what its message indexes hold, one
+        # entry per batch (batch, first row, end row, the first row's offset in the chunk) or
+        # message (channel, stamp, offset); its byte size and span.
         self._parts: list[Any] = []
-        self._index: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._index: list[tuple[Any, ...]] = []
         self._size = 0
         self._start: int | None = None
         self._end = 0
@@ -257,25 +262,18 @@ class McapFile:
         n = end - start
         if n <= 0:
             return
-        width = batch.records.shape[1]
-        ns = batch.ns[start:end]
-        rows = np.arange(n, dtype=np.int64) * width + self._size
-        c = batch.channels.shape[0]
-        self._index.append((np.repeat(batch.channels, n), np.tile(ns, c),
-                            (batch.columns[:, None] + rows[None, :]).reshape(-1)))
+        self._index.append((batch, start, end, self._size))
         self._parts.append(batch.records[start:end].reshape(-1))
-        self._size += n * width
+        self._size += n * batch.records.shape[1]
         self._counts[batch.channels] += n
-        self._times(int(ns[0]), int(ns[-1]), n * c)
+        self._times(int(batch.ns[start]), int(batch.ns[end - 1]), n * batch.channels.shape[0])
         if self._size > self.chunk_size:
             self.flush_chunk()
 
     def add_message(self, channel: int, ns: int, data: bytes) -> None:
         """One message of any size."""
         head = struct.pack("<BQHIQQ", _OP_MESSAGE, _HEAD - 9 + len(data), channel, 0, ns, ns)
-        self._index.append((np.array([channel], dtype=np.int64),
-                            np.array([ns], dtype=np.int64),
-                            np.array([self._size], dtype=np.int64)))
+        self._index.append((channel, ns, self._size))
         self._counts[channel] += 1
         self._parts += (head, data)
         self._size += len(head) + len(data)
@@ -291,32 +289,58 @@ class McapFile:
         self._start = first if self._start is None else min(self._start, first)
         self._end = max(self._end, last)
 
-    def _message_indexes(self, at: int) -> tuple[list[Any], list[int], int]:
+    def _message_indexes(self, at: int) -> tuple[Any, bytes, int]:
         """The chunk's Message Index records (one per channel, ascending; pairs in file
-        order), to be written at file offset ``at``: (pieces to write, [channel, offset,
-        ...] of the Chunk Index map, their total size)."""
-        if len(self._index) == 1:  # one batch: channels ascending, each in file order
-            channels, stamps, offsets = self._index[0]
-        else:
-            channels, stamps, offsets = (np.concatenate(a) for a in zip(*self._index, strict=True))
-            order = np.lexsort((offsets, channels))
-            channels, stamps, offsets = channels[order], stamps[order], offsets[order]
+        order), to be written at file offset ``at``: (their bytes, the Chunk Index's map
+        of (channel u16, offset u64), the number of channels)."""
+        if len(self._index) == 1 and len(self._index[0]) == 4:
+            # One batch (a fast run's chunk): C records of n pairs, as one (C, bytes) array.
+            batch, start, end, base = self._index[0]
+            n, channels = end - start, batch.channels
+            c = channels.shape[0]
+            head = np.empty(c, dtype=_MESSAGE_INDEX_DTYPE)
+            head["op"], head["length"], head["channel"], head["bytes"] = \
+                _OP_MESSAGE_INDEX, 6 + 16 * n, channels, 16 * n
+            records = np.empty((c, _MESSAGE_INDEX_HEAD.size + 16 * n), dtype=np.uint8)
+            records[:, :_MESSAGE_INDEX_HEAD.size] = head.view(np.uint8).reshape(c, -1)
+            pairs = records[:, _MESSAGE_INDEX_HEAD.size:].view("<u8").reshape(c, n, 2)
+            pairs[:, :, 0] = batch.ns[start:end]
+            pairs[:, :, 1] = batch.columns[:, None] + (
+                np.arange(n, dtype=np.int64) * batch.records.shape[1] + base)
+            index_map = np.empty(c, dtype=_INDEX_MAP_DTYPE)
+            index_map["channel"] = channels
+            index_map["offset"] = at + np.arange(c, dtype=np.int64) * records.shape[1]
+            return records.reshape(-1), index_map.tobytes(), c
+        entries: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        for e in self._index:
+            if len(e) == 4:
+                batch, start, end, base = e
+                n = end - start
+                rows = np.arange(n, dtype=np.int64) * batch.records.shape[1] + base
+                entries.append((np.repeat(batch.channels, n),
+                                np.tile(batch.ns[start:end], batch.channels.shape[0]),
+                                (batch.columns[:, None] + rows[None, :]).reshape(-1)))
+            else:
+                entries.append(tuple(np.array([v], dtype=np.int64) for v in e))
+        channels, stamps, offsets = (np.concatenate(a) for a in zip(*entries, strict=True))
+        order = np.lexsort((offsets, channels))
         pairs = np.empty((channels.shape[0], 2), dtype="<u8")
-        pairs[:, 0] = stamps
-        pairs[:, 1] = offsets
+        pairs[:, 0] = stamps[order]
+        pairs[:, 1] = offsets[order]
+        channels = channels[order]
         bounds = np.flatnonzero(np.diff(channels)) + 1
         starts = [0, *bounds.tolist()]
         ends = [*bounds.tolist(), channels.shape[0]]
         pieces: list[Any] = []
         index_map: list[int] = []
-        first = at
         for channel, lo, hi in zip(channels[starts].tolist(), starts, ends, strict=True):
             body = 16 * (hi - lo)
             pieces += (_MESSAGE_INDEX_HEAD.pack(_OP_MESSAGE_INDEX, 2 + 4 + body, channel,
                                                 body), pairs[lo:hi])
             index_map += (channel, at)
             at += _MESSAGE_INDEX_HEAD.size + body
-        return pieces, index_map, at - first
+        return (b"".join(pieces), struct.pack("<" + "HQ" * len(starts), *index_map),
+                len(starts))
 
     def flush_chunk(self) -> None:
         """Close the chunk in progress (if it holds a message): Chunk record, then one
@@ -331,15 +355,14 @@ class McapFile:
                                 4, b"zstd", len(compressed))
         chunk_start = self._pos
         chunk_length = len(head) + len(compressed)
-        pieces, index_map, index_length = self._message_indexes(chunk_start + chunk_length)
-        self._write(b"".join((head, compressed, *pieces)))
-        channels = len(index_map) // 2
+        indexes, index_map, channels = self._message_indexes(chunk_start + chunk_length)
+        self._write(b"".join((head, compressed, indexes)))
         chunk_index = (
             _CHUNK_INDEX_HEAD.pack(_OP_CHUNK_INDEX, 8 * 4 + 4 + 10 * channels
                                    + _CHUNK_INDEX_TAIL.size, self._start, self._end,
                                    chunk_start, chunk_length, 10 * channels)
-            + struct.pack("<" + "HQ" * channels, *index_map)
-            + _CHUNK_INDEX_TAIL.pack(index_length, 4, b"zstd",
+            + index_map
+            + _CHUNK_INDEX_TAIL.pack(memoryview(indexes).nbytes, 4, b"zstd",
                                      len(compressed), self._size))
         self.chunk_indexes.append(chunk_index)
         self.chunk_count += 1
