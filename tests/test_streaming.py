@@ -222,7 +222,7 @@ def test_mcap_batches_read_back_by_the_mcap_library(tmp_path: Path) -> None:
     f = tmp_path / "x.mcap"
     expected: list[tuple[str, int, bytes]] = []
     with open(f, "wb") as stream:
-        w = McapFile(stream, chunk_size=4000)
+        w = McapFile(stream, chunk_size=4000, scratch=tmp_path)
         w.start("ros2", "test")
         sid = w.register_schema("pkg/msg/T", "ros2msg", b"float64 x")
         a = w.register_channel("/a", "cdr", sid, {})

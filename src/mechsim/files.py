@@ -113,6 +113,27 @@ def open_exclusive(path: str | Path) -> IO[bytes]:
     return os.fdopen(fd, "wb")
 
 
+def anonymous_file(directory: str | Path) -> IO[bytes]:
+    """A new read-write file in ``directory`` that has no name, so nothing is left behind
+    however the process ends: ``O_TMPFILE`` where the file system supports it, else created
+    exclusively without following symlinks (``.<random>.tmp``) and unlinked at once."""
+    flags = os.O_RDWR | os.O_CLOEXEC | os.O_NOFOLLOW
+    tmpfile = getattr(os, "O_TMPFILE", 0)
+    if tmpfile:
+        try:
+            return os.fdopen(os.open(directory, flags | tmpfile | os.O_EXCL, 0o600), "w+b")
+        except OSError as e:  # not supported by the kernel or this file system
+            if e.errno not in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL):
+                raise
+    fd, name = tempfile.mkstemp(dir=directory, prefix=".", suffix=".tmp")
+    try:
+        os.unlink(name)
+    except BaseException:
+        os.close(fd)
+        raise
+    return os.fdopen(fd, "w+b")
+
+
 def open_regular(path: str | Path) -> IO[bytes]:
     """``path`` opened for reading if it is a regular file (never blocks on a FIFO, never
     reads a device); OSError otherwise."""

@@ -3,25 +3,39 @@
 ``mcap.writer.Writer`` takes one message per Python call (a record object, an index tuple and
 statistics updates each: ~4 µs a message). Here a batch of fixed-size payloads (the rows of a
 ``mechsim.outputs.cdr`` layout, see ``Outlet.publish_chunk``) becomes its Message records in a
-few numpy operations: one (N, record bytes) array per topic, the topics of one sample side by
-side, so records in a chunk are in time order. Everything else (header, schemas, channels,
-chunks, message indexes, the summary with its statistics, chunk, metadata index and summary
-offsets, footer) is written with the record classes of ``mcap.records``, in the layout
-``mcap.writer.Writer`` produces (MCAP specification, https://mcap.dev/spec: Message record op
-0x05 = channel_id u16, sequence u32, log_time u64, publish_time u64, data; Message Index op
-0x07 = channel_id u16, then (log_time u64, offset u64) pairs prefixed by their byte length;
-Chunk op 0x06 = start and end time u64, uncompressed size u64, uncompressed CRC-32 u32,
-compression (u32-prefixed string), then the compressed records prefixed by a u64 length).
+few numpy operations (:meth:`McapFile.layout`): one (N, record bytes) array, the topics of one
+sample side by side, so records in a chunk are in time order and any run of samples is one
+contiguous slice, compressed and checksummed in place. A chunk costs a fixed handful of Python
+operations, whatever it holds: its message indexes come from the batches' arrays, its records
+are written in one call, and zstd and CRC-32 run without holding the interpreter lock.
+
+Memory stays flat however long the recording: the only thing that grows with the number of
+chunks, their Chunk Index records (needed by the summary at the end), is kept in an anonymous
+file in the output's directory beyond a small buffer (:class:`Spill`) and streamed into the
+summary by :meth:`McapFile.finish`.
+
+Everything else (header, schemas, channels, the summary's other records, footer) is written
+with the record classes of ``mcap.records``, in the layout ``mcap.writer.Writer`` produces
+(MCAP specification, https://mcap.dev/spec: Message record op 0x05 = channel_id u16, sequence
+u32, log_time u64, publish_time u64, data; Message Index op 0x07 = channel_id u16, then
+(log_time u64, offset u64) pairs prefixed by their byte length; Chunk op 0x06 = start and end
+time u64, uncompressed size u64, uncompressed CRC-32 u32, compression (u32-prefixed string),
+then the compressed records prefixed by a u64 length; Chunk Index op 0x08 = start and end time,
+chunk offset and length u64, (channel u16, message index offset u64) pairs prefixed by their
+byte length, message index length u64, compression, compressed and uncompressed size u64).
 """
 
 from __future__ import annotations
 
 import struct
 import zlib
-from collections import defaultdict
-from typing import IO, Any
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any, NamedTuple
 
 import numpy as np
+
+from mechsim.files import anonymous_file
 
 MAGIC = struct.pack("<8B", 137, 77, 67, 65, 80, 48, 13, 10)
 #: Message record header: opcode, record length, channel id, sequence, log and publish time.
@@ -29,99 +43,144 @@ _MESSAGE_HEAD = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
                           ("sequence", "<u4"), ("log_time", "<u8"), ("publish_time", "<u8")])
 _HEAD = _MESSAGE_HEAD.itemsize  # 31
 _OP_MESSAGE = 0x05
-_OP_MESSAGE_INDEX = 0x07
 _OP_CHUNK = 0x06
 _CHUNK_HEAD = struct.Struct("<BQQQQII4sQ")  # up to the compressed records ("zstd" only)
+#: Message Index record up to its pairs: opcode, length, channel, pairs' byte length.
+_MESSAGE_INDEX_HEAD = struct.Struct("<BQHI")
+_OP_MESSAGE_INDEX = 0x07
+_MESSAGE_INDEX_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
+                                 ("bytes", "<u4")])
+#: The Chunk Index's map from channel to the offset of its Message Index record.
+_INDEX_MAP_DTYPE = np.dtype([("channel", "<u2"), ("offset", "<u8")])
+_OP_CHUNK_INDEX = 0x08
+_CHUNK_INDEX_HEAD = struct.Struct("<BQQQQQI")  # up to the message index offsets
+_CHUNK_INDEX_TAIL = struct.Struct("<QI4sQQ")  # message index length ... uncompressed size
 
 
-def message_records(ns: np.ndarray, topics: list[tuple[int, np.ndarray]]
-                    ) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Message records of N samples: row i holds sample i's record of every (channel id,
-    (N, size) payload rows) in ``topics``, side by side. Returns the (N, S) byte array and,
-    per topic, the byte offset of each of its records from the start of the array."""
-    n = int(ns.shape[0])
-    widths = [_HEAD + rows.shape[1] for _, rows in topics]
-    total = sum(widths)
-    out = np.empty((n, total), dtype=np.uint8)
-    head = np.empty(n, dtype=_MESSAGE_HEAD)
-    head["op"] = _OP_MESSAGE
-    head["sequence"] = 0
-    head["log_time"] = ns
-    head["publish_time"] = ns
-    offsets = []
-    col = 0
-    row_start = np.arange(n, dtype=np.int64) * total
-    for (channel, rows), width in zip(topics, widths, strict=True):
-        head["length"] = width - 9
-        head["channel"] = channel
-        out[:, col:col + _HEAD] = head.view(np.uint8).reshape(n, _HEAD)
-        out[:, col + _HEAD:col + width] = rows
-        offsets.append(row_start + col)
-        col += width
-    return out, offsets
+class RecordBatch(NamedTuple):
+    """The Message records of N samples, one on each of C channels per sample (see
+    :meth:`McapFile.layout`)."""
+
+    ns: np.ndarray  # (N,) int64 stamps, nondecreasing
+    records: np.ndarray  # (N, S) uint8: row i = sample i's records, side by side
+    channels: np.ndarray  # (C,) channel ids, ascending
+    columns: np.ndarray  # (C,) byte offset of each channel's record within a row
+
+
+class _RowLayout(NamedTuple):
+    """The Message records of one sample on a set of topics (channel, payload size): a row's
+    bytes with every field but the stamps and payloads set, a structured dtype over a row
+    naming the stamps (log and publish time, ``t<i>``) and payloads (``d<i>``), and the
+    channels (ascending) with their records' byte offsets in the row."""
+
+    template: np.ndarray
+    row: np.dtype
+    channels: np.ndarray
+    columns: np.ndarray
+
+
+class Spill:
+    """Bytes appended during a run and read back once at its end, memory bounded: beyond
+    ``buffer`` bytes they go to an anonymous file in ``directory`` (``files.anonymous_file``:
+    no name, gone with the process), created at the first overflow."""
+
+    def __init__(self, directory: str | Path, buffer: int = 64 * 1024) -> None:
+        self.directory = directory
+        self.buffer_limit = buffer
+        self.buffer = bytearray()
+        self.size = 0
+        self._file: IO[bytes] | None = None
+
+    def append(self, data: bytes) -> None:
+        self.buffer += data
+        self.size += len(data)
+        if len(self.buffer) >= self.buffer_limit:
+            if self._file is None:
+                self._file = anonymous_file(self.directory)
+            self._file.write(self.buffer)
+            self.buffer = bytearray()
+
+    def blocks(self, block: int = 1 << 20) -> Iterator[bytes]:
+        """Everything appended, in order, ``block`` bytes at a time."""
+        if self._file is not None:
+            self._file.flush()
+            self._file.seek(0)
+            while data := self._file.read(block):
+                yield data
+        if self.buffer:
+            yield bytes(self.buffer)
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        self.buffer = bytearray()
 
 
 class McapFile:
     """Writes one MCAP file to ``stream`` (``start`` … ``finish``), messages in batches.
-    Chunks are zstd-compressed (level 1)
-    and closed by :meth:`flush`, or when they pass ``chunk_size`` uncompressed bytes."""
+    Chunks are zstd-compressed (level 1) and closed by :meth:`flush`, or when they pass
+    ``chunk_size`` uncompressed bytes. ``scratch`` is the output's own directory, where the
+    chunk indexes wait for the summary (:class:`Spill`)."""
 
-    def __init__(self, stream: IO[bytes], chunk_size: int) -> None:
-        from mcap.records import Statistics
+    def __init__(self, stream: IO[bytes], chunk_size: int, scratch: str | Path) -> None:
+        import zstandard
 
         self.stream = stream
         self.chunk_size = chunk_size
         self.schemas: dict[int, Any] = {}
         self.channels: dict[int, Any] = {}
-        #: The Chunk Index records, already encoded (memory: ~100 bytes per chunk, not a
-        #: Python object per chunk).
-        self.chunk_indexes = bytearray()
+        #: The Chunk Index records, encoded, in order (the summary's largest part).
+        self.chunk_indexes = Spill(scratch)
         self.metadata_indexes: list[Any] = []
-        self.stats = Statistics(attachment_count=0, channel_count=0,
-                                channel_message_counts=defaultdict(int), chunk_count=0,
-                                message_count=0, message_end_time=0, message_start_time=0,
-                                metadata_count=0, schema_count=0)
-        self._parts: list[bytes] = []  # uncompressed records of the chunk in progress
+        self.chunk_count = 0
+        self.metadata_count = 0
+        self.message_count = 0
+        self.message_start_time = 0
+        self.message_end_time = 0
+        self._counts = np.zeros(1, dtype=np.int64)  # messages per channel id
+        self._pos = stream.tell()
+        self._layouts: dict[tuple[tuple[int, int], ...], _RowLayout] = {}
+        # The chunk in progress: record bytes (buffers); what its message indexes hold, one
+        # entry per batch (batch, first row, end row, the first row's offset in the chunk) or
+        # message (channel, stamp, offset); its byte size and span.
+        self._parts: list[Any] = []
+        self._index: list[tuple[Any, ...]] = []
         self._size = 0
-        self._index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
         self._start: int | None = None
         self._end = 0
-        import zstandard
-
         # Level 1: the fastest standard level (chunks are small; readers need no setting).
         self._zstd = zstandard.ZstdCompressor(level=1)
 
-    def _builder(self) -> Any:
+    def _write(self, data: Any) -> None:
+        self.stream.write(data)
+        self._pos += memoryview(data).nbytes
+
+    @staticmethod
+    def _encode(record: Any) -> bytes:
         from mcap.data_stream import RecordBuilder
 
-        return RecordBuilder()
-
-    def _write_record(self, record: Any) -> None:
-        b = self._builder()
+        b = RecordBuilder()
         record.write(b)
-        self.stream.write(b.end())
+        return bytes(b.end())
 
     def start(self, profile: str, library: str) -> None:
         from mcap.records import Header
 
-        self.stream.write(MAGIC)
-        self._write_record(Header(profile=profile, library=library))
+        self._write(MAGIC)
+        self._write(self._encode(Header(profile=profile, library=library)))
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         from mcap.records import Metadata, MetadataIndex
 
-        b = self._builder()
-        Metadata(name=name, metadata=data).write(b)
-        raw = b.end()
-        self.metadata_indexes.append(MetadataIndex(offset=self.stream.tell(),
-                                                   length=len(raw), name=name))
-        self.stats.metadata_count += 1
-        self.stream.write(raw)
+        raw = self._encode(Metadata(name=name, metadata=data))
+        self.metadata_indexes.append(MetadataIndex(offset=self._pos, length=len(raw),
+                                                   name=name))
+        self.metadata_count += 1
+        self._write(raw)
 
     def _add_to_chunk(self, record: Any) -> None:
-        b = self._builder()
-        record.write(b)
-        raw = b.end()
+        raw = self._encode(record)
         self._parts.append(raw)
         self._size += len(raw)
 
@@ -130,7 +189,6 @@ class McapFile:
 
         sid = len(self.schemas) + 1
         self.schemas[sid] = s = Schema(id=sid, data=data, encoding=encoding, name=name)
-        self.stats.schema_count += 1
         self._add_to_chunk(s)
         return sid
 
@@ -142,95 +200,173 @@ class McapFile:
         self.channels[cid] = c = Channel(id=cid, topic=topic,
                                          message_encoding=message_encoding,
                                          schema_id=schema_id, metadata=metadata)
-        self.stats.channel_count += 1
+        self._counts = np.concatenate([self._counts, np.zeros(1, dtype=np.int64)])
         self._add_to_chunk(c)
         return cid
+
+    def layout(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> RecordBatch:
+        """The records of N samples stamped ``ns`` (int64, nondecreasing), each with one
+        message on every (channel id, (N, size) uint8 payload rows) of ``topics`` (distinct
+        channels), in that order within a sample: a row template (every header field but
+        the stamps) copied to every row, then the stamps and payloads as fields of a
+        structured view (a few numpy operations per topic)."""
+        ns = np.asarray(ns, dtype=np.int64)
+        key = tuple((channel, rows.shape[1]) for channel, rows in topics)
+        if key not in self._layouts:
+            if len(self._layouts) >= 64:  # (one entry per set of topics: a few)
+                self._layouts.clear()
+            self._layouts[key] = self._row_layout(key)
+        lay = self._layouts[key]
+        out = np.empty((ns.shape[0], lay.template.shape[0]), dtype=np.uint8)
+        out[:] = lay.template
+        fields = out.view(lay.row)[:, 0]
+        for i, (_, rows) in enumerate(topics):
+            fields[f"t{i}"] = ns[:, None]
+            if rows.shape[1]:
+                payload = np.ascontiguousarray(rows)
+                fields[f"d{i}"] = payload.view(f"V{payload.shape[1]}")[:, 0]
+        return RecordBatch(ns, out, lay.channels, lay.columns)
+
+    @staticmethod
+    def _row_layout(key: tuple[tuple[int, int], ...]) -> _RowLayout:
+        template = bytearray()
+        names, formats, offsets, columns = [], [], [], []
+        for i, (channel, size) in enumerate(key):
+            columns.append(len(template))
+            names.append(f"t{i}")
+            formats.append(("<u8", (2,)))
+            offsets.append(len(template) + 15)
+            if size:
+                names.append(f"d{i}")
+                formats.append(f"V{size}")
+                offsets.append(len(template) + _HEAD)
+            template += struct.pack("<BQHIQQ", _OP_MESSAGE, _HEAD - 9 + size, channel, 0, 0,
+                                    0) + bytes(size)
+        row = np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                        "itemsize": len(template)})
+        channels = np.array([c for c, _ in key], dtype=np.int64)
+        order = np.argsort(channels, kind="stable")
+        return _RowLayout(np.frombuffer(bytes(template), dtype=np.uint8), row,
+                          channels[order], np.array(columns, dtype=np.int64)[order])
 
     def add_batch(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> None:
         """N samples stamped ``ns`` (int64, nondecreasing), each with one message on every
         (channel id, (N, size) uint8 payload rows) of ``topics``."""
-        n = int(ns.shape[0])
-        if n == 0 or not topics:
+        if len(ns) and topics:
+            batch = self.layout(ns, topics)
+            self.add_rows(batch, 0, len(ns))
+
+    def add_rows(self, batch: RecordBatch, start: int, end: int) -> None:
+        """Samples ``start`` to ``end`` (exclusive) of ``batch``, appended to the chunk in
+        progress (closed once past ``chunk_size``)."""
+        n = end - start
+        if n <= 0:
             return
-        records, offsets = message_records(ns, topics)
-        ns = np.asarray(ns, dtype=np.int64)
-        for (channel, _), off in zip(topics, offsets, strict=True):
-            self._index[channel].append((ns, off + self._size))
-            self.stats.channel_message_counts[channel] += n
-        self._parts.append(records.tobytes())
-        self._size += records.size
-        self._times(int(ns[0]), int(ns[-1]), n * len(topics))
+        self._index.append((batch, start, end, self._size))
+        self._parts.append(batch.records[start:end].reshape(-1))
+        self._size += n * batch.records.shape[1]
+        self._counts[batch.channels] += n
+        self._times(int(batch.ns[start]), int(batch.ns[end - 1]), n * batch.channels.shape[0])
         if self._size > self.chunk_size:
             self.flush_chunk()
 
     def add_message(self, channel: int, ns: int, data: bytes) -> None:
         """One message of any size."""
-        head = np.empty(1, dtype=_MESSAGE_HEAD)
-        head["op"], head["length"], head["channel"] = _OP_MESSAGE, _HEAD - 9 + len(data), channel
-        head["sequence"], head["log_time"], head["publish_time"] = 0, ns, ns
-        self._index[channel].append((np.array([ns], dtype=np.int64),
-                                     np.array([self._size], dtype=np.int64)))
-        self.stats.channel_message_counts[channel] += 1
-        raw = head.tobytes() + data
-        self._parts.append(raw)
-        self._size += len(raw)
+        head = struct.pack("<BQHIQQ", _OP_MESSAGE, _HEAD - 9 + len(data), channel, 0, ns, ns)
+        self._index.append((channel, ns, self._size))
+        self._counts[channel] += 1
+        self._parts += (head, data)
+        self._size += len(head) + len(data)
         self._times(ns, ns, 1)
         if self._size > self.chunk_size:
             self.flush_chunk()
 
     def _times(self, first: int, last: int, count: int) -> None:
-        s = self.stats
-        s.message_start_time = first if s.message_count == 0 else min(s.message_start_time,
-                                                                      first)
-        s.message_end_time = max(s.message_end_time, last)
-        s.message_count += count
+        if self.message_count == 0 or first < self.message_start_time:
+            self.message_start_time = first
+        self.message_end_time = max(self.message_end_time, last)
+        self.message_count += count
         self._start = first if self._start is None else min(self._start, first)
         self._end = max(self._end, last)
 
+    def _message_indexes(self, at: int) -> tuple[Any, bytes, int]:
+        """The chunk's Message Index records (one per channel, ascending; pairs in file
+        order), to be written at file offset ``at``: (their bytes, the Chunk Index's map
+        of (channel u16, offset u64), the number of channels)."""
+        if len(self._index) == 1 and len(self._index[0]) == 4:
+            # One batch (a fast run's chunk): C records of n pairs, as one (C, bytes) array.
+            batch, start, end, base = self._index[0]
+            n, channels = end - start, batch.channels
+            c = channels.shape[0]
+            head = np.empty(c, dtype=_MESSAGE_INDEX_DTYPE)
+            head["op"], head["length"], head["channel"], head["bytes"] = \
+                _OP_MESSAGE_INDEX, 6 + 16 * n, channels, 16 * n
+            records = np.empty((c, _MESSAGE_INDEX_HEAD.size + 16 * n), dtype=np.uint8)
+            records[:, :_MESSAGE_INDEX_HEAD.size] = head.view(np.uint8).reshape(c, -1)
+            pairs = records[:, _MESSAGE_INDEX_HEAD.size:].view("<u8").reshape(c, n, 2)
+            pairs[:, :, 0] = batch.ns[start:end]
+            pairs[:, :, 1] = batch.columns[:, None] + (
+                np.arange(n, dtype=np.int64) * batch.records.shape[1] + base)
+            index_map = np.empty(c, dtype=_INDEX_MAP_DTYPE)
+            index_map["channel"] = channels
+            index_map["offset"] = at + np.arange(c, dtype=np.int64) * records.shape[1]
+            return records.reshape(-1), index_map.tobytes(), c
+        entries: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        for e in self._index:
+            if len(e) == 4:
+                batch, start, end, base = e
+                n = end - start
+                rows = np.arange(n, dtype=np.int64) * batch.records.shape[1] + base
+                entries.append((np.repeat(batch.channels, n),
+                                np.tile(batch.ns[start:end], batch.channels.shape[0]),
+                                (batch.columns[:, None] + rows[None, :]).reshape(-1)))
+            else:
+                entries.append(tuple(np.array([v], dtype=np.int64) for v in e))
+        channels, stamps, offsets = (np.concatenate(a) for a in zip(*entries, strict=True))
+        order = np.lexsort((offsets, channels))
+        pairs = np.empty((channels.shape[0], 2), dtype="<u8")
+        pairs[:, 0] = stamps[order]
+        pairs[:, 1] = offsets[order]
+        channels = channels[order]
+        bounds = np.flatnonzero(np.diff(channels)) + 1
+        starts = [0, *bounds.tolist()]
+        ends = [*bounds.tolist(), channels.shape[0]]
+        pieces: list[Any] = []
+        index_map: list[int] = []
+        for channel, lo, hi in zip(channels[starts].tolist(), starts, ends, strict=True):
+            body = 16 * (hi - lo)
+            pieces += (_MESSAGE_INDEX_HEAD.pack(_OP_MESSAGE_INDEX, 2 + 4 + body, channel,
+                                                body), pairs[lo:hi])
+            index_map += (channel, at)
+            at += _MESSAGE_INDEX_HEAD.size + body
+        return (b"".join(pieces), struct.pack("<" + "HQ" * len(starts), *index_map),
+                len(starts))
+
     def flush_chunk(self) -> None:
         """Close the chunk in progress (if it holds a message): Chunk record, then one
-        Message Index record per channel."""
-        from mcap.records import ChunkIndex
-
+        Message Index record per channel, in one write (a chunk reaches the file whole or
+        not at all: a full disk keeps every chunk before); its Chunk Index to the spill."""
         if self._start is None:
             return
-        data = b"".join(self._parts)
+        data = self._parts[0] if len(self._parts) == 1 else b"".join(self._parts)
         compressed = self._zstd.compress(data)
-        # Chunk record (op 0x06): start, end, uncompressed size, uncompressed CRC, compression
-        # (a prefixed string), records (a prefixed byte string); written as two pieces.
         head = _CHUNK_HEAD.pack(_OP_CHUNK, _CHUNK_HEAD.size - 9 + len(compressed),
-                                self._start, self._end, len(data), zlib.crc32(data),
+                                self._start, self._end, self._size, zlib.crc32(data),
                                 4, b"zstd", len(compressed))
-        chunk_start = self.stream.tell()
-        self.stream.write(head)
-        self.stream.write(compressed)
+        chunk_start = self._pos
         chunk_length = len(head) + len(compressed)
-        index_start = chunk_start + chunk_length
-        offsets: dict[int, int] = {}
-        pieces = []
-        pos = index_start
-        for channel in sorted(self._index):
-            parts = self._index[channel]
-            pairs = np.empty((sum(p[0].size for p in parts), 2), dtype="<u8")
-            pairs[:, 0] = np.concatenate([p[0] for p in parts])
-            pairs[:, 1] = np.concatenate([p[1] for p in parts])
-            body = pairs.tobytes()
-            rec = struct.pack("<BQHI", _OP_MESSAGE_INDEX, 2 + 4 + len(body), channel,
-                              len(body)) + body
-            offsets[channel] = pos
-            pos += len(rec)
-            pieces.append(rec)
-        self.stream.write(b"".join(pieces))
-        b = self._builder()
-        ChunkIndex(message_start_time=self._start, message_end_time=self._end,
-                   chunk_start_offset=chunk_start, chunk_length=chunk_length,
-                   message_index_offsets=offsets, message_index_length=pos - index_start,
-                   compression="zstd", compressed_size=len(compressed),
-                   uncompressed_size=len(data)).write(b)
-        self.chunk_indexes += b.end()
-        self.stats.chunk_count += 1
-        self._parts, self._size, self._start, self._end = [], 0, None, 0
-        self._index = defaultdict(list)
+        indexes, index_map, channels = self._message_indexes(chunk_start + chunk_length)
+        self._write(b"".join((head, compressed, indexes)))
+        chunk_index = (
+            _CHUNK_INDEX_HEAD.pack(_OP_CHUNK_INDEX, 8 * 4 + 4 + 10 * channels
+                                   + _CHUNK_INDEX_TAIL.size, self._start, self._end,
+                                   chunk_start, chunk_length, 10 * channels)
+            + index_map
+            + _CHUNK_INDEX_TAIL.pack(memoryview(indexes).nbytes, 4, b"zstd",
+                                     len(compressed), self._size))
+        self.chunk_indexes.append(chunk_index)
+        self.chunk_count += 1
+        self._parts, self._index, self._size, self._start, self._end = [], [], 0, None, 0
 
     def flush(self) -> None:
         """Close the chunk in progress and flush the stream."""
@@ -238,37 +374,47 @@ class McapFile:
         self.stream.flush()
 
     def finish(self) -> None:
-        """Data end, the summary section (as ``mcap.writer.Writer`` writes it), footer."""
+        """Data end, the summary section (as ``mcap.writer.Writer`` writes it, the chunk
+        indexes streamed from the spill), footer."""
         from mcap.opcode import Opcode
-        from mcap.records import DataEnd, Footer, SummaryOffset
+        from mcap.records import DataEnd, Footer, Statistics, SummaryOffset
 
         self.flush_chunk()  # (schemas and channels of no message are in the summary only)
-        self._write_record(DataEnd(data_section_crc=0))
-        summary_start = self.stream.tell()
-        b = self._builder()
+        self._write(self._encode(DataEnd(data_section_crc=0)))
+        stats = Statistics(
+            attachment_count=0, channel_count=len(self.channels),
+            channel_message_counts={c: int(k) for c, k in enumerate(self._counts.tolist())
+                                    if k},
+            chunk_count=self.chunk_count, message_count=self.message_count,
+            message_end_time=self.message_end_time,
+            message_start_time=self.message_start_time, metadata_count=self.metadata_count,
+            schema_count=len(self.schemas))
+        summary_start = self._pos
+        crc = 0
         groups: list[Any] = []
-        for opcode, records in ((Opcode.SCHEMA, list(self.schemas.values())),
-                                (Opcode.CHANNEL, list(self.channels.values())),
-                                (Opcode.STATISTICS, [self.stats]),
-                                (Opcode.CHUNK_INDEX, [bytes(self.chunk_indexes)]),
-                                (Opcode.ATTACHMENT_INDEX, []),
-                                (Opcode.METADATA_INDEX, self.metadata_indexes)):
-            start = b.count
-            for r in records:
-                if isinstance(r, bytes):
-                    b.write(r)
-                else:
-                    r.write(b)
-            groups.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + start,
-                                        group_length=b.count - start))
-        offset_start = summary_start + b.count
-        for g in groups:
-            g.write(b)
-        summary = b.end()
-        crc = zlib.crc32(summary)
+
+        def group(opcode: int, pieces: Any) -> None:
+            nonlocal crc
+            start = self._pos
+            for data in pieces:
+                crc = zlib.crc32(data, crc)
+                self._write(data)
+            groups.append(SummaryOffset(group_opcode=opcode, group_start=start,
+                                        group_length=self._pos - start))
+
+        group(Opcode.SCHEMA, [self._encode(s) for s in self.schemas.values()])
+        group(Opcode.CHANNEL, [self._encode(c) for c in self.channels.values()])
+        group(Opcode.STATISTICS, [self._encode(stats)])
+        group(Opcode.CHUNK_INDEX, self.chunk_indexes.blocks())
+        group(Opcode.ATTACHMENT_INDEX, [])
+        group(Opcode.METADATA_INDEX, [self._encode(m) for m in self.metadata_indexes])
+        self.chunk_indexes.close()
+        offset_start = self._pos
+        offsets = b"".join(self._encode(g) for g in groups)
+        crc = zlib.crc32(offsets, crc)
+        self._write(offsets)
         crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start,
                                      offset_start), crc)
-        self.stream.write(summary)
-        self._write_record(Footer(summary_start=summary_start,
-                                  summary_offset_start=offset_start, summary_crc=crc))
-        self.stream.write(MAGIC)
+        self._write(self._encode(Footer(summary_start=summary_start,
+                                        summary_offset_start=offset_start, summary_crc=crc)))
+        self._write(MAGIC)

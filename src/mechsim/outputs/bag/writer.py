@@ -11,7 +11,9 @@ thread only, so Ctrl-C / SIGTERM can never interrupt a half-written record); the
 serializes and queues (a chunk of samples, already encoded by the nodes, is one item: see
 ``mcapfile``). A chunk is closed and flushed to the file at least every second of simulation
 time and every second of wall time (``McapFile.flush``), so after a hard kill every chunk but
-the last is in the file and ``mechsim bag repair`` completes the bag.
+the last is in the file and ``mechsim bag repair`` completes the bag. Memory stays flat however
+long the recording: the queue is bounded, and the chunk indexes the summary needs wait in an
+anonymous file inside the bag directory (``mcapfile.Spill``).
 
 A recording is never deleted after its first message: :meth:`BagWriter.abort` (after an error
 anywhere) completes the bag if the writer is healthy; after a write error (disk full, ...) the
@@ -247,7 +249,7 @@ class BagWriter:
 
         from mechsim import __version__
 
-        w = McapFile(self._file, chunk_size=self._chunk_size)
+        w = McapFile(self._file, chunk_size=self._chunk_size, scratch=self.path)
         w.start(profile=PROFILE, library=f"mechsim {__version__}; {LIBRARY_IDENTIFIER}")
         w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(
             bag_metadata(BagStats(custom_data=dict(self.stats.custom_data)), self.file_name))})
@@ -256,16 +258,19 @@ class BagWriter:
         self._channels: dict[str, int] = {}
         self._last_flush_ns: int | None = None
         self._last_flush_wall = time.monotonic()
-        while True:
-            item = self._queue.get()
-            if item is _STOP:
-                break
-            started = time.perf_counter()
-            self._write_item(w, item)
-            self.write_seconds += time.perf_counter() - started
-        meta = bag_metadata(self.stats, self.file_name)
-        w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
-        w.finish()
+        try:
+            while True:
+                item = self._queue.get()
+                if item is _STOP:
+                    break
+                started = time.perf_counter()
+                self._write_item(w, item)
+                self.write_seconds += time.perf_counter() - started
+            meta = bag_metadata(self.stats, self.file_name)
+            w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
+            w.finish()
+        finally:
+            w.chunk_indexes.close()
         self._file.flush()
         os.fsync(self._file.fileno())
         write_atomic(self.path / METADATA_FILE, metadata_text(meta))
@@ -288,7 +293,7 @@ class BagWriter:
             return
         if item[0] == "chunk":
             _, ns, rows = item
-            topics = [(channels[topic], r) for topic, r in rows]
+            batch = w.layout(ns, [(channels[topic], r) for topic, r in rows])
             start = 0
             while start < len(ns):
                 # Up to the next flush in simulation time (a chunk spans a second at most).
@@ -296,7 +301,7 @@ class BagWriter:
                     self._last_flush_ns = int(ns[start])
                 end = int(np.searchsorted(ns, self._last_flush_ns + FLUSH_SIM_NS, "left"))
                 end = max(end, start + 1)
-                w.add_batch(ns[start:end], [(c, r[start:end]) for c, r in topics])
+                w.add_rows(batch, start, end)
                 first, last = int(ns[start]), int(ns[end - 1])
                 for topic, _ in rows:
                     self.stats.add(topic, first, end - start, last)
