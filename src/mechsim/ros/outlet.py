@@ -15,6 +15,7 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from mechsim.outputs.bag import cdr_bytes
+from mechsim.outputs.messages import column_rows
 from mechsim.outputs.sink import Sink
 
 # QoS by role (ROS_CONVENTIONS §1, §2, §5).
@@ -136,35 +137,40 @@ class Outlet:
 
     def publish_chunk(self, ns: np.ndarray,
                       topics: list[tuple[str, np.ndarray, Callable[[int], Any]]],
-                      columns: Mapping[str, Any] | None = None) -> None:
+                      columns: Mapping[str, Any] | None = None,
+                      part: slice | None = None) -> None:
         """The messages of a chunk of samples stamped ``ns``, already encoded: for each
         (topic, rows, message), row i holds the CDR bytes of sample i. The same bytes are
         published (only on topics with subscribers at the last ``refresh``) and handed to
-        chunk sinks
-        (``write_chunk``: the recorder) in one call. ``columns``: per topic, the evaluated
-        values the rows were encoded from; a sink with ``write_columns`` gets those (one call
-        per topic) instead of messages. Any other sink gets ``message(i)``, built only for
-        the topics it wants, sample by sample in time order."""
-        recorded = []
+        chunk sinks (``write_chunk``: the recorder) in one call. ``columns``: per topic, the
+        evaluated values the rows were encoded from; a sink with ``write_columns`` gets those
+        (one call per topic) instead of messages. Any other sink gets ``message(i)``, built
+        only for the topics it wants, sample by sample in time order. ``part``: only these
+        samples of the chunk (each sink is handed its own slice, made only if it takes it)."""
+        a = 0 if part is None else part.start
+        if part is not None:
+            ns = ns[part]
+        n = len(ns)
         live = [(self.channels[topic], rows) for topic, rows, _ in topics
                 if self.subscribers.get(topic, 0) > 0]
-        step = LOSSLESS_DEPTH if self.lossless else max(len(ns), 1)
-        for a in range(0, len(ns), step):
+        step = LOSSLESS_DEPTH if self.lossless else max(n, 1)
+        for start in range(a, a + n, step):
             for ch, rows in live:
                 publish = ch.publisher.publish
-                for r in rows[a:a + step]:
+                for r in rows[start:min(start + step, a + n)]:
                     publish(r.tobytes())
             if self.lossless:
                 self._acknowledged([ch for ch, _ in live])
-        for topic, rows, _ in topics:
-            ch = self.channels[topic]
-            self.counts[topic] += len(ns)
-            recorded.append((topic, ch.type_name, ch.qos, rows))
+        for topic, _, _ in topics:
+            self.counts[topic] += n
         columns = columns or {}
         for sink in self.sinks:
             write_chunk = getattr(sink, "write_chunk", None)
             if write_chunk is not None:
-                write_chunk(ns, recorded)
+                write_chunk(ns, [(topic, self.channels[topic].type_name,
+                                  self.channels[topic].qos,
+                                  rows if part is None else rows[part])
+                                 for topic, rows, _ in topics])
                 continue
             wants = getattr(sink, "wants", None)
             chosen = [(topic, message) for topic, _, message in topics
@@ -173,11 +179,13 @@ class Outlet:
             if write_columns is not None:
                 for topic, _ in chosen:
                     if topic in columns:
-                        write_columns(topic, ns, columns[topic])
+                        values = columns[topic]
+                        write_columns(topic, ns, values if part is None
+                                      else column_rows(values, part))
                 chosen = [(t, m) for t, m in chosen if t not in columns]
-            for i in range(len(ns)):
+            for i in range(n):
                 for topic, message in chosen:
-                    sink.write(topic, self.channels[topic].type_name, message(i),
+                    sink.write(topic, self.channels[topic].type_name, message(a + i),
                                self.channels[topic].qos, int(ns[i]))
 
     def _acknowledged(self, channels: list[_Channel]) -> None:

@@ -141,11 +141,6 @@ def _builder(build: Callable[[Sample, int], Any], sample: Callable[[int], Sample
     return lambda i: build(sample(i), int(ns[i]))
 
 
-def _shifted(message: Callable[[int], Any], a: int) -> Callable[[int], Any]:
-    """``message`` of the rows from ``a`` on, numbered from 0."""
-    return lambda i: message(i + a)
-
-
 def paced_lookahead(publish_rate: float, real_time_factor: float) -> int:
     """Samples a paced node computes ahead (``LOOKAHEAD`` wall seconds of them)."""
     return max(1, min(_BLOCK, int(LOOKAHEAD * publish_rate * real_time_factor)))
@@ -474,17 +469,10 @@ class SimulatorNode(Node):
         a, b = block.released, block.released + k
         if k:
             t0 = time.perf_counter()
-            if a == 0 and b == block.times.size:
-                ns, topics, columns = block.ns, block.topics, block.columns
-            else:
-                ns = block.ns[a:b]
-                topics = [(topic, rows[a:b], _shifted(message, a))
-                          for topic, rows, message in block.topics]
-                columns = {topic: messages.column_rows(values, slice(a, b))
-                           for topic, values in block.columns.items()}
+            part = None if a == 0 and b == block.times.size else slice(a, b)
             # A stop waits for the samples: what was published and self.t agree.
             with held_signals():
-                self.outlet.publish_chunk(ns, topics, columns)
+                self.outlet.publish_chunk(block.ns, block.topics, block.columns, part)
                 block.released = b
                 self.samples_published += k
                 self.t = float(block.times[b - 1])
