@@ -44,7 +44,7 @@ Expr = sp.Expr
 
 #: Part of every derivation's cache key, with this module's source text: any change to the
 #: generator gives new kernel modules (see ``mechsim.codegen``).
-GENERATOR_VERSION = 5
+GENERATOR_VERSION = 6
 _GENERATOR_SOURCE = codegen.source_fingerprint([sys.modules[__name__]])
 
 
@@ -331,6 +331,40 @@ def _emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
     return lines
 
 
+#: Largest unconstrained system whose mass matrix is solved in generated scalar code (LDLᵀ:
+#: no array, no allocation per call); a larger one, or a constrained one (its saddle-point
+#: matrix is indefinite), goes through ``_solve`` (Gaussian elimination, partial pivoting).
+SCALAR_SOLVE_MAX = 8
+
+
+def _ldl_solve(M: sp.Matrix, f: list[Expr], x: list[str]) -> list[str]:
+    """Lines setting the scalars ``x`` to the solution of M x = f, M symmetric positive
+    definite (a mass matrix), by LDLᵀ without pivoting (stable for such M); entries of M that
+    are identically zero are left out of the arithmetic."""
+    n = len(x)
+    m = {(i, j): f"m_{i}_{j}" for i in range(n) for j in range(i + 1) if M[i, j] != 0}
+    lines = _emit([(name, M[i, j]) for (i, j), name in m.items()]
+                  + [(f"f_{i}", f[i]) for i in range(n)])
+    L: dict[tuple[int, int], str] = {}  # nonzero entries below the diagonal
+    for j in range(n):
+        terms = [f"{L[j, k]} * {L[j, k]} * d_{k}" for k in range(j) if (j, k) in L]
+        lines.append(f"    d_{j} = {m.get((j, j), '0.0')}" + "".join(f" - {t}" for t in terms))
+        for i in range(j + 1, n):
+            terms = [f"{L[i, k]} * {L[j, k]} * d_{k}" for k in range(j)
+                     if (i, k) in L and (j, k) in L]
+            if (i, j) in m or terms:
+                L[i, j] = f"l_{i}_{j}"
+                lines.append(f"    l_{i}_{j} = ({m.get((i, j), '0.0')}"
+                             + "".join(f" - {t}" for t in terms) + f") / d_{j}")
+    for i in range(n):  # L z = f, then Lᵀ x = z / d
+        lines.append(f"    z_{i} = f_{i}" + "".join(f" - {L[i, k]} * z_{k}" for k in range(i)
+                                                     if (i, k) in L))
+    for i in reversed(range(n)):
+        lines.append(f"    {x[i]} = z_{i} / d_{i}" + "".join(
+            f" - {L[k, i]} * {x[k]}" for k in range(i + 1, n) if (k, i) in L))
+    return lines
+
+
 def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
              q_name: str = "y") -> list[str]:
     lines = ["    t = t"]
@@ -414,6 +448,9 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += _emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
         body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)])
         body += [f"    a[{i}] += ua_{i}" for i in range(n)]
+    elif nc == 0 and n <= SCALAR_SOLVE_MAX:
+        body += _ldl_solve(M, [f[i] for i in range(n)], [f"x_{i}" for i in range(n)])
+        body += [f"    a[{i}] = x_{i}" for i in range(n)]
     else:
         m = n + nc
         body.append(f"    A = np.zeros(({m}, {m}))")
@@ -438,8 +475,9 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
     out.append(_func("accel", "t, y, p, a, lam", body))
 
-    # rhs: with a diagonal mass matrix and no constraints the accelerations are written
-    # inline (no array allocation per call); otherwise through accel's linear solve.
+    # rhs: without constraints the accelerations are written inline (no array allocation
+    # per call; a full mass matrix solved in scalars up to SCALAR_SOLVE_MAX coordinates);
+    # otherwise through accel's linear solve.
     if diagonal:
         dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
         P_u = sum(sp.diff(E, d.v[i]) * effort_accel[i] for i in range(n))  # dE's effort part
@@ -448,6 +486,10 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
         body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
         external = "dE + P_diss + P_u"
+    elif nc == 0 and n <= SCALAR_SOLVE_MAX:
+        body = list(pre) + _ldl_solve(M, [f[i] for i in range(n)], a_names)
+        body += _emit([("P_diss", P_diss), ("dE", dE)])
+        external = "dE + P_diss"
     else:
         body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
                 "    accel(t, y, p, acc, lam)"]
