@@ -702,7 +702,10 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         dt = s_.h
         landing = False
         if t0 + dt * (1.0 + _LANDING_STRETCH) >= t_out[k]:
-            dt = t_out[k] - t0
+            # from the compensated time t₀ + t_comp (t_out[k] − t₀ is exact once t₀ ≥
+            # t_out[k]/2, Sterbenz): the state is integrated over exactly the span the clock
+            # advances, leaving no time shift at a landing
+            dt = (t_out[k] - t0) - s_.t_comp
             landing = True
         if dt <= 10.0 * abs(np.nextafter(t0, np.inf) - t0):
             return Status.STEP_UNDERFLOW, k
