@@ -155,6 +155,14 @@ class LinearOscillator(LagrangianModel):
         w0, beta = self.natural_frequency(), self.beta()
         tones = self.drive_tones()
         driven = bool(tones)
+
+        def energy(x_: np.ndarray, v_: np.ndarray) -> np.ndarray:
+            return 0.5 * m * v_**2 + 0.5 * k * x_**2
+
+        e0 = 0.5 * m * float(y0[1]) ** 2 + 0.5 * k * float(y0[0]) ** 2
+        if not driven:  # the free solution alone (no particular one to add)
+            x, v = free_solution(t - t0, y0[0], y0[1], w0, beta)
+            return state_rows(y0, [x, v, np.full(t.size, y0[2]), y0[3] + e0 - energy(x, v)])
         if self.particular_solution(np.array([t0])) is None:
             return None  # undamped resonance: secular growth, not this form
 
@@ -168,20 +176,12 @@ class LinearOscillator(LagrangianModel):
         xp, vp = particular(t)
         x, v = xp + u, vp + du
 
-        def energy(x_: np.ndarray, v_: np.ndarray) -> np.ndarray:
-            return 0.5 * m * v_**2 + 0.5 * k * x_**2
+        def power(s: np.ndarray) -> np.ndarray:
+            xs, vs = particular(s)
+            us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
+            return c * (vs + dus) ** 2
 
-        e0 = float(energy(np.array([y0[0]]), np.array([y0[1]]))[0])
-        if not driven:
-            w_ext = np.full(t.size, y0[2])
-            w_diss = y0[3] + e0 - energy(x, v)
-        else:
-            def power(s: np.ndarray) -> np.ndarray:
-                xs, vs = particular(s)
-                us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
-                return c * (vs + dus) ** 2
-
-            piece = 0.05 * 2 * math.pi / max(w0, *(w for _, w, _ in tones))
-            w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
-            w_ext = y0[2] + (energy(x, v) - e0) + (w_diss - y0[3])
+        piece = 0.05 * 2 * math.pi / max(w0, *(w for _, w, _ in tones))
+        w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
+        w_ext = y0[2] + (energy(x, v) - e0) + (w_diss - y0[3])
         return state_rows(y0, [x, v, w_ext, w_diss])

@@ -414,9 +414,12 @@ class Model(ABC):
         return False
 
     def has_closed_form(self) -> bool:
-        """Whether ``propagate`` is exact for this model's formulation and parameters."""
-        return type(self).propagate is not Model.propagate and self.propagate(
-            0.0, self.initial_y(), np.zeros(1)) is not None
+        """Whether ``propagate`` is exact for this model's formulation and parameters (asked
+        once per model: its parameters never change)."""
+        if "_closed_form" not in self.__dict__:
+            self.__dict__["_closed_form"] = type(self).propagate is not Model.propagate \
+                and self.propagate(0.0, self.initial_y(), np.zeros(1)) is not None
+        return bool(self.__dict__["_closed_form"])
 
     def laws(self) -> tuple[Law, ...]:
         """The conservation laws that hold: energy for closed systems, the work balance always,

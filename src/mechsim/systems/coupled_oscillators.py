@@ -32,6 +32,7 @@ modes are M-orthogonal (2281), not merely orthogonal (2215); the weak-coupling r
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -39,23 +40,29 @@ import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, positive
-from mechsim.systems._oscillator import free_solution, state_rows
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 MAX_COUNT = 12
 
 
+@functools.lru_cache(maxsize=MAX_COUNT)
 def mode_shapes(n: int) -> np.ndarray:
-    """Orthonormal eigenvectors of the path-graph Laplacian, one per row, ascending."""
+    """Orthonormal eigenvectors of the path-graph Laplacian, one per row, ascending
+    (read-only: made once per n)."""
     j = np.arange(1, n + 1)
-    u = np.array([np.cos((j - 0.5) * r * math.pi / n) for r in range(n)])
-    return u / np.linalg.norm(u, axis=1)[:, None]
+    u = np.cos(np.outer(np.arange(n), j - 0.5) * math.pi / n)
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    u.flags.writeable = False
+    return u
 
 
+@functools.lru_cache(maxsize=MAX_COUNT)
 def laplacian_eigenvalues(n: int) -> np.ndarray:
-    """4 sin²(rπ/2n), r = 0 … n − 1."""
-    return 4 * np.sin(np.arange(n) * math.pi / (2 * n)) ** 2
+    """4 sin²(rπ/2n), r = 0 … n − 1 (read-only: made once per n)."""
+    lam = 4 * np.sin(np.arange(n) * math.pi / (2 * n)) ** 2
+    lam.flags.writeable = False
+    return lam
 
 
 class CoupledOscillators(LagrangianModel):
@@ -154,17 +161,22 @@ class CoupledOscillators(LagrangianModel):
 
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Superposition of the normal modes, each η_r = u_r·x a free oscillator at ω_r from
-        its state at t₀ (nothing drives or dissipates: the work terms stay as they are)."""
-        t = np.asarray(t, dtype=float)
+        its state at t₀ (ω_r > 0: every mass has its anchor spring κ > 0), all modes at once:
+        η_r = η_r(t₀) cos ω_r τ + η̇_r(t₀)/ω_r sin ω_r τ, x = Σ η_r u_r. Nothing drives or
+        dissipates: the work terms stay as they are."""
+        tau = np.asarray(t, dtype=float) - t0
         n = self.count
-        x0, v0 = np.asarray(y0[:n], dtype=float), np.asarray(y0[n:2 * n], dtype=float)
         u, w = self.mode_shapes(), self.mode_frequencies()
-        x, v = np.zeros((t.size, n)), np.zeros((t.size, n))
-        for r in range(n):
-            eta, deta = free_solution(t - t0, float(u[r] @ x0), float(u[r] @ v0), float(w[r]))
-            x += eta[:, None] * u[r]
-            v += deta[:, None] * u[r]
-        return state_rows(y0, [*x.T, *v.T])
+        eta0 = u @ np.asarray(y0[:n], dtype=float)
+        deta0 = u @ np.asarray(y0[n:2 * n], dtype=float)
+        wt = np.outer(tau, w)
+        c, s = np.cos(wt), np.sin(wt)
+        x = (eta0 * c + (deta0 / w) * s) @ u
+        v = (deta0 * c - (eta0 * w) * s) @ u
+        rows = np.empty((tau.size, len(y0)))
+        rows[:, :n], rows[:, n:2 * n] = x, v
+        rows[:, 2 * n:] = np.asarray(y0, dtype=float)[2 * n:]
+        return rows
 
     def weak_coupling_ratio(self) -> float:
         """ε = κ₁₂ / 2κ (line 2094)."""
