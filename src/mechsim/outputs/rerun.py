@@ -149,7 +149,7 @@ class _Stream:
     together: pieces of columns joined into one block of rows."""
 
     topic: str
-    shape: tuple[str, ...] = ()  # names (state, invariants, observables) or parent frames
+    shape: Any = None  # the names (state, invariants, observables) or parent frames it has
     ns: list[np.ndarray] = field(default_factory=list)
     values: list[Columns] = field(default_factory=list)
     rows: int = 0
@@ -253,6 +253,7 @@ class RerunSink:
         self.series: dict[str, _Series] = {}
         #: Samples gathered and not drawn yet: by topic (for transforms: topic and frames)
         self.streams: dict[Any, _Stream] = {}
+        self._wanted: dict[str, bool] = {}
         self.bbox: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self.messages = 0
         self.closed = False
@@ -263,14 +264,17 @@ class RerunSink:
     # --- sink protocol ------------------------------------------------------------------------
     def wants(self, topic: str) -> bool:
         """Every topic but those of types never drawn (clock, pose, twist)."""
-        return topic.rpartition("/")[2] not in _NOT_DRAWN
+        wanted = self._wanted.get(topic)
+        if wanted is None:
+            wanted = self._wanted[topic] = topic.rpartition("/")[2] not in _NOT_DRAWN
+        return wanted
 
     def write_columns(self, topic: str, ns: np.ndarray, values: Columns) -> None:
         """A chunk of samples stamped ``ns`` as evaluated values (see ``Outlet.publish_chunk``):
         energy terms, /tf transforms, or name -> values (state positions, invariants,
         observables). Gathered per stream and drawn in blocks of rows."""
         self.messages += len(ns)
-        self._gather(topic, np.asarray(ns, dtype=np.int64), values)
+        self._gather(topic, ns, values)
         if self._live_next is not None and time.monotonic() >= self._live_next:
             self._send_live()
 
@@ -292,7 +296,8 @@ class RerunSink:
                 if latched:
                     self._draw(stream)
         elif type_name == "diagnostic_msgs/msg/DiagnosticArray":
-            self._settle()
+            if not _ns(msg.header.stamp):  # drawn at the latest sample time: known once drawn
+                self._settle()
             self._on_diagnostics(msg)
         elif type_name == "mechsim_msgs/msg/SystemInfo":
             self._settle()
@@ -538,15 +543,18 @@ class RerunSink:
 
     # --- gathering and drawing samples --------------------------------------------------------
     def _gather(self, topic: str, ns: np.ndarray, values: Columns) -> _Stream:
-        """Keep a piece of a stream's samples; draw the stream once it holds ``_DRAW_ROWS``."""
-        if isinstance(values, dict):
+        """Keep a piece of a stream's samples; draw the stream once it holds ``_DRAW_ROWS``.
+        (Called for every piece of every topic of a paced run: kept lean.)"""
+        kind = type(values)
+        shape: Any
+        if kind is dict:
             key: Any = topic
-            shape = tuple(values)
-        elif hasattr(values, "children"):  # TransformColumns
-            key = (topic, *values.children)
-            shape = tuple(values.parents)
+            shape = values.keys()  # type: ignore[union-attr]
+        elif kind is _transform_columns_type():
+            key = (topic, *values.children)  # type: ignore[union-attr]
+            shape = values.parents  # type: ignore[union-attr]
         else:  # EnergyColumns
-            key, shape = topic, ()
+            key, shape = topic, None
         s = self.streams.get(key)
         if s is None:
             s = self.streams[key] = _Stream(topic, shape)
@@ -569,13 +577,13 @@ class RerunSink:
         """Draw a stream's gathered samples (its blocks of rows joined) and forget them."""
         if not s.rows:
             return
-        from mechsim.outputs.messages import joined_columns
+        from mechsim.outputs.messages import TransformColumns, joined_columns
 
-        ns = np.concatenate(s.ns) if len(s.ns) > 1 else s.ns[0]
+        ns = np.concatenate(s.ns).astype(np.int64, copy=False)
         values = joined_columns(s.values)
         s.ns, s.values, s.rows = [], [], 0
-        if hasattr(values, "children"):
-            self._draw_transforms(s, ns, values)  # type: ignore[arg-type]
+        if isinstance(values, TransformColumns):
+            self._draw_transforms(s, ns, values)
             return
         base, _, leaf = s.topic.rpartition("/")
         st = self._system(base.strip("/"))
@@ -893,6 +901,13 @@ class RerunSink:
         self._settle()
         s = self.series.get(entity)
         return 0 if s is None else s.rows + s.buffered
+
+
+@functools.cache
+def _transform_columns_type() -> type:
+    from mechsim.outputs.messages import TransformColumns
+
+    return TransformColumns
 
 
 def _transform_columns(msg: Any) -> list[tuple[int, TransformColumns]]:
