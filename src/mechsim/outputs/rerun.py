@@ -1,8 +1,11 @@
 """Rerun recordings of a run: the same ROS messages a run publishes (or a bag holds), drawn.
 
-``RerunSink(path)`` is an Outlet sink (``write(topic, type_name, msg, qos, ns)``, see
-``mechsim.ros.outlet``); ``convert_bag(bag, path)`` feeds a rosbag2 MCAP bag through the same
-sink, so a recording made live and one converted from the run's bag hold the same entities.
+``RerunSink(path)`` is an Outlet sink (see ``mechsim.ros.outlet``): a run hands it each chunk
+of samples as evaluated values (``write_columns(topic, ns, values)``: energy terms, /tf
+transforms, state positions, invariants, observables) and the other messages one by one
+(``write``); ``convert_bag(bag, path)`` feeds a rosbag2 MCAP bag's messages through ``write``,
+which turns a sample's message into one-row columns: both are drawn by the same code, so a
+recording made live and one converted from the run's bag are the same, row for row.
 
 Layout of the recording (Rerun 0.41, one timeline ``sim_time``: duration = stamp − time_offset):
 
@@ -29,9 +32,17 @@ instead of writing a file: the buffered columns are sent every ``LIVE_PERIOD`` s
 
 A system is learned from its ``<ns>/system_info`` message: system id and parameters give the model
 (``mechsim.load_system``), hence its frames and visuals. Its time offset is that message's stamp,
-which is always simulation time 0 (``DEFAULT_TIME_OFFSET`` until one arrives). Time series and
-moving transforms are buffered and sent as columns (``send_columns``), a few thousand rows at a
-time: no per-message logging cost and no ``log_time`` timeline.
+which is always simulation time 0 (``DEFAULT_TIME_OFFSET`` until one arrives).
+
+Samples are gathered per stream (a topic; for /tf, the frames of one message) as they come and
+drawn in blocks of rows with numpy: scalars, drifts (each epoch's first value taken per stream:
+a time going back by more than 1 ns is a reset), frame chains composed row by row with
+vectorised quaternion products, trail segments. Whatever changes how later samples are drawn
+(system_info, /tf_static) draws what was gathered first. A frame's chain takes the frames of its
+own block row by row and any other frame at its latest pose (mechsim's frames: the one /tf
+message of a system, and /tf_static). Time series and moving transforms are then buffered and
+sent as columns (``send_columns``), a few thousand rows at a time: no per-message logging cost
+and no ``log_time`` timeline.
 """
 
 from __future__ import annotations
