@@ -297,3 +297,161 @@ def test_cli_run_rrd_and_convert_errors(tmp_path: Path,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("mechsim: error:")
     assert not (tmp_path / "x.rrd").exists()
+
+
+def same_values(a: Any, b: Any) -> bool:
+    """Equal, element by element, NaN equal to NaN."""
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(same_values(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)
+
+
+def test_columns_and_messages_give_one_recording(tmp_path: Path) -> None:
+    """A run's recording (drawn from the chunks' columns) equals the one converted from the
+    same run's bag (drawn message by message), entity by entity, every row and value: frame
+    chains of several depths, an attitude, many frames, more samples than one drawing
+    takes."""
+    import yaml
+
+    from mechsim.cli import main
+
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(yaml.safe_dump({"name": "columns", "publish_rate": 1000.0, "systems": [
+        {"system": "double_pendulum"},
+        {"system": "rigid_body", "origin": [3.0, 0.0, 0.0]},
+        {"system": "two_body_field", "origin": [6.0, 0.0, 0.0]},
+        {"system": "moving_frames", "origin": [9.0, 0.0, 0.0]},
+        {"system": "gas_in_box", "origin": [12.0, 0.0, 0.0]}]}))
+    bag, rrd, converted = tmp_path / "bag", tmp_path / "run.rrd", tmp_path / "converted.rrd"
+    assert main(["run", str(scene), "--fast", "--duration", "2.5", "--bag", str(bag),
+                 "--rrd", str(rrd)]) == 0
+    assert main(["convert", str(bag), "--rrd", str(converted)]) == 0
+    run, conv = read_rrd(rrd), read_rrd(converted)
+    assert sorted(run) == sorted(conv)
+    n = 2501  # 1000 Hz, t = 0 … 2.5
+    for entity in ("/plots/double_pendulum/energy/total", "/plots/gas_in_box/state/x_8",
+                   "/world/double_pendulum/visuals/trail_bob_2",
+                   "/plots/two_body_field/drift/angular_momentum_z"):
+        assert len(run[entity]["time"]) == n, entity
+    rows = 0
+    for entity, e in run.items():
+        c = conv[entity]
+        assert c["time"].tolist() == e["time"].tolist(), entity
+        if entity != "/__properties":  # the recording's own id and start time
+            assert same_values(c["static"], e["static"]), entity
+        assert sorted(c["cols"]) == sorted(e["cols"]), entity
+        for column, values in e["cols"].items():
+            assert same_values(c["cols"][column], values), (entity, column)
+        rows += len(e["time"])
+    assert rows > 100 * n
+
+
+@pytest.mark.parametrize("path", ["columns", "messages"])
+@pytest.mark.parametrize("draw_rows", [2, 1024])
+def test_resets_rebase_drifts_and_trails(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                         path: str, draw_rows: int) -> None:
+    """Samples whose time goes back (a reset), inside one chunk and across chunks, drawn in
+    small or large blocks, from columns or from messages: the balance residual and the
+    invariant drifts start again from the epoch's first sample (a constraint residual is
+    drawn as it is), the trail restarts at the frame, and links and trails are composed
+    through a rotated static parent."""
+    from geometry_msgs.msg import TransformStamped
+
+    import mechsim.outputs.rerun as rerun_output
+    from mechsim.outputs.messages import EnergyColumns, TransformColumns
+    from mechsim_msgs.msg import Energy, NamedScalar, NamedScalars, SystemInfo
+    from tf2_msgs.msg import TFMessage
+
+    monkeypatch.setattr(rerun_output, "_DRAW_ROWS", draw_rows)
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.0, 0.1, 0.2])  # reset after the 4th sample
+    ns = (np.round(t * 1e9) + OFFSET_NS).astype(np.int64)
+    total = np.array([5.0, 5.5, 6.0, 7.0, 2.0, 2.25, 3.0])
+    w_ext = np.array([0.0, 0.25, 0.5, 1.0, 0.0, 0.5, 0.5])
+    w_diss = np.array([0.0, 0.0, 0.125, 0.25, 0.0, 0.0, 0.5])
+    momentum = np.array([1.0, 1.5, 0.5, 2.0, 4.0, 3.0, 8.0])
+    residual = np.array([1e-9, -2e-9, 0.0, 3e-9, 5e-9, 0.0, -1e-9])
+    bob = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0],
+                    [1.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, -1.0]])
+    s45 = math.sqrt(0.5)
+    pivot, turn = np.array([10.0, 0.0, 2.0]), np.array([0.0, 0.0, s45, s45])  # 90° about z
+    chunks = [slice(0, 2), slice(2, 6), slice(6, 7)]  # the reset inside the second chunk
+
+    sink = rerun_output.RerunSink(tmp_path / "r.rrd")
+    info = SystemInfo(instance="pendulum", system="pendulum", parameters_yaml="{}\n")
+    info.header.stamp.sec = 1
+    sink.write("/pendulum/system_info", "mechsim_msgs/msg/SystemInfo", info, None, OFFSET_NS)
+    static = TransformStamped()
+    static.header.stamp.sec = 1
+    static.header.frame_id, static.child_frame_id = "world", "pendulum/pivot"
+    tr, q = static.transform.translation, static.transform.rotation
+    tr.x, tr.y, tr.z = pivot.tolist()
+    q.x, q.y, q.z, q.w = turn.tolist()
+    sink.write("/tf_static", "tf2_msgs/msg/TFMessage", TFMessage(transforms=[static]), None,
+               OFFSET_NS)
+    poses = np.concatenate([bob, np.tile([0.0, 0.0, 0.0, 1.0], (len(t), 1))], axis=1)
+    for rows in chunks:
+        if path == "columns":
+            sink.write_columns("/pendulum/energy", ns[rows], EnergyColumns(
+                np.zeros(len(t))[rows], total[rows], total[rows], total[rows], w_ext[rows],
+                w_diss[rows]))
+            sink.write_columns("/pendulum/invariants", ns[rows], {
+                "angular_momentum": momentum[rows], "constraint_rod": residual[rows]})
+            sink.write_columns("/tf", ns[rows], TransformColumns(
+                ["pendulum/pivot"], ["pendulum/bob"], poses[rows, None, :]))
+            continue
+        for i in range(len(t))[rows]:
+            stamp = {"sec": int(ns[i]) // 1_000_000_000, "nanosec": int(ns[i]) % 1_000_000_000}
+            e = Energy(kinetic=0.0, potential=total[i], total=total[i],
+                       energy_function=total[i], work_external=w_ext[i],
+                       work_dissipated=w_diss[i])
+            e.header.stamp.sec, e.header.stamp.nanosec = stamp["sec"], stamp["nanosec"]
+            sink.write("/pendulum/energy", "mechsim_msgs/msg/Energy", e, None, int(ns[i]))
+            m = NamedScalars(scalars=[NamedScalar(name="angular_momentum", value=momentum[i]),
+                                      NamedScalar(name="constraint_rod", value=residual[i])])
+            m.header.stamp.sec, m.header.stamp.nanosec = stamp["sec"], stamp["nanosec"]
+            sink.write("/pendulum/invariants", "mechsim_msgs/msg/NamedScalars", m, None,
+                       int(ns[i]))
+            tf = TransformStamped()
+            tf.header.stamp.sec, tf.header.stamp.nanosec = stamp["sec"], stamp["nanosec"]
+            tf.header.frame_id, tf.child_frame_id = "pendulum/pivot", "pendulum/bob"
+            tf.transform.translation.x, tf.transform.translation.y = bob[i, 0], bob[i, 1]
+            tf.transform.translation.z = bob[i, 2]
+            sink.write("/tf", "tf2_msgs/msg/TFMessage", TFMessage(transforms=[tf]), None,
+                       int(ns[i]))
+    sink.close()
+    got = read_rrd(tmp_path / "r.rrd")
+
+    epoch = [0, 0, 0, 0, 4, 4, 4]  # each sample's epoch's first sample
+    balance = total - (w_ext - w_diss)
+    e = got["/plots/pendulum/balance_residual"]
+    # Sorted by time: the two epochs interleave; compare as multisets of (time, value).
+    want = sorted(zip(np.round(t * 1e9).astype(int).tolist(),
+                      (balance - balance[epoch]).tolist(), strict=True))
+    assert sorted(zip(e["time"].tolist(), scalars(e).tolist(), strict=True)) == want
+    e = got["/plots/pendulum/drift/angular_momentum"]
+    want = sorted(zip(np.round(t * 1e9).astype(int).tolist(),
+                      (momentum - momentum[epoch]).tolist(), strict=True))
+    assert sorted(zip(e["time"].tolist(), scalars(e).tolist(), strict=True)) == want
+    e = got["/plots/pendulum/drift/constraint_rod"]
+    want = sorted(zip(np.round(t * 1e9).astype(int).tolist(), residual.tolist(), strict=True))
+    assert sorted(zip(e["time"].tolist(), scalars(e).tolist(), strict=True)) == want
+    # The bob in world: the pivot's rotation (x -> y, y -> -x) applied to its offset.
+    world = pivot + np.column_stack([-bob[:, 1], bob[:, 0], bob[:, 2]])
+    previous = [0, 0, 1, 2, 4, 4, 5]  # the trail restarts at the reset
+    want_trail = sorted(zip(np.round(t * 1e9).astype(int).tolist(),
+                            [[world[p].tolist(), world[i].tolist()]
+                             for i, p in enumerate(previous)], strict=True))
+    e = got["/world/pendulum/visuals/trail_bob"]
+    trail = sorted(zip(e["time"].tolist(), strips(e), strict=True))
+    assert [w for w, _ in trail] == [w for w, _ in want_trail]
+    for (_, seg), (_, want_seg) in zip(trail, want_trail, strict=True):
+        np.testing.assert_allclose(seg, want_seg, rtol=0, atol=1e-6)  # float32 in the file
+    e = got["/world/pendulum/visuals/link_pivot_bob"]
+    link = sorted(zip(e["time"].tolist(), strips(e), strict=True))
+    want_link = sorted(zip(np.round(t * 1e9).astype(int).tolist(),
+                           [[pivot.tolist(), w.tolist()] for w in world], strict=True))
+    for (tl, seg), (tw, want_seg) in zip(link, want_link, strict=True):
+        assert tl == tw
+        np.testing.assert_allclose(seg, want_seg, rtol=0, atol=1e-6)

@@ -1,8 +1,11 @@
 """Rerun recordings of a run: the same ROS messages a run publishes (or a bag holds), drawn.
 
-``RerunSink(path)`` is an Outlet sink (``write(topic, type_name, msg, qos, ns)``, see
-``mechsim.ros.outlet``); ``convert_bag(bag, path)`` feeds a rosbag2 MCAP bag through the same
-sink, so a recording made live and one converted from the run's bag hold the same entities.
+``RerunSink(path)`` is an Outlet sink (see ``mechsim.ros.outlet``): a run hands it each chunk
+of samples as evaluated values (``write_columns(topic, ns, values)``: energy terms, /tf
+transforms, state positions, invariants, observables) and the other messages one by one
+(``write``); ``convert_bag(bag, path)`` feeds a rosbag2 MCAP bag's messages through ``write``,
+which turns a sample's message into one-row columns: both are drawn by the same code, so a
+recording made live and one converted from the run's bag are the same, row for row.
 
 Layout of the recording (Rerun 0.41, one timeline ``sim_time``: duration = stamp − time_offset):
 
@@ -29,9 +32,17 @@ instead of writing a file: the buffered columns are sent every ``LIVE_PERIOD`` s
 
 A system is learned from its ``<ns>/system_info`` message: system id and parameters give the model
 (``mechsim.load_system``), hence its frames and visuals. Its time offset is that message's stamp,
-which is always simulation time 0 (``DEFAULT_TIME_OFFSET`` until one arrives). Time series and
-moving transforms are buffered and sent as columns (``send_columns``), a few thousand rows at a
-time: no per-message logging cost and no ``log_time`` timeline.
+which is always simulation time 0 (``DEFAULT_TIME_OFFSET`` until one arrives).
+
+Samples are gathered per stream (a topic; for /tf, the frames of one message) as they come and
+drawn in blocks of rows with numpy: scalars, drifts (each epoch's first value taken per stream:
+a time going back by more than 1 ns is a reset), frame chains composed row by row with
+vectorised quaternion products, trail segments. Whatever changes how later samples are drawn
+(system_info, /tf_static) draws what was gathered first. A frame's chain takes the frames of its
+own block row by row and any other frame at its latest pose (mechsim's frames: the one /tf
+message of a system, and /tf_static). Time series and moving transforms are then buffered and
+sent as columns (``send_columns``), a few thousand rows at a time: no per-message logging cost
+and no ``log_time`` timeline.
 """
 
 from __future__ import annotations
@@ -47,13 +58,16 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from mechsim.errors import MechsimError
 from mechsim.files import publish
 from mechsim.systems.base import Law
+
+if TYPE_CHECKING:
+    from mechsim.outputs.messages import Columns, EnergyColumns, TransformColumns
 
 TIMELINE = "sim_time"
 ENERGY_TERMS = ("kinetic", "potential", "total", "energy_function", "work_external",
@@ -65,6 +79,12 @@ HANDLED_TYPES = {
     "diagnostic_msgs/msg/DiagnosticArray",
 }
 _FLUSH_ROWS = 4096
+#: A stream's gathered samples are drawn once this many have come (and before anything that
+#: changes how they are drawn: a system_info, /tf_static, a live send, the end).
+_DRAW_ROWS = 1024
+#: Topics published with every sample whose types nothing here draws: their messages are not
+#: made for this sink (``wants``).
+_NOT_DRAWN = ("clock", "pose", "twist")
 #: Live streams: buffered columns are sent at least this often [s of wall time].
 LIVE_PERIOD = 0.1
 #: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
@@ -125,12 +145,28 @@ def _qrot(q: tuple[float, ...], v: tuple[float, ...]) -> tuple[float, float, flo
 
 @dataclass
 class _Series:
-    """Buffered rows of one entity: times [ns of sim time] and one value per row."""
+    """Buffered rows of one entity: times [ns of sim time] and values, in pieces of rows."""
 
-    kind: str  # "scalar" | "transform" | "strip"
-    times: list[int] = field(default_factory=list)
-    values: list[Any] = field(default_factory=list)
+    kind: str  # "scalar" | "transform" (rows x y z qx qy qz qw) | "strip" (rows (2, 3))
+    times: list[np.ndarray] = field(default_factory=list)
+    values: list[np.ndarray] = field(default_factory=list)
+    buffered: int = 0
     rows: int = 0
+
+
+@dataclass
+class _Stream:
+    """Samples of one topic (for /tf: of one set of frames) gathered as they come, drawn
+    together: pieces of columns joined into one block of rows."""
+
+    topic: str
+    shape: Any = None  # the names (state, invariants, observables) or parent frames it has
+    ns: list[np.ndarray] = field(default_factory=list)
+    values: list[Columns] = field(default_factory=list)
+    rows: int = 0
+    #: Per system: the latest sample time drawn [ns of sim time] (a time earlier by more
+    #: than 1 ns is a reset: the stream's epoch starts again)
+    last_t: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass
@@ -226,6 +262,9 @@ class RerunSink:
         self.systems: dict[str, _System] = {}
         self.frames: dict[str, _Frame] = {"world": _Frame("", "world", known=True)}
         self.series: dict[str, _Series] = {}
+        #: Samples gathered and not drawn yet: by topic (for transforms: topic and frames)
+        self.streams: dict[Any, _Stream] = {}
+        self._wanted: dict[str, bool] = {}
         self.bbox: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self.messages = 0
         self.closed = False
@@ -234,33 +273,61 @@ class RerunSink:
         self._live_blueprint: tuple[Any, ...] = ()
 
     # --- sink protocol ------------------------------------------------------------------------
+    def wants(self, topic: str) -> bool:
+        """Every topic but those of types never drawn (clock, pose, twist)."""
+        wanted = self._wanted.get(topic)
+        if wanted is None:
+            wanted = self._wanted[topic] = topic.rpartition("/")[2] not in _NOT_DRAWN
+        return wanted
+
+    def write_columns(self, topic: str, ns: np.ndarray, values: Columns) -> None:
+        """A chunk of samples stamped ``ns`` as evaluated values (see ``Outlet.publish_chunk``):
+        energy terms, /tf transforms, or name -> values (state positions, invariants,
+        observables). Gathered per stream and drawn in blocks of rows."""
+        self.messages += len(ns)
+        self._gather(topic, ns, values)
+        if self._live_next is not None and time.monotonic() >= self._live_next:
+            self._send_live()
+
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        """One message. Samples (energy, state, invariants, observables, transforms) become
+        one-row columns, drawn by the code :meth:`write_columns` uses; system_info,
+        /tf_static and diagnostics apply to what follows them, so what was gathered before
+        is drawn first."""
         if type_name not in HANDLED_TYPES:
             return
         self.messages += 1
         base, _, leaf = topic.rpartition("/")
-        sys_ns = base.strip("/")
         if type_name == "tf2_msgs/msg/TFMessage":
-            self._on_tf(msg)
+            latched = leaf == "tf_static"
+            if latched:
+                self._settle()
+            for stamp, columns in _transform_columns(msg):
+                stream = self._gather(topic, np.array([stamp], dtype=np.int64), columns)
+                if latched:
+                    self._draw(stream)
         elif type_name == "diagnostic_msgs/msg/DiagnosticArray":
+            if not _ns(msg.header.stamp):  # drawn at the latest sample time: known once drawn
+                self._settle()
             self._on_diagnostics(msg)
         elif type_name == "mechsim_msgs/msg/SystemInfo":
-            self._on_info(sys_ns, msg)
-        elif type_name == "mechsim_msgs/msg/Energy":
-            self._on_energy(self._system(sys_ns), msg)
-        elif type_name == "mechsim_msgs/msg/NamedScalars":
-            st = self._system(sys_ns)
-            t = self._t(st, msg.header.stamp)
-            if leaf == "invariants":
-                self._on_invariants(st, t, msg)
-            else:
-                for scalar in msg.scalars:
-                    self._scalar(_path("plots", st.ns, leaf, scalar.name), t, scalar.value)
-        elif type_name == "sensor_msgs/msg/JointState" and leaf == "state":
-            st = self._system(sys_ns)
-            t = self._t(st, msg.header.stamp)
-            for name, value in zip(msg.name, msg.position, strict=False):
-                self._scalar(_path("plots", st.ns, "state", name), t, value)
+            self._settle()
+            self._on_info(base.strip("/"), msg)
+        else:
+            stamp = np.array([_ns(msg.header.stamp)], dtype=np.int64)
+            if type_name == "mechsim_msgs/msg/Energy":
+                from mechsim.outputs.messages import EnergyColumns
+
+                self._gather(topic, stamp, EnergyColumns(**{
+                    name: np.array([float(getattr(msg, name))]) for name in ENERGY_TERMS}))
+            elif type_name == "mechsim_msgs/msg/NamedScalars":
+                self._gather(topic, stamp, {s.name: np.array([float(s.value)])
+                                            for s in msg.scalars})
+            elif leaf == "state":  # JointState
+                self._gather(topic, stamp, {name: np.array([float(value)]) for name, value
+                                            in zip(msg.name, msg.position, strict=False)})
+        if self._live_next is not None and time.monotonic() >= self._live_next:
+            self._send_live()
 
     def close(self) -> None:
         """Send the buffered columns and the final blueprint; finish the file and rename it
@@ -273,6 +340,7 @@ class RerunSink:
             self._close_live()
             return
         try:
+            self._settle()
             for entity in list(self.series):
                 self._flush(entity)
             self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
@@ -307,6 +375,7 @@ class RerunSink:
 
     def _close_live(self) -> None:
         try:
+            self._settle()
             for entity in list(self.series):
                 self._flush(entity)
             self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
@@ -318,6 +387,7 @@ class RerunSink:
     def _send_live(self) -> None:
         """Send every buffered column; the blueprint too once the systems (or the 3D extent
         that places the camera) are first known."""
+        self._settle()
         for entity in list(self.series):
             self._flush(entity)
         shown = (tuple(st.key for st in self.systems.values()), self.bbox[0] is not None)
@@ -342,15 +412,6 @@ class RerunSink:
         if st is None:
             st = self.systems[ns] = _System(ns, ns.rpartition("/")[2], self.default_offset_ns)
         return st
-
-    def _t(self, st: _System, stamp: Any) -> int:
-        t = _ns(stamp) - st.offset_ns
-        if t > st.last_t:
-            st.last_t = t
-        elif t < st.last_t - 1:  # time went back: the system was reset
-            self._rebaseline(st)
-            st.last_t = t
-        return t
 
     def _rebaseline(self, st: _System) -> None:
         st.balance0 = None
@@ -491,88 +552,211 @@ class RerunSink:
         self.frames[child] = fr
         return fr
 
-    # --- transforms and shapes in world -------------------------------------------------------
-    def _world_position(self, fid: str) -> tuple[float, float, float] | None:
-        """Origin of frame ``fid`` in world; None until its whole chain has been posed."""
-        chain = []
-        while fid != "world":
-            fr = self.frames.get(fid)
-            if fr is None or not fr.known:
-                return None
-            chain.append(fr)
-            fid = fr.parent
-        p: tuple[float, float, float] = (0.0, 0.0, 0.0)
-        q: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
-        for fr in reversed(chain):
-            d = _qrot(q, fr.translation)
-            p = (p[0] + d[0], p[1] + d[1], p[2] + d[2])
-            q = _qmul(q, fr.rotation)
-        return p
+    # --- gathering and drawing samples --------------------------------------------------------
+    def _gather(self, topic: str, ns: np.ndarray, values: Columns) -> _Stream:
+        """Keep a piece of a stream's samples; draw the stream once it holds ``_DRAW_ROWS``.
+        (Called for every piece of every topic of a paced run: kept lean.)"""
+        kind = type(values)
+        shape: Any
+        if kind is dict:
+            key: Any = topic
+            shape = values.keys()  # type: ignore[union-attr]
+        elif kind is _transform_columns_type():
+            key = (topic, *values.children)  # type: ignore[union-attr]
+            shape = values.parents  # type: ignore[union-attr]
+        else:  # EnergyColumns
+            key, shape = topic, None
+        s = self.streams.get(key)
+        if s is None:
+            s = self.streams[key] = _Stream(topic, shape)
+        elif s.shape != shape:  # other names or parents: what came before is drawn as it was
+            self._draw(s)
+            s.shape = shape
+        s.ns.append(ns)
+        s.values.append(values)
+        s.rows += len(ns)
+        if s.rows >= _DRAW_ROWS:
+            self._draw(s)
+        return s
 
-    def _on_tf(self, msg: Any) -> None:
-        touched: dict[str, int] = {}
-        for tr in msg.transforms:
-            child = tr.child_frame_id.lstrip("/")
-            parent = tr.header.frame_id.lstrip("/") or "world"
+    def _settle(self) -> None:
+        """Draw everything gathered."""
+        for s in self.streams.values():
+            self._draw(s)
+
+    def _draw(self, s: _Stream) -> None:
+        """Draw a stream's gathered samples (its blocks of rows joined) and forget them."""
+        if not s.rows:
+            return
+        from mechsim.outputs.messages import TransformColumns, joined_columns
+
+        ns = np.concatenate(s.ns).astype(np.int64, copy=False)
+        values = joined_columns(s.values)
+        s.ns, s.values, s.rows = [], [], 0
+        if isinstance(values, TransformColumns):
+            self._draw_transforms(s, ns, values)
+            return
+        base, _, leaf = s.topic.rpartition("/")
+        st = self._system(base.strip("/"))
+        t = ns - st.offset_ns
+        starts = self._epochs(s, st, t)
+        if isinstance(values, dict):
+            for name, v in values.items():
+                v = np.asarray(v, dtype=np.float64)
+                self._scalars(_path("plots", st.ns, leaf, name), t, v)
+                if leaf == "invariants":
+                    self._draw_drift(st, name, t, v, starts)
+        else:
+            self._draw_energy(st, t, values, starts)  # type: ignore[arg-type]
+
+    def _epochs(self, s: _Stream, st: _System, t: np.ndarray) -> list[int]:
+        """Rows of ``t`` (sample times of ``st`` on stream ``s``) where the time went back by
+        more than 1 ns since the latest sample: the system was reset, a new epoch begins."""
+        last = s.last_t.get(st.ns, 0)
+        starts: list[int] = []
+        lo = 0
+        while lo < len(t):
+            seg = t[lo:]
+            latest = np.maximum(np.maximum.accumulate(seg), last)
+            before = np.concatenate(([last], latest[:-1]))
+            back = np.flatnonzero(seg < before - 1)
+            if not back.size:
+                last = int(latest[-1])
+                break
+            k = lo + int(back[0])
+            starts.append(k)
+            last = int(t[k])
+            lo = k + 1
+        s.last_t[st.ns] = st.last_t = last
+        return starts
+
+    @staticmethod
+    def _initials(v: np.ndarray, starts: list[int], v0: float | None) -> tuple[np.ndarray, float]:
+        """Each row's initial value, that of its epoch's first row (``v0`` for rows before the
+        first start, when the epoch began earlier), and the last epoch's."""
+        out = np.empty_like(v)
+        cur = v0
+        bounds = [0, *starts, len(v)]
+        for a, b in zip(bounds[:-1], bounds[1:], strict=False):
+            if a == b:
+                continue
+            if cur is None or a in starts:
+                cur = float(v[a])
+            out[a:b] = cur
+        assert cur is not None
+        return out, cur
+
+    def _draw_energy(self, st: _System, t: np.ndarray, e: EnergyColumns,
+                     starts: list[int]) -> None:
+        for term in ENERGY_TERMS:
+            self._scalars(_path("plots", st.ns, "energy", term), t,
+                          np.asarray(getattr(e, term), dtype=np.float64))
+        balance = np.asarray(_BALANCE.value(energy=e), dtype=np.float64)
+        initial, st.balance0 = self._initials(balance, starts, st.balance0)
+        self._scalars(_path("plots", st.ns, "balance_residual"), t,
+                      _BALANCE.deviation(balance, initial))
+
+    def _draw_drift(self, st: _System, name: str, t: np.ndarray, v: np.ndarray,
+                    starts: list[int]) -> None:
+        """Drift of invariant ``name``: its law's deviation from the epoch's first value."""
+        law = st.laws.get(name) or Law.for_invariant(name)
+        initial, st.invariants0[name] = self._initials(v, starts, st.invariants0.get(name))
+        self._scalars(_path("plots", st.ns, "drift", name), t, law.deviation(v, initial))
+
+    # --- transforms and shapes in world -------------------------------------------------------
+    def _draw_transforms(self, s: _Stream, ns: np.ndarray, tc: TransformColumns) -> None:
+        """Transforms of each frame relative to its parent entity; then, per system, its links
+        and trail segments between frame origins in world, at every row."""
+        values = np.asarray(tc.values, dtype=np.float64)
+        columns: dict[str, int] = {}  # frame -> its transform in this block
+        systems: dict[str, tuple[_System, np.ndarray, list[int]]] = {}
+        for k, (parent_id, child_id) in enumerate(zip(tc.parents, tc.children, strict=True)):
+            child = child_id.lstrip("/")
+            parent = parent_id.lstrip("/") or "world"
             fr = self._declare_frame(child, parent)
-            a, r = tr.transform.translation, tr.transform.rotation
-            fr.translation = (float(a.x), float(a.y), float(a.z))
-            fr.rotation = (float(r.x), float(r.y), float(r.z), float(r.w))
+            fr.translation = tuple(float(x) for x in values[-1, k, :3])  # type: ignore[assignment]
+            fr.rotation = tuple(float(x) for x in values[-1, k, 3:])  # type: ignore[assignment]
             fr.known = True
-            ns = child.partition("/")[0]
-            st = self._system(ns)
-            t = self._t(st, tr.header.stamp)
-            touched[ns] = t
-            self._append(fr.entity, "transform", t, (fr.translation, fr.rotation))
+            columns[child] = k
+            sys_ns = child.partition("/")[0]
+            if sys_ns not in systems:
+                st = self._system(sys_ns)
+                t = ns - st.offset_ns
+                starts = self._epochs(s, st, t)
+                systems[sys_ns] = (st, t, starts)
+            self._append(fr.entity, "transform", systems[sys_ns][1], values[:, k, :])
             if parent == "world":
-                self._extend(fr.translation)
-        for ns, t in touched.items():
-            st = self.systems[ns]
+                self._extend(values[:, k, :3])
+        world: dict[str, np.ndarray | None] = {}
+
+        def position(fid: str) -> np.ndarray | None:
+            if fid not in world:
+                world[fid] = self._world_positions(fid, columns, values)
+            return world[fid]
+
+        for st, t, starts in systems.values():
             for entity, a, b in st.links:
-                pa, pb = self._world_position(a), self._world_position(b)
+                pa, pb = position(a), position(b)
                 if pa is None or pb is None:
                     continue
                 self._extend(pa)
                 self._extend(pb)
-                self._append(entity, "strip", t, (pa, pb))
+                self._append(entity, "strip", t, np.stack([pa, pb], axis=1))
             for entity, fid in st.trails:
-                p = self._world_position(fid)
+                p = position(fid)
                 if p is None:
+                    if starts:
+                        st.last_trail.pop(entity, None)
                     continue
                 self._extend(p)
-                prev = st.last_trail.get(entity, p)
-                st.last_trail[entity] = p
-                self._append(entity, "strip", t, (prev, p))
+                # Segments from the previous origin (none before an epoch's first sample).
+                prev = np.empty_like(p)
+                prev[1:] = p[:-1]
+                last = None if starts[:1] == [0] else st.last_trail.get(entity)
+                prev[0] = p[0] if last is None else last
+                prev[starts] = p[starts]
+                st.last_trail[entity] = tuple(float(x) for x in p[-1])  # type: ignore[assignment]
+                self._append(entity, "strip", t, np.stack([prev, p], axis=1))
 
-    def _extend(self, p: tuple[float, float, float]) -> None:
-        """Grow the bounding box of drawn points (it places the default 3D camera)."""
+    def _world_positions(self, fid: str, columns: dict[str, int],
+                         values: np.ndarray) -> np.ndarray | None:
+        """Origin of frame ``fid`` in world at each row of a block of transforms (``values``,
+        frame -> index ``columns``; a frame not in the block at its latest pose), composed
+        along its chain; None until the whole chain has been posed."""
+        chain = []
+        while fid != "world":
+            fr = self.frames.get(fid)
+            if fr is None or not (fr.known or fid in columns):
+                return None
+            chain.append((fid, fr))
+            fid = fr.parent
+        p: tuple[Any, Any, Any] = (0.0, 0.0, 0.0)
+        q: tuple[Any, ...] = (0.0, 0.0, 0.0, 1.0)
+        for fid, fr in reversed(chain):
+            k = columns.get(fid)
+            if k is None:
+                translation, rotation = fr.translation, fr.rotation
+            else:
+                translation = tuple(values[:, k, j] for j in range(3))  # type: ignore[assignment]
+                rotation = tuple(values[:, k, j] for j in range(3, 7))  # type: ignore[assignment]
+            d = _qrot(q, translation)
+            p = (p[0] + d[0], p[1] + d[1], p[2] + d[2])
+            q = _qmul(q, rotation)
+        out = np.empty((values.shape[0], 3))
+        out[:] = np.stack(np.broadcast_arrays(*p), axis=-1)
+        return out
+
+    def _extend(self, points: Any) -> None:
+        """Grow the bounding box of drawn points (rows of x y z; it places the default 3D
+        camera)."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         lo, hi = self.bbox
         if lo is None or hi is None:
-            self.bbox = (np.array(p), np.array(p))
-        elif not (lo[0] <= p[0] <= hi[0] and lo[1] <= p[1] <= hi[1] and lo[2] <= p[2] <= hi[2]):
-            self.bbox = (np.minimum(lo, p), np.maximum(hi, p))
+            self.bbox = (points.min(axis=0), points.max(axis=0))
+        else:
+            self.bbox = (np.minimum(lo, points.min(axis=0)), np.maximum(hi, points.max(axis=0)))
 
-    # --- scalars ------------------------------------------------------------------------------
-    def _on_energy(self, st: _System, m: Any) -> None:
-        t = self._t(st, m.header.stamp)
-        values = (m.kinetic, m.potential, m.total, m.energy_function, m.work_external,
-                  m.work_dissipated)
-        for term, value in zip(ENERGY_TERMS, values, strict=True):
-            self._scalar(_path("plots", st.ns, "energy", term), t, value)
-        balance = float(_BALANCE.value(energy=m))
-        if st.balance0 is None:
-            st.balance0 = balance
-        self._scalar(_path("plots", st.ns, "balance_residual"), t,
-                     _BALANCE.deviation(balance, st.balance0))
-
-    def _on_invariants(self, st: _System, t: int, m: Any) -> None:
-        for scalar in m.scalars:
-            name, value = scalar.name, scalar.value
-            self._scalar(_path("plots", st.ns, "invariants", name), t, value)
-            law = st.laws.get(name) or Law.for_invariant(name)
-            v0 = st.invariants0.setdefault(name, float(value))
-            self._scalar(_path("plots", st.ns, "drift", name), t, law.deviation(float(value), v0))
-
+    # --- diagnostics --------------------------------------------------------------------------
     def _on_diagnostics(self, msg: Any) -> None:
         import rerun as rr
 
@@ -590,45 +774,46 @@ class RerunSink:
                 self.rec.log(entity, rr.SeriesLines(
                     names=law, interpolation_mode=rr.components.InterpolationMode.StepAfter),
                     static=True)
-            self._scalar(entity, t, level)
+            self._scalars(entity, np.array([t], dtype=np.int64),
+                          np.array([level], dtype=np.float64))
 
     # --- buffering ----------------------------------------------------------------------------
-    def _scalar(self, entity: str, t: int, value: float) -> None:
-        self._append(entity, "scalar", t, float(value) if math.isfinite(value) else math.nan)
+    def _scalars(self, entity: str, t: np.ndarray, values: np.ndarray) -> None:
+        """Rows of a scalar entity (anything not finite drawn as NaN)."""
+        self._append(entity, "scalar", t, np.where(np.isfinite(values), values, math.nan))
 
-    def _append(self, entity: str, kind: str, t: int, value: Any) -> None:
+    def _append(self, entity: str, kind: str, t: np.ndarray, values: np.ndarray) -> None:
         s = self.series.get(entity)
         if s is None:
             s = self.series[entity] = _Series(kind)
         s.times.append(t)
-        s.values.append(value)
-        if len(s.times) >= _FLUSH_ROWS:
+        s.values.append(values)
+        s.buffered += len(t)
+        if s.buffered >= _FLUSH_ROWS:
             self._flush(entity)
-        if self._live_next is not None and time.monotonic() >= self._live_next:
-            self._send_live()
 
     def _flush(self, entity: str) -> None:
         import rerun as rr
 
         s = self.series[entity]
-        if not s.times:
+        if not s.buffered:
             return
-        index = [rr.TimeColumn(TIMELINE, duration=np.asarray(s.times, dtype="timedelta64[ns]"))]
+        times = np.concatenate(s.times)
+        values = np.concatenate(s.values)
+        index = [rr.TimeColumn(TIMELINE, duration=times.astype("timedelta64[ns]"))]
         if s.kind == "scalar":
-            values = np.asarray(s.values, dtype=np.float64)
             finite = np.abs(values[np.isfinite(values)])
             if finite.size:
                 self.peaks[entity] = max(self.peaks.get(entity, 0.0), float(finite.max()))
             columns: Any = rr.Scalars.columns(scalars=values)
         elif s.kind == "transform":
-            columns = rr.Transform3D.columns(
-                translation=np.asarray([v[0] for v in s.values], dtype=np.float32),
-                quaternion=np.asarray([v[1] for v in s.values], dtype=np.float32))
+            columns = rr.Transform3D.columns(translation=values[:, :3].astype(np.float32),
+                                             quaternion=values[:, 3:].astype(np.float32))
         else:
-            columns = rr.LineStrips3D.columns(strips=np.asarray(s.values, dtype=np.float32))
+            columns = rr.LineStrips3D.columns(strips=values.astype(np.float32))
         self.rec.send_columns(entity, indexes=index, columns=columns)
-        s.rows += len(s.times)
-        s.times, s.values = [], []
+        s.rows += s.buffered
+        s.times, s.values, s.buffered = [], [], 0
 
     # --- blueprint ----------------------------------------------------------------------------
     def _blueprint(self) -> Any:
@@ -724,8 +909,33 @@ class RerunSink:
 
     def rows(self, entity: str) -> int:
         """Rows sent or buffered so far for ``entity`` (a path without leading '/')."""
+        self._settle()
         s = self.series.get(entity)
-        return 0 if s is None else s.rows + len(s.times)
+        return 0 if s is None else s.rows + s.buffered
+
+
+@functools.cache
+def _transform_columns_type() -> type:
+    from mechsim.outputs.messages import TransformColumns
+
+    return TransformColumns
+
+
+def _transform_columns(msg: Any) -> list[tuple[int, TransformColumns]]:
+    """A TFMessage as one-row transform columns, one per run of transforms with one stamp."""
+    from mechsim.outputs.messages import TransformColumns
+
+    runs: list[tuple[int, list[str], list[str], list[list[float]]]] = []
+    for tr in msg.transforms:
+        stamp = _ns(tr.header.stamp)
+        if not runs or runs[-1][0] != stamp:
+            runs.append((stamp, [], [], []))
+        a, r = tr.transform.translation, tr.transform.rotation
+        runs[-1][1].append(tr.header.frame_id)
+        runs[-1][2].append(tr.child_frame_id)
+        runs[-1][3].append([a.x, a.y, a.z, r.x, r.y, r.z, r.w])
+    return [(stamp, TransformColumns(parents, children, np.array([rows], dtype=np.float64)))
+            for stamp, parents, children, rows in runs]
 
 
 # --- bags ---------------------------------------------------------------------------------------
