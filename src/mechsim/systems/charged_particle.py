@@ -43,6 +43,7 @@ import math
 
 import numpy as np
 import sympy as sp
+from numba import njit
 from scipy.constants import epsilon_0, mu_0
 
 from mechsim.errors import ParameterError
@@ -50,6 +51,23 @@ from mechsim.params import number, positive
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
+
+@njit(cache=True)
+def _gyrate(x0: float, y0: float, z0: float, ux: float, uy: float, vz: float, vdx: float,
+            vdy: float, az: float, om: float, t: np.ndarray, r: np.ndarray,
+            v: np.ndarray) -> None:
+    """Rows of r(t), v(t) (see ``ChargedParticle.cartesian_motion``), one loop over t."""
+    for i in range(t.size):
+        ti = t[i]
+        c, s = math.cos(om * ti), math.sin(om * ti)
+        h = math.sin(0.5 * om * ti)
+        S, C = s / om, 2.0 * h * h / om  # ∫ cos, ∫ sin
+        r[i, 0] = x0 + vdx * ti + ux * S - uy * C
+        r[i, 1] = y0 + vdy * ti + ux * C + uy * S
+        r[i, 2] = z0 + vz * ti + 0.5 * az * ti * ti
+        v[i, 0] = vdx + ux * c - uy * s
+        v[i, 1] = vdy + ux * s + uy * c
+        v[i, 2] = vz + az * ti
 
 class ChargedParticle(LagrangianModel):
     id = "charged_particle"
@@ -167,14 +185,10 @@ class ChargedParticle(LagrangianModel):
         t = np.asarray(t, dtype=float)
         az = self.value("charge") * self.value("electric_field.z") / self.value("mass")
         vd = self.drift_velocity()
-        ux, uy = v0[0] - vd[0], v0[1] - vd[1]
-        Om = self.gyration_rate()
-        c, s = np.cos(Om * t), np.sin(Om * t)
-        S, C = s / Om, 2.0 * np.sin(0.5 * Om * t) ** 2 / Om  # ∫ cos, ∫ sin
-        r = np.stack([r0[0] + vd[0] * t + ux * S - uy * C,
-                      r0[1] + vd[1] * t + ux * C + uy * S,
-                      r0[2] + v0[2] * t + 0.5 * az * t * t], axis=1)
-        v = np.stack([vd[0] + ux * c - uy * s, vd[1] + ux * s + uy * c, v0[2] + az * t], axis=1)
+        r, v = np.empty((t.size, 3)), np.empty((t.size, 3))
+        _gyrate(float(r0[0]), float(r0[1]), float(r0[2]), float(v0[0] - vd[0]),
+                float(v0[1] - vd[1]), float(v0[2]), float(vd[0]), float(vd[1]), az,
+                self.gyration_rate(), t, r, v)
         return r, v
 
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
@@ -186,8 +200,8 @@ class ChargedParticle(LagrangianModel):
         t = np.asarray(t, dtype=float)
         if self.formulation != "cylindrical":
             r, v = self.cartesian_motion(y0[0:3], y0[3:6], t - t0)
-            rows = np.repeat(np.asarray(y0, dtype=float)[None, :], t.size, axis=0)
-            rows[:, 0:3], rows[:, 3:6] = r, v
+            rows = np.empty((t.size, len(y0)))
+            rows[:, 0:3], rows[:, 3:6], rows[:, 6:] = r, v, np.asarray(y0, dtype=float)[6:]
             return rows
         rho0, phi0, z0, drho0, dphi0, dz0 = (float(x) for x in y0[:6])
         c0, s0 = math.cos(phi0), math.sin(phi0)
