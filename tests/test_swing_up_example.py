@@ -55,6 +55,7 @@ def test_swing_up_and_hold(ros_context: Any, mechsim_graph: Any) -> None:
     mechsim_graph.add_node(controller)
     mechsim_graph.start("pendulum", mass=MASS, length=LENGTH, gravity=GRAVITY,
                         **{"initial.angle": 0.1})
+    energies = mechsim_graph.collect("/pendulum/energy")
 
     def held_upright(states: list[JointState]) -> bool:
         """The last 100 samples (1 s at 100 Hz) within 0.05 rad of the top."""
@@ -69,8 +70,17 @@ def test_swing_up_and_hold(ros_context: Any, mechsim_graph: Any) -> None:
     mechsim_graph.collect("/pendulum/system_info").wait_for(
         predicate=lambda infos: bool(infos) and list(infos[-1].laws) == ["work_balance"])
     mechsim_graph.assert_laws_ok("pendulum")
-    energy = mechsim_graph.collect("/pendulum/energy").wait_for(count=10)[-1]
-    # Held at the top: E ≈ 2 m g R. The PD hold acts on samples one period old, so the
-    # pendulum keeps a small oscillation inside the 0.05 rad band (seen: 0.04 J above 2 m g R
-    # on a loaded machine); a bound of 0.5 % of E still tells a held pendulum from any swing.
-    assert abs(energy.total - 2 * MASS * GRAVITY * LENGTH) < 0.1
+    # While held at the top (the same 100 samples), E ≈ 2 m g R. The PD hold acts on samples
+    # one period old, so the pendulum keeps a small oscillation inside the 0.05 rad band
+    # (seen: 0.04 J above 2 m g R on a loaded machine); a bound of 0.5 % of E still tells a
+    # held pendulum from any swing. (Later samples are not checked: a controller starved of
+    # CPU long enough, e.g. beside a cold compilation, can lose the hold.)
+    def stamp(msg: Any) -> tuple[int, int]:
+        return (msg.header.stamp.sec, msg.header.stamp.nanosec)
+
+    held = {stamp(s) for s in states[-100:]}
+    window = [e for e in energies.wait_for(
+        predicate=lambda es: held <= {stamp(e) for e in es}) if stamp(e) in held]
+    assert len(window) >= 100
+    for e in window:
+        assert abs(e.total - 2 * MASS * GRAVITY * LENGTH) < 0.1, (stamp(e), e.total)
