@@ -340,9 +340,7 @@ class RerunSink:
             self._close_live()
             return
         try:
-            self._settle()
-            for entity in list(self.series):
-                self._flush(entity)
+            self._send_buffered()
             self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
             # RuntimeError if Rerun's file writer stopped (disk full, ...) or, bounded, hangs.
             self.rec.flush(timeout_sec=FLUSH_TIMEOUT)
@@ -375,9 +373,7 @@ class RerunSink:
 
     def _close_live(self) -> None:
         try:
-            self._settle()
-            for entity in list(self.series):
-                self._flush(entity)
+            self._send_buffered()
             self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
             self.rec.flush(timeout_sec=LIVE_FLUSH_TIMEOUT)
         finally:
@@ -387,14 +383,18 @@ class RerunSink:
     def _send_live(self) -> None:
         """Send every buffered column; the blueprint too once the systems (or the 3D extent
         that places the camera) are first known."""
-        self._settle()
-        for entity in list(self.series):
-            self._flush(entity)
+        self._send_buffered()
         shown = (tuple(st.key for st in self.systems.values()), self.bbox[0] is not None)
         if shown != self._live_blueprint and shown[0]:
             self._live_blueprint = shown
             self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
         self._live_next = time.monotonic() + LIVE_PERIOD
+
+    def _send_buffered(self) -> None:
+        """Draw everything gathered and send every entity's buffered columns."""
+        self._settle()
+        for entity in list(self.series):
+            self._flush(entity)
 
     def _remove_tmp(self) -> None:
         if self._tmpdir is not None:

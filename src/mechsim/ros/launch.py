@@ -246,9 +246,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     ``before_first_message``: called with each simulator node before it publishes."""
     from mechsim.environment import import_rclpy
 
-    rclpy = import_rclpy()
+    import_rclpy()  # the ROS environment set before rclpy is imported
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
 
     from mechsim.outputs.messages import stamp_ns
     from mechsim.ros.diagnostics import DiagnosticsNode
@@ -258,11 +257,10 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     global _joined
     own_context = context is None
     joined_at = None
-    if own_context and _joined is not None:
+    if own_context:
+        join_graph()  # unless the command already did
+        assert _joined is not None
         (context, joined_at), _joined = _joined, None
-    elif own_context:
-        context = rclpy.context.Context()
-        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     if graph_wait is None:
         graph_wait = GRAPH_WAIT if own_context else 0.0
     fast = (scene.pacing == "fast" or scene.real_time_factor == 0) if fast is None else fast

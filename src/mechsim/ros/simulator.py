@@ -439,12 +439,11 @@ class SimulatorNode(Node):
                                        for j, name in enumerate(f.observable_names)}
             if c.frames is not None:
                 columns[self.t_tf] = f.transform_columns(c.frames)
-            if f.joints:
-                columns[self.t_state] = {f.coordinate_names[j]: c.q[:, j] for j in f.joints}
             if self.publish_clock:
                 topics.append((self.t_clock, enc.encode("clock", c),
                                lambda i: messages.clock(int(ns[i]))))
             if f.joints:
+                columns[self.t_state] = {f.coordinate_names[j]: c.q[:, j] for j in f.joints}
                 topics.append((self.t_state, enc.encode("state", c),
                                _builder(f.state, sample, ns)))
             if f.attitude is not None:
