@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numba import njit
 
 from mechsim.systems._rotation import (
     ROTATION_KERNELS,
@@ -225,61 +226,219 @@ RIGID_KERNELS = (*ROTATION_KERNELS, rb_omega, rb_unit, rb_torque, rhs, project, 
 # --- the torque-free motion in closed form ----------------------------------------------------
 
 
-def _quat_z(angle: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Quaternions (x, y, z, w) of rotations by ``angle`` about z, as four arrays."""
-    zero = np.zeros_like(angle)
-    return (zero, zero, np.sin(0.5 * angle), np.cos(0.5 * angle))
-
-
-def _quat_x(angle: np.ndarray) -> tuple[np.ndarray, ...]:
-    zero = np.zeros_like(angle)
-    return (np.sin(0.5 * angle), zero, zero, np.cos(0.5 * angle))
-
-
-def _conjugate(q: tuple | np.ndarray) -> tuple:
-    return (-q[0], -q[1], -q[2], q[3])
-
-
-def jacobi_elliptic(u: np.ndarray, m: float, m1: float) -> tuple[np.ndarray, ...]:
-    """sn, cn, dn of u for the parameter m given with its complement m1 = 1 − m, each accurate
-    on its own (near the separatrix m1 is small and 1 − m would keep few of its digits; scipy's
-    ``ellipj`` takes m alone). Arithmetic–geometric mean and descending recursion for the
-    amplitude (Abramowitz & Stegun 16.4), with b₀ = √m1."""
-    u = np.asarray(u, dtype=float)
-    if m1 == 0.0:  # on the separatrix: the limit m = 1
-        return np.tanh(u), 1.0 / np.cosh(u), 1.0 / np.cosh(u)
+def agm_ratios(m: float, m1: float) -> tuple[np.ndarray, float]:
+    """The ratios c_k/a_k of the arithmetic–geometric mean from a₀ = 1, b₀ = √m1, c₀ = √m
+    (Abramowitz & Stegun 16.4) and 2^N a_N, which start the descending recursion for am u."""
     a, b, c = 1.0, math.sqrt(m1), math.sqrt(m)
-    ratios = []
+    ratios: list[float] = []
     while abs(c) > 1e-17 * a and len(ratios) < 60:
         a, b, c = 0.5 * (a + b), math.sqrt(a * b), 0.5 * (a - b)
         ratios.append(c / a)
-    phi = (2.0 ** len(ratios)) * a * u
+    return np.array(ratios[::-1]), (2.0 ** len(ratios)) * a
+
+
+@njit(cache=True)
+def _amplitude(u: float, ratios: np.ndarray, scale: float, m1: float) -> tuple[float, float]:
+    """am u and dn u (``jacobi_amplitude``) from ``agm_ratios`` (ratios last-first)."""
+    if m1 == 0.0:
+        return 2.0 * math.atan(math.tanh(0.5 * u)), 1.0 / math.cosh(u)
+    phi = scale * u
+    if ratios.size == 0:
+        return phi, 1.0
     prev = phi
-    for r in reversed(ratios):
+    for r in ratios:
         prev = phi
-        phi = 0.5 * (phi + np.arcsin(r * np.sin(phi)))
-    sn, cn = np.sin(phi), np.cos(phi)
-    dn = cn / np.cos(prev - phi) if ratios else np.ones_like(u)
-    return sn, cn, dn
+        phi = 0.5 * (phi + math.asin(r * math.sin(phi)))
+    return phi, math.cos(phi) / math.cos(prev - phi)
+
+
+@njit(cache=True)
+def _amplitudes(u: np.ndarray, ratios: np.ndarray, scale: float, m1: float,
+                am: np.ndarray, dn: np.ndarray) -> None:
+    for k in range(u.size):
+        am[k], dn[k] = _amplitude(u[k], ratios, scale, m1)
+
+
+def jacobi_amplitude(u: np.ndarray, m: float, m1: float) -> tuple[np.ndarray, np.ndarray]:
+    """The amplitude φ = am(u | m) (continuous, increasing in u) and dn(u | m), for the
+    parameter m given with its complement m1 = 1 − m, each accurate on its own (near the
+    separatrix m1 is small and 1 − m would keep few of its digits; scipy's ``ellipj`` takes m
+    alone): the descending recursion φ_{k−1} = ½(φ_k + asin((c_k/a_k) sin φ_k)) from
+    φ_N = 2^N a_N u (A&S 16.4), dn = cos φ / cos(φ₁ − φ); on the separatrix (m1 = 0)
+    am u = gd u, dn u = sech u."""
+    u = np.ascontiguousarray(u, dtype=float)
+    ratios, scale = agm_ratios(m, m1)
+    am, dn = np.empty_like(u), np.empty_like(u)
+    _amplitudes(u.ravel(), ratios, scale, m1, am.ravel(), dn.ravel())
+    return am, dn
+
+
+def jacobi_elliptic(u: np.ndarray, m: float, m1: float) -> tuple[np.ndarray, ...]:
+    """sn, cn, dn of u from m and m1 = 1 − m (``jacobi_amplitude``)."""
+    phi, dn = jacobi_amplitude(u, m, m1)
+    return np.sin(phi), np.cos(phi), dn
+
+
+#: Carlson's duplication stops once the arguments agree to this (relative): the series then
+#: leaves an error of its sixth power, below round-off.
+_CARLSON_SPREAD = 1e-3
+
+
+@njit(cache=True)
+def carlson_rf(x: float, y: float, z: float) -> float:
+    """R_F(x, y, z) = ½∫₀^∞ dt/√((t+x)(t+y)(t+z)), x, y, z ≥ 0, at most one zero: duplication
+    x ← (x + λ)/4 (λ = √x√y + √y√z + √z√x), then the series in X = 1 − x/A, … (A the mean):
+    (1 − E₂/10 + E₃/14 + E₂²/24 − 3E₂E₃/44)/√A, E₂ = XY − Z², E₃ = XYZ (Carlson 1995;
+    DLMF 19.36.1)."""
+    for _ in range(200):
+        A = (x + y + z) / 3.0
+        X, Y = 1.0 - x / A, 1.0 - y / A
+        Z = -(X + Y)
+        if max(abs(X), abs(Y), abs(Z)) < _CARLSON_SPREAD:
+            break
+        sx, sy, sz = math.sqrt(x), math.sqrt(y), math.sqrt(z)
+        lam = sx * sy + sy * sz + sz * sx
+        x, y, z = 0.25 * (x + lam), 0.25 * (y + lam), 0.25 * (z + lam)
+    E2, E3 = X * Y - Z * Z, X * Y * Z
+    return (1.0 - E2 / 10.0 + E3 / 14.0 + E2 * E2 / 24.0 - 3.0 * E2 * E3 / 44.0) / math.sqrt(A)
+
+
+@njit(cache=True)
+def carlson_rf_rj(x: float, y: float, z: float, p: float) -> tuple[float, float]:
+    """R_F(x, y, z) and R_J(x, y, z, p) = (3/2)∫₀^∞ dt/((t+p)√((t+x)(t+y)(t+z))), for
+    p ≥ max(x, y, z) (the case of ``elliptic_pi`` with n ≤ 0; then every R_C below is an
+    arctangent), from one duplication of x, y, z and p (R_F is invariant under it, so its
+    series is taken at the last x, y, z). R_J: each step adds 6·4^{−k} R_C(1, 1 + e_k)/d_k,
+    d_k = (√p+√x)(√p+√y)(√p+√z), e_k = 4^{−3k}δ/d_k², δ = (p−x)(p−y)(p−z); then the series
+    4^{−K} A_K^{−3/2}(1 − 3E₂/14 + E₃/6 + 9E₂²/88 − 3E₄/22 − 9E₂E₃/52 + 3E₅/26) in
+    X = (A₀ − x)/(4^K A_K), …, P = −(X + Y + Z)/2 (Carlson 1995; DLMF 19.36.2)."""
+    A0 = (x + y + z + 2.0 * p) / 5.0
+    delta = (p - x) * (p - y) * (p - z)
+    A, fac, total = A0, 1.0, 0.0
+    x0, y0, z0 = x, y, z
+    for _ in range(200):
+        X, Y, Z = (A0 - x0) * fac / A, (A0 - y0) * fac / A, (A0 - z0) * fac / A
+        if max(abs(X), abs(Y), abs(Z), abs(0.5 * (X + Y + Z))) < _CARLSON_SPREAD:
+            break
+        sx, sy, sz, sp = math.sqrt(x), math.sqrt(y), math.sqrt(z), math.sqrt(p)
+        lam = sx * sy + sy * sz + sz * sx
+        d = (sp + sx) * (sp + sy) * (sp + sz)
+        e = delta * fac * fac * fac / (d * d)
+        rc = 1.0 - e / 3.0 + e * e / 5.0 if e < 1e-6 else math.atan(math.sqrt(e)) / math.sqrt(e)
+        total += fac * rc / d
+        fac *= 0.25
+        x, y, z, p = 0.25 * (x + lam), 0.25 * (y + lam), 0.25 * (z + lam), 0.25 * (p + lam)
+        A = 0.25 * (A + lam)
+    P = -0.5 * (X + Y + Z)
+    E2 = X * Y + X * Z + Y * Z - 3.0 * P * P
+    E3 = X * Y * Z + 2.0 * E2 * P + 4.0 * P * P * P
+    E4 = (2.0 * X * Y * Z + E2 * P + 3.0 * P * P * P) * P
+    E5 = X * Y * Z * P * P
+    series = (1.0 - 3.0 * E2 / 14.0 + E3 / 6.0 + 9.0 * E2 * E2 / 88.0 - 3.0 * E4 / 22.0
+              - 9.0 * E2 * E3 / 52.0 + 3.0 * E5 / 26.0)
+    return carlson_rf(x, y, z), fac * series / (A * math.sqrt(A)) + 6.0 * total
+
+
+@njit(cache=True)
+def _third_kind(n: float, phi: float, m1: float, whole: float) -> float:
+    """Π(n; φ | m) (``elliptic_pi``), ``whole`` = Π(n | m) (read only when |φ| > π/2)."""
+    k = np.round(phi / math.pi)
+    r = phi - k * math.pi
+    s, c = math.sin(r), math.cos(r)
+    c2, s2 = c * c, s * s
+    y = c2 + m1 * s2
+    rf, rj = carlson_rf_rj(c2, y, 1.0, 1.0 - n * s2)
+    part = s * rf + (n / 3.0) * s * s2 * rj
+    return part + 2.0 * k * whole if k != 0.0 else part
+
+
+def elliptic_pi(n: float, phi: np.ndarray, m1: float) -> np.ndarray:
+    """The incomplete integral of the third kind Π(n; φ | m) = ∫₀^φ dθ / ((1 − n sin²θ)
+    √(1 − m sin²θ)) (A&S 17.2.15) for n ≤ 0 and any real φ, from m1 = 1 − m: for
+    |φ| ≤ π/2, s R_F(c², c² + m1 s², 1) + (n/3) s³ R_J(c², c² + m1 s², 1, 1 − n s²)
+    (s = sin φ, c = cos φ; DLMF 19.25.14), and Π(n; φ + kπ) = Π(n; φ) + 2k Π(n | m)."""
+    phi = np.asarray(phi, dtype=float)
+    whole = _complete_third_kind(n, m1) if np.any(np.abs(phi) > 0.5 * math.pi) else 0.0
+    return np.array([_third_kind(n, float(f), m1, whole) for f in phi.ravel()]).reshape(
+        phi.shape)
+
+
+def _complete_third_kind(n: float, m1: float) -> float:
+    """Π(n | m) = R_F(0, m1, 1) + (n/3) R_J(0, m1, 1, 1 − n) (∞ on the separatrix)."""
+    if m1 == 0.0:
+        return math.inf
+    rf, rj = carlson_rf_rj(0.0, m1, 1.0, 1.0 - n)
+    return float(rf + (n / 3.0) * rj)
 
 
 def elliptic_f(phi: float, m1: float) -> float:
     """The incomplete integral F(φ | m) for φ ∈ [−π, π] from m1 = 1 − m: sin φ R_F(cos²φ,
     cos²φ + m1 sin²φ, 1) (Carlson), and F(φ) = 2K − F(π − φ) beyond π/2."""
-    from scipy.special import elliprf
-
     if abs(phi) > 0.5 * math.pi:
-        whole = 2.0 * float(elliprf(0.0, m1, 1.0))
+        whole = 2.0 * float(carlson_rf(0.0, m1, 1.0))
         return math.copysign(whole - elliptic_f(math.pi - abs(phi), m1), phi)
     s, c = math.sin(phi), math.cos(phi)
-    return s * float(elliprf(c * c, c * c + m1 * s * s, 1.0))
+    return s * float(carlson_rf(c * c, c * c + m1 * s * s, 1.0))
+
+
+@njit(cache=True)
+def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: float,
+          bw: float) -> tuple[float, float, float, float]:
+    """a ⊗ b on components (``quat_product`` unrolled for the loop below)."""
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+@njit(cache=True)
+def _euler_frame(w: np.ndarray, phi: float, axes: np.ndarray, Iw: np.ndarray, flip: float
+                 ) -> tuple[float, float, float, float]:
+    """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from ω (``free_rotation``): (sin θ/2 cos(φ−ψ)/2,
+    sin θ/2 sin(φ−ψ)/2, cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2)."""
+    a, i, j = axes[0], axes[3], axes[4]
+    na, ni, nj = Iw[a] * w[a], Iw[i] * w[i], Iw[j] * w[j]
+    half = 0.5 * math.atan2(math.hypot(ni, nj), na)
+    psi = math.atan2(flip * ni, flip * nj) + (math.pi if flip < 0.0 else 0.0)
+    d, s = 0.5 * (phi - psi), 0.5 * (phi + psi)
+    sh, ch = math.sin(half), math.cos(half)
+    return sh * math.cos(d), sh * math.sin(d), ch * math.sin(s), ch * math.cos(s)
+
+
+@njit(cache=True)
+def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: np.ndarray,
+                        Iw: np.ndarray, w0: np.ndarray, q0: np.ndarray, p: np.ndarray,
+                        rows: np.ndarray, W: np.ndarray) -> None:
+    """Rows [q, q̇ = ½ q ⊗ (ω, 0)] and ω of ``free_rotation`` at each time t (see there).
+    ``c`` = (ν, u₀, 2^N a_N, m1, N, Π(−N | m), Π(−N; am u₀), λ/I_a, λ(I_c − I_a)/(I_a I_c ν),
+    A_a, ±A_b, ±A_c, flip), ``axes`` = (a, b, c, i, j), ``Iw`` = I/|L|; φ = (λ/I_a) t −
+    λ(I_c − I_a)/(I_a I_c ν) (Π(−N; am u) − Π(−N; am u₀)); q = g ⊗ e ⊗ p*, e the Euler frame,
+    g = q0 ⊗ p ⊗ e(0)*."""
+    nu, u0, scale, m1, N, whole, turn0 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
+    precession, wobble, flip = c[7], c[8], c[12]
+    a, b, cc = axes[0], axes[1], axes[2]
+    e0 = _euler_frame(w0, 0.0, axes, Iw, flip)
+    g = _qmul(*_qmul(q0[0], q0[1], q0[2], q0[3], p[0], p[1], p[2], p[3]),
+              -e0[0], -e0[1], -e0[2], e0[3])
+    w = np.empty(3)
+    for k in range(t.size):
+        am, dn = _amplitude(nu * t[k] + u0, ratios, scale, m1)
+        w[a], w[b], w[cc] = c[9] * math.cos(am), c[10] * math.sin(am), c[11] * dn
+        phi = precession * t[k] - wobble * (_third_kind(-N, am, m1, whole) - turn0)
+        e = _euler_frame(w, phi, axes, Iw, flip)
+        q = _qmul(*_qmul(g[0], g[1], g[2], g[3], e[0], e[1], e[2], e[3]),
+                  -p[0], -p[1], -p[2], p[3])
+        qd = _qmul(q[0], q[1], q[2], q[3], w[0], w[1], w[2], 0.0)
+        for r in range(4):
+            rows[k, r] = q[r]
+            rows[k, 4 + r] = 0.5 * qd[r]
+        W[k, 0], W[k, 1], W[k, 2] = w[0], w[1], w[2]
 
 
 def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,
                   t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Attitude q(t) (rows (x, y, z, w), world_R_body) and body ω(t) (rows) of a torque-free
-    rigid body with principal moments ``moments`` from q(0) = q0, ω(0) = w0; ``t`` increasing,
-    ≥ 0.
+    """Rows [q, q̇] of the attitude q(t) ((x, y, z, w), world_R_body) and its rate
+    q̇ = ½ q ⊗ (ω, 0), and rows of the body ω(t), of a torque-free rigid body with principal
+    moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; one compiled pass,
+    ``_torque_free_motion``).
 
     ω(t) (Landau & Lifshitz, Mechanics §37; catalog 003 §7.7 [SUPPLEMENT]): with the moments
     relabelled so that the polhode circles axis c (the largest moment if |L|² > 2E I_mid, else
@@ -298,18 +457,20 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     Attitude: L is fixed in space; in a frame with L along z the body's z-x-z Euler angles
     taken about body axis a are θ = ∠(L, a), ψ = atan2(L_i, L_j) (i, j, a cyclic), continuous
     because L_c keeps its sign, and φ̇ = |L|(2E − I_a ω_a²)/(|L|² − I_a² ω_a²) (L&L eq. 37.14
-    about axis a; the denominator I_b²ω_b² + I_c²ω_c² stays away from zero), integrated by
-    Gauss–Legendre quadrature on pieces of a tenth of 1/ν (round-off for this smooth integrand).
+    about axis a; the denominator I_b²ω_b² + I_c²ω_c² stays away from zero), integrated in
+    closed form with the elliptic integral of the third kind (``elliptic_pi``; L&L §37 give
+    the same angle through theta functions).
     """
-    from mechsim.systems._oscillator import cumulative_integral
-
-    t = np.asarray(t, dtype=float)
+    t = np.ascontiguousarray(t, dtype=float)
     I = np.asarray(moments, dtype=float)
     w0 = np.asarray(w0, dtype=float)
-    q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
+    q0 = np.asarray(q0, dtype=float)
+    q0 = q0 / math.sqrt(float(q0 @ q0))
     Lb = I * w0
-    lam = float(np.linalg.norm(Lb))
-    w_dot = np.cross(Lb, w0) / I
+    lam = math.sqrt(float(Lb @ Lb))
+    # Euler's equations, torque-free: I ω̇ = L × ω
+    w_dot = np.array([Lb[1] * w0[2] - Lb[2] * w0[1], Lb[2] * w0[0] - Lb[0] * w0[2],
+                      Lb[0] * w0[1] - Lb[1] * w0[0]]) / I
     if lam == 0.0 or not np.any(w_dot):
         # at rest, or spinning about a principal axis: ω constant, q(t) = q0 ⊗ exp(ω t / 2)
         speed = float(np.linalg.norm(w0))
@@ -317,8 +478,10 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
         half = 0.5 * speed * t
         turn = (axis[0] * np.sin(half), axis[1] * np.sin(half), axis[2] * np.sin(half),
                 np.cos(half))
-        Q = np.stack(quat_product(tuple(q0), turn), axis=1)
-        return Q, np.repeat(w0[None, :], t.size, axis=0)
+        Q = quat_product(tuple(q0), turn)
+        Qd = quat_product(Q, (w0[0], w0[1], w0[2], 0.0))
+        return (np.stack([*Q, *(0.5 * x for x in Qd)], axis=1),
+                np.repeat(w0[None, :], t.size, axis=0))
     order = np.argsort(I, kind="stable")
     mid = int(order[1])
     # which axis the polhode circles: sign of |L|² − 2E I_mid, summed without cancellation
@@ -343,44 +506,30 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     sense = x0 * (w_dot[b] / amp_b if amp_b > 0 else 0.0) - y0 * (w_dot[a] / amp_a)
     s_b = 1.0 if sense >= 0.0 else -1.0
     s_c = 1.0 if wc >= 0.0 else -1.0
-    u0 = elliptic_f(math.atan2(s_b * y0, x0), m1)
-
-    def omega(s: np.ndarray) -> np.ndarray:
-        sn, cn, dn = jacobi_elliptic(nu * s + u0, m, m1)
-        w = np.empty((3,) + np.shape(s))
-        w[a], w[b], w[c] = amp_a * cn, s_b * amp_b * sn, s_c * amp_c * dn
-        return w
-
-    def precession_rate(s: np.ndarray) -> np.ndarray:
-        w = omega(s)
-        j, k = (a + 1) % 3, (a + 2) % 3
-        num = I[j] * w[j] ** 2 + I[k] * w[k] ** 2
-        den = (I[j] * w[j]) ** 2 + (I[k] * w[k]) ** 2
-        return lam * num / den
-
-    W = omega(t)
-    phi = cumulative_integral(precession_rate, 0.0, t, 0.1 / nu)
-
-    def attitude(w: np.ndarray, phi_: np.ndarray) -> tuple:
-        """Quaternions of L-frame_R_body from the Euler angles about axis a."""
-        i, j = (a + 1) % 3, (a + 2) % 3
-        n = I[:, None] * w.reshape(3, -1) / lam
-        theta = np.arctan2(np.hypot(n[i], n[j]), n[a])
-        # L_c keeps its sign: flip both arguments when c = j and L_c < 0, so that ψ never
-        # meets the branch cut of atan2
-        flip = -1.0 if (c == j and n[c][0] < 0.0) else 1.0
-        psi = np.arctan2(flip * n[i], flip * n[j]) + (math.pi if flip < 0 else 0.0)
-        perm = np.zeros((3, 3))
-        perm[0, i] = perm[1, j] = perm[2, a] = 1.0  # v_(i, j, a) = P v
-        p = np.empty(4)
-        quat_from_rows(perm, p)  # the quaternion of Pᵀ
-        q = quat_product(quat_product(_quat_z(phi_), _quat_x(theta)), _quat_z(psi))
-        return quat_product(q, _conjugate(p))
-
-    start = attitude(w0[:, None].copy(), np.zeros(1))
-    g = quat_product(tuple(q0), _conjugate(tuple(x[0] for x in start)))
-    Q = np.stack(quat_product(g, attitude(W, phi)), axis=1)
-    return Q, W.T.copy()
+    am0 = math.atan2(s_b * y0, x0)
+    u0 = elliptic_f(am0, m1)  # so am(u0) = am0
+    # φ = (λ/I_a) t − λ(I_c − I_a)/(I_a I_c ν) [Π(−N; am u) − Π(−N; am u₀)], N = I_a(2E I_c
+    # − L²)/(I_c(L² − 2E I_a)): φ̇ = (λ/I_a)[1 − (L² − 2E I_a)/(L² − I_a²ω_a²)] with
+    # L² − I_a²ω_a² = I_c²A_c²(1 + N sn²u), and ∫du/(1 + N sn²u) = Π(−N; am u | m).
+    N = Ia * d_c / (Ic * d_a)
+    ratios, scale = agm_ratios(m, m1)
+    whole = _complete_third_kind(-N, m1)
+    turn0 = _third_kind(-N, am0, m1, whole)
+    i, j = (a + 1) % 3, (a + 2) % 3
+    # L_c keeps its sign: flip both arguments of ψ's atan2 when c = j and L_c < 0, so that ψ
+    # never meets the branch cut
+    flip = -1.0 if (c == j and Lb[c] < 0.0) else 1.0
+    perm = np.zeros((3, 3))
+    perm[0, i] = perm[1, j] = perm[2, a] = 1.0  # v_(i, j, a) = P v
+    p = np.empty(4)
+    quat_from_rows(perm, p)  # the quaternion of Pᵀ
+    consts = np.array([nu, u0, scale, m1, N, whole, turn0, lam / Ia,
+                       lam * (Ic - Ia) / (Ia * Ic * nu), amp_a, s_b * amp_b, s_c * amp_c,
+                       flip])
+    rows, W = np.empty((t.size, 8)), np.empty((t.size, 3))
+    _torque_free_motion(t, consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p,
+                        rows, W)
+    return rows, W
 
 
 @dataclass(frozen=True)
@@ -416,6 +565,11 @@ class QuaternionRigidBody(DirectModel):
     def rigid_data(self) -> RigidData:
         raise NotImplementedError
 
+    @cached_property
+    def rigid(self) -> RigidData:
+        """``rigid_data()``, computed once (a model's parameters never change)."""
+        return self.rigid_data()
+
     def initial_attitude(self) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
@@ -431,7 +585,7 @@ class QuaternionRigidBody(DirectModel):
 
     @cached_property
     def structure(self) -> Structure:
-        d = self.rigid_data()
+        d = self.rigid
         return Structure(separable=False, n_constraints=1, driven=any(d.torque))
 
     @property
@@ -439,7 +593,7 @@ class QuaternionRigidBody(DirectModel):
         return (Quantity("constraint_unit_norm", "", "|q| − 1"),)
 
     def _make_parameter_vector(self) -> np.ndarray:
-        d = self.rigid_data()
+        d = self.rigid
         if len(d.extra) > RB_N_EXTRA:
             raise ValueError(f"{type(self).__name__}: at most {RB_N_EXTRA} extra numbers")
         block = np.zeros(RB_SIZE)
@@ -462,7 +616,7 @@ class QuaternionRigidBody(DirectModel):
 
     def torque_free(self) -> bool:
         """No constant torque and no weight acting off the pivot."""
-        d = self.rigid_data()
+        d = self.rigid
         return not any(d.torque) and not (d.weight and any(d.center_of_mass))
 
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
@@ -471,10 +625,8 @@ class QuaternionRigidBody(DirectModel):
         if not self.torque_free():
             return None
         t = np.asarray(t, dtype=float)
-        Q, W = free_rotation(self.rigid_data().moments, y0[:4], np.array(rb_omega(y0)),
-                             t - t0)
-        Qd = 0.5 * np.stack(quat_product(Q.T, (W[:, 0], W[:, 1], W[:, 2], 0.0 * W[:, 0])),
-                            axis=1)
-        rows = np.repeat(np.asarray(y0, dtype=float)[None, :], t.size, axis=0)
-        rows[:, :4], rows[:, 4:8] = Q, Qd
+        rows = np.empty((t.size, len(y0)))
+        rows[:, :8], _ = free_rotation(self.rigid.moments, y0[:4], np.array(rb_omega(y0)),
+                                       t - t0)
+        rows[:, 8:] = y0[8:]
         return rows
