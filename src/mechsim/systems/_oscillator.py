@@ -49,6 +49,23 @@ def free_solution(t: np.ndarray, x0: float, v0: float, omega0: float,
     return decay * (x0 * ch + c / w * sh), decay * (v0 * ch - s / w * sh)
 
 
+def free_velocity_modes(x0: float, v0: float, omega0: float, beta: float
+                        ) -> tuple[list[complex], list[complex]] | None:
+    """ẋ(t) of ``free_solution`` as Re Σ A_k e^{z_k t}, as (A, z): underdamped
+    (v₀ + i s/ω₁) e^{(−β + iω₁)t}, s = ω₀²x₀ + βv₀; overdamped ½(v₀ ∓ s/ω₂) e^{(−β ± ω₂)t};
+    None when critical (a polynomial times e^{−βt})."""
+    kind = regime(omega0, beta)
+    if kind == "critical":
+        return None
+    s = omega0 * omega0 * x0 + beta * v0
+    if kind == "underdamped":
+        w = math.sqrt(omega0 * omega0 - beta * beta)
+        return [complex(v0, s / w)], [complex(-beta, w)]
+    w = math.sqrt(beta * beta - omega0 * omega0)
+    return ([complex(0.5 * (v0 - s / w)), complex(0.5 * (v0 + s / w))],
+            [complex(-beta + w), complex(-beta - w)])
+
+
 def tone_response(force_over_mass: float, omega: float, omega0: float, beta: float
                   ) -> tuple[float, float]:
     """Amplitude D and phase lag δ ∈ [0, π] of the steady response x = D cos(ωt − δ) of
@@ -68,23 +85,54 @@ def state_rows(y0: np.ndarray, columns: list[np.ndarray]) -> np.ndarray:
 
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
+#: Quadrature nodes evaluated per block of ``cumulative_integral`` (bounds its memory).
+_GL_BLOCK = 4096
 
 
 def cumulative_integral(f: object, t0: float, t: np.ndarray, max_piece: float) -> np.ndarray:
     """∫_{t₀}^{t_k} f(s) ds for increasing t_k ≥ t₀: 16-point Gauss–Legendre on pieces no
-    longer than ``max_piece`` (exact to round-off for smooth f over a fraction of its period)."""
+    longer than ``max_piece`` (exact to round-off for smooth f over a fraction of its period);
+    f takes an array of times, and is called on blocks of pieces at once."""
     t = np.asarray(t, dtype=float)
-    out = np.empty(t.size)
-    total, a = 0.0, t0
-    for k, b in enumerate(t):
-        n = max(1, int(np.ceil((b - a) / max_piece))) if b > a else 0
-        edges = np.linspace(a, b, n + 1)
-        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
-            mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-            total += half * float(np.dot(_GL_W, f(mid + half * _GL_X)))  # type: ignore[operator]
-        out[k] = total
-        a = b
-    return out
+    if t.size == 0:
+        return np.empty(0)
+    start = np.concatenate(([t0], t[:-1]))
+    span = t - start
+    n = np.where(span > 0.0, np.maximum(1.0, np.ceil(span / max_piece)), 0.0).astype(np.int64)
+    owner = np.repeat(np.arange(t.size), n)  # the sample each piece ends in
+    first = np.repeat(np.cumsum(n) - n, n)
+    h = span[owner] / n[owner]
+    lo = start[owner] + (np.arange(owner.size) - first) * h
+    pieces = np.empty(owner.size)
+    for k in range(0, owner.size, _GL_BLOCK):
+        half = 0.5 * h[k:k + _GL_BLOCK]
+        nodes = (lo[k:k + _GL_BLOCK] + half)[:, None] + half[:, None] * _GL_X
+        values = np.asarray(f(nodes.ravel()), dtype=float).reshape(nodes.shape)  # type: ignore[operator]
+        pieces[k:k + _GL_BLOCK] = half * (values @ _GL_W)
+    return np.cumsum(np.bincount(owner, weights=pieces, minlength=t.size))
+
+
+def _expm1_over(w: complex, tau: np.ndarray) -> np.ndarray:
+    """∫₀^τ e^{w s} ds = (e^{wτ} − 1)/w (τ at w = 0), without cancellation for small |wτ|:
+    e^{x+iy} − 1 = expm1(x) cos y − 2 sin²(y/2) + i eˣ sin y."""
+    if w == 0:
+        return tau.astype(complex)
+    x, y = w.real * tau, w.imag * tau
+    num = (np.expm1(x) * np.cos(y) - 2.0 * np.sin(0.5 * y) ** 2) + 1j * (np.exp(x) * np.sin(y))
+    return num / w
+
+
+def square_integral(amps: list[complex], rates: list[complex], tau: np.ndarray) -> np.ndarray:
+    """∫₀^τ v(s)² ds for v(s) = Re Σ_k A_k e^{z_k s} (``amps`` A, ``rates`` z), in closed form:
+    v² = ½ Σ_{k,l} Re(A_k A_l e^{(z_k+z_l)s} + A_k Ā_l e^{(z_k+z̄_l)s})."""
+    total = np.zeros(tau.size)
+    for k in range(len(amps)):
+        for j in range(k, len(amps)):
+            pair = (amps[k] * amps[j] * _expm1_over(rates[k] + rates[j], tau)
+                    + amps[k] * np.conj(amps[j])
+                    * _expm1_over(rates[k] + np.conj(rates[j]), tau)).real
+            total += pair if j == k else 2.0 * pair  # (k, j) and (j, k)
+    return 0.5 * total
 
 
 class LinearOscillator(LagrangianModel):
@@ -148,8 +196,8 @@ class LinearOscillator(LagrangianModel):
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
         """x = x_p + transient (free solution from the state at t₀), x_p the sum of the
         responses to the drive's tones. Work terms: without a drive W_d grows by E(t₀) − E(t);
-        with one, W_d = ∫ b ẋ² dt by Gauss–Legendre quadrature of the exact ẋ, and W_ext
-        closes the balance."""
+        with one, W_d = ∫ b ẋ² dt of the exact ẋ in closed form (``square_integral``; by
+        quadrature at critical damping), and W_ext closes the balance."""
         t = np.asarray(t, dtype=float)
         m, k, c = self.value("mass"), self.value("spring_constant"), self._optional("damping")
         w0, beta = self.natural_frequency(), self.beta()
@@ -176,12 +224,25 @@ class LinearOscillator(LagrangianModel):
         xp, vp = particular(t)
         x, v = xp + u, vp + du
 
-        def power(s: np.ndarray) -> np.ndarray:
-            xs, vs = particular(s)
-            us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
-            return c * (vs + dus) ** 2
+        # W_d = ∫ b ẋ² dt with ẋ = Re Σ A e^{z τ} (transient modes and one e^{iωτ} per tone:
+        # −Dω sin(ωt − φ − δ) = Re(iDω e^{i(ωt₀ − φ − δ)} e^{iωτ})), in closed form
+        modes = free_velocity_modes(y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
+        if modes is not None:
+            amps, rates = modes
+            for F, w, phi in tones:
+                D, delta = tone_response(F / m, w, w0, beta)
+                amps.append(1j * D * w * complex(math.cos(w * t0 - phi - delta),
+                                                 math.sin(w * t0 - phi - delta)))
+                rates.append(complex(0.0, w))
+            w_diss = y0[3] + c * square_integral(amps, rates, t - t0)
+        else:  # critical damping: quadrature of the exact ẋ
 
-        piece = 0.05 * 2 * math.pi / max(w0, *(w for _, w, _ in tones))
-        w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
+            def power(s: np.ndarray) -> np.ndarray:
+                xs, vs = particular(s)
+                us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
+                return c * (vs + dus) ** 2
+
+            piece = 0.05 * 2 * math.pi / max(w0, *(w for _, w, _ in tones))
+            w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
         w_ext = y0[2] + (energy(x, v) - e0) + (w_diss - y0[3])
         return state_rows(y0, [x, v, w_ext, w_diss])
