@@ -17,6 +17,10 @@ CASES = [
     ("driven_oscillator", {}),
     ("driven_oscillator", {"initial.x": 0.7, "initial_rate.x": 0.2, "drive_frequency": 2.0}),
     ("planar_oscillator", {"formulation": "cartesian"}),
+    ("pendulum", {}),                                              # libration
+    ("pendulum", {"initial.angle": 3.1}),                          # near the separatrix
+    ("pendulum", {"initial.angle": -0.5, "initial_rate.angle": 7.5}),  # rotation
+    ("pendulum", {"initial.angle": 2.0, "initial_rate.angle": -9.0}),  # rotation, φ̇ < 0
     ("kepler", {"eccentricity": 0.0}),
     ("kepler", {"eccentricity": 0.5}),
     ("kepler", {"eccentricity": 0.9}),
@@ -63,10 +67,14 @@ def test_auto_uses_closed_form_only_when_allowed() -> None:
     model = mechsim.load_system("harmonic_oscillator")
     assert mechsim.simulate(model, 1.0, 0.1).method == "dop853"
     assert mechsim.simulate(model, 1.0, 0.1, closed_form=True).method == "exact"
-    pend = mechsim.load_system("pendulum")
+    pend = mechsim.load_system("double_pendulum")
     assert mechsim.simulate(pend, 1.0, 0.1, closed_form=True).method == "dop853"
-    with pytest.raises(mechsim.ParameterError, match="exact: pendulum .* no closed form"):
+    with pytest.raises(mechsim.ParameterError,
+                       match="exact: double_pendulum .* no closed form"):
         mechsim.simulate(pend, 1.0, 0.1, method="exact")
+    multiplier = mechsim.load_system("pendulum", formulation="multiplier")
+    with pytest.raises(mechsim.ParameterError, match="no closed form"):
+        mechsim.simulate(multiplier, 1.0, 0.1, method="exact")
     polar = mechsim.load_system("planar_oscillator", formulation="polar")
     with pytest.raises(mechsim.ParameterError, match="no closed form"):
         mechsim.simulate(polar, 1.0, 0.1, method="exact")

@@ -8,6 +8,11 @@ Conventions (the document's are ambiguous or wrong here):
   +x, so the bob sits at (0, R sin φ, −R cos φ). (The document points gravity along +x.)
 - V = m g R (1 − cos φ): zero at the lowest point, which is what L13 intends (its L has the
   zero at pivot height). Only the constant differs.
+- Closed form (method ``exact``, reduced form): with ω₀² = g/R and k² = sin²(φ/2) + φ̇²/4ω₀²
+  (E = 2 m g R k²), a libration (k ≤ 1) is sin(φ/2) = k sn(ω₀t + u₀ | k²), φ̇ = 2kω₀ cn, taken
+  as φ/2 = atan2(k sn, dn) (well conditioned at the turning points); a rotation (k > 1) is
+  φ/2 = am(kω₀t + u₀ | 1/k²), φ̇ = 2kω₀ dn (Landau & Lifshitz §11 problem 1; the catalog's
+  exact period 4√(R/g)K(k) is its quarter-period). φ keeps its whole turns (unwrapped).
 - Multiplier form: Cartesian (y, z) with the constraint ρ − R = 0 (the document's ρ = R, L78),
   so λ is the outward radial force and λ = −T (the document's "λ = T", L95, has the sign wrong;
   its L93 also drops m from the first term). ``tension`` T = m g cos φ + m R φ̇² (L28).
@@ -22,6 +27,7 @@ import sympy as sp
 from scipy.special import ellipk
 
 from mechsim.params import Parameter, nonnegative, positive
+from mechsim.systems._elliptic import elliptic_f, jacobi_amplitude
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 
@@ -75,6 +81,40 @@ class Pendulum(LagrangianModel):
     def time_scale(self) -> float:
         g = self.value("gravity")
         return 2 * math.pi * math.sqrt(self.value("length") / g) if g > 0 else 1.0
+
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """The reduced form's motion in closed form (see the module docstring); the rest of
+        the state (work terms: none act) carried unchanged. None for the multiplier form."""
+        if self.formulation != "reduced":
+            return None
+        tau = np.asarray(t, dtype=float) - t0
+        g, R = self.value("gravity"), self.value("length")
+        phi0, rate0 = float(y0[0]), float(y0[1])
+        turns = 2.0 * math.pi * round(phi0 / (2.0 * math.pi))
+        half0 = 0.5 * (phi0 - turns)  # in [−π/2, π/2]
+        if g == 0.0:
+            phi, rate = phi0 + rate0 * tau, np.full(tau.size, rate0)
+        else:
+            w0 = math.sqrt(g / R)
+            s0, c0, r0 = math.sin(half0), math.cos(half0), rate0 / (2.0 * w0)
+            k2 = s0 * s0 + r0 * r0
+            k = math.sqrt(k2)
+            if k2 <= 1.0:  # libration: sn u₀ = s0/k, cn u₀ = r0/k, dn u₀ = c0
+                m1 = (c0 - r0) * (c0 + r0)  # 1 − k², without its cancellation
+                u0 = elliptic_f(math.atan2(s0, r0), m1) if k > 0.0 else 0.0
+                am, dn = jacobi_amplitude(w0 * tau + u0, k2, m1)
+                phi = turns + 2.0 * np.arctan2(k * np.sin(am), dn)
+                rate = 2.0 * k * w0 * np.cos(am)
+            else:  # rotation in the sense of φ̇₀: φ/2 = am(±kω₀τ + u₀ | 1/k²)
+                sense = 1.0 if rate0 > 0.0 else -1.0
+                m1 = (r0 - c0) * (r0 + c0) / k2
+                u0 = elliptic_f(half0, m1)
+                am, dn = jacobi_amplitude(sense * k * w0 * tau + u0, 1.0 / k2, m1)
+                phi = turns + 2.0 * am
+                rate = 2.0 * sense * k * w0 * dn
+        rows = np.repeat(np.asarray(y0, dtype=float)[None, :], tau.size, axis=0)
+        rows[:, 0], rows[:, 1] = phi, rate
+        return rows
 
     # --- analytic oracles (derived in the catalog, checked in tests/test_pendulum.py) --------
     def amplitude(self) -> float:
