@@ -36,7 +36,8 @@ class Pendulum(LagrangianModel):
     title = "Simple pendulum (reduced and Lagrange-multiplier forms)"
     source = "seed 000 S1: Dynamical Systems and Constraints, Part 3 – Simple Pendulum"
     formulations = ("reduced", "multiplier")
-    oracles = "exact period 4√(R/g)K(k); tension mg(3cosφ − 2cosφ₀); λ = −T; both forms agree"
+    oracles = ("closed-form φ(t) (Jacobi sn, am; libration and rotation) = radau15; exact "
+               "period 4√(R/g)K(k); tension mg(3cosφ − 2cosφ₀); λ = −T; both forms agree")
     parameters = (
         positive("mass", 1.0, "kg", "bob mass m"),
         positive("length", 1.0, "m", "rod length R"),
