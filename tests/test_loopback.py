@@ -105,47 +105,57 @@ def test_in_process_node_binds_loopback_only(ros_context: Context) -> None:
             SingleThreadedExecutor(context=ros_context) as ex:
         ex.add_node(node)
         pub = node.create_publisher(String, "mechsim_loopback_test/probe", 10)
-        node.create_subscription(String, "mechsim_loopback_test/probe", lambda m: None, 10)
-        end = time.monotonic() + 0.5
-        while time.monotonic() < end:
+        got: list[str] = []
+        node.create_subscription(String, "mechsim_loopback_test/probe",
+                                 lambda m: got.append(m.data), 10)
+        end = time.monotonic() + 60.0
+        while not got and time.monotonic() < end:  # until a message made the round trip
             pub.publish(String(data="x"))
             ex.spin_once(timeout_sec=0.05)
+        assert got, "the node's own message never arrived within 60 s"
         pid = os.getpid()
         assert socket_count(pid) > 0, "no sockets seen: the check would prove nothing"
         assert non_loopback_sockets(pid) == []
 
 
 def test_child_process_binds_loopback_only(
-    child: tuple[subprocess.Popen[str], str],
+    ros_context: Context, child: tuple[subprocess.Popen[str], str],
 ) -> None:
     proc, profile = child
     assert profile == str(FASTDDS_PROFILE)
-    time.sleep(0.5)  # let the child publish and spin
+    _first_message(ros_context, proc)  # the child is up, publishing and spinning
     assert proc.poll() is None
     assert socket_count(proc.pid) > 0
     assert non_loopback_sockets(proc.pid) == []
 
 
-def test_message_from_child_process_is_received(
-    ros_context: Context, child: tuple[subprocess.Popen[str], str]
-) -> None:
+def _first_message(ros_context: Context, proc: subprocess.Popen[str]) -> object:
+    """The first Energy message of the child process, received here (60 s at most)."""
     rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
     from mechsim_msgs.msg import Energy
 
-    proc, _ = child
     received = rclpy.task.Future()
     with Node("loopback_listener", context=ros_context) as node, \
             SingleThreadedExecutor(context=ros_context) as ex:
         ex.add_node(node)
         node.create_subscription(
             Energy, TOPIC, lambda m: received.done() or received.set_result(m), 10)
-        ex.spin_until_future_complete(received, timeout_sec=20.0)
+        ex.spin_until_future_complete(received, timeout_sec=60.0)
         assert proc.poll() is None, "child exited early"
-        assert received.done(), "no message from the other process within 20 s"
-        assert isinstance(received.result(), Energy)
+        assert received.done(), "no message from the other process within 60 s"
+        return received.result()
+
+
+def test_message_from_child_process_is_received(
+    ros_context: Context, child: tuple[subprocess.Popen[str], str]
+) -> None:
+    from mechsim_msgs.msg import Energy
+
+    proc, _ = child
+    assert isinstance(_first_message(ros_context, proc), Energy)
 
 
 def msg_field_names(path: Path) -> list[str]:
