@@ -37,7 +37,7 @@ pub = node.create_publisher(Energy, {TOPIC!r}, 10)
 sub = node.create_subscription(Energy, {TOPIC!r} + "_echo", lambda m: None, 10)
 print("PROFILE", os.environ["FASTDDS_DEFAULT_PROFILES_FILE"], flush=True)
 print("READY", flush=True)
-deadline, i = time.monotonic() + 60.0, 0
+deadline, i = time.monotonic() + 300.0, 0
 while time.monotonic() < deadline and rclpy.ok():
     pub.publish(Energy(kinetic=float(i)))
     i += 1
