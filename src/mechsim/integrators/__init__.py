@@ -134,7 +134,7 @@ def precompile() -> None:
         L.gauss_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, m2, m2, v),
         L.evaluate_outputs: (KERNEL_SET, v, m2, v, True, True, True, True, m2, m2, m2, m3),
         L.radau15_advance: (KERNEL_SET, new_state(RADAU_STATE, 0.0), v, v, v, m2, 0.0, 0, v, m2,
-                            m2, m2, v, v, v, iv, 0.0),
+                            m2, m2, v, v, v, iv, 0.0, 0.0, 0.0),
     }
     for loop, args in signatures.items():
         loop.compile(tuple(a if a is KERNEL_SET else typeof(a) for a in args))
@@ -426,6 +426,7 @@ class Radau15(Stepper):
         self.g_old = np.zeros(self.ev_dir.size)
         self.tau = float(model.time_scale())
         self.a_floor = 0.0
+        self.w_floor = 0.0
         self.max_steps = int(max_steps)
         self.eps = min(max(0.01 * math.sqrt(self.tolerance), self.eps_range[0]),
                        self.eps_range[1])
@@ -435,6 +436,9 @@ class Radau15(Stepper):
         self.F0 = np.zeros(m)
         self.dy = np.zeros(self.y.size)
         self.comp = np.zeros(self.y.size)
+        #: Outputs inside a step come from its expansion where the bound of that error is
+        #: within a tenth of this (relative to the state scale), else from a step of their own.
+        self.dense_tolerance = self.tolerance
         self._restart()
 
     def _restart(self) -> None:
@@ -447,12 +451,17 @@ class Radau15(Stepper):
         forces do not depend on may grow without bound (a falling centre of mass), and a
         floor following it made the scale ~1e5 times the accelerations by |R| ~ 8e5 m,
         loosening the control of the orbit beside it to a 2e-4 end error at tolerance
-        1e-13."""
+        1e-13. The work terms' scale (``w_floor``: their errors are judged against it, their
+        rates may be round-off of cancelling terms) is the system's energy scale here,
+        max(|T|, |V|, |h|)."""
         self.kernels.project(self.t, self.y, self.p)
         n = self.kernels.n_q
         self.a_floor = self.FLOOR * float(np.max(np.abs(self.y[:n]) / self.tau**2
                                                  + np.abs(self.y[n:2 * n]) / self.tau,
                                                  initial=0.0))
+        energy = np.zeros(3)
+        self.kernels.energy(self.t, self.y, self.p, energy)
+        self.w_floor = float(np.max(np.abs(energy)))
         self.kernels.rhs(self.t, self.y, self.p, self.dy)
         h0 = loops().dop853_initial_step(self.ks, self.t, self.y, self.p, self.dy.copy(),
                                          self.tolerance, self.tolerance)
@@ -463,6 +472,7 @@ class Radau15(Stepper):
         self.e[:] = 0.0
         self.comp[:] = 0.0
         self.state["last_event"] = -1
+        self.state["f0_ready"] = 0
         if self.model.events:
             self.kernels.event(self.t, self.y, self.p, self.g_old)
 
@@ -487,7 +497,7 @@ class Radau15(Stepper):
             status, written = advance(
                 self.ks, self.state, self.y, self.p, t_out[done:], Y[done:], self.eps,
                 self.max_steps, self.comp, self.b, self.g, self.e, self.F0, self.dy,
-                self.g_old, self.ev_dir, self.a_floor)
+                self.g_old, self.ev_dir, self.a_floor, self.w_floor, self.dense_tolerance)
             done += written
             self.t = float(self.state["t"][0])
             if status != Status.EVENT:
