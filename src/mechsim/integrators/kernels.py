@@ -720,14 +720,16 @@ def _kahan(x, comp, i, inc):
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def _settled(change, last, theta_b6, bound):
+def _settled(change, last, theta_b6, bound, noise):
     """Whether a linearly converging iteration whose last two changes were ``last`` and
     ``change`` still owes at most ``bound``: with θ the larger of change / last and
     ``theta_b6`` (the contraction of b₆, the slowest to settle: the ratio of the first two
     changes alone undercounts what is left once the fast parts have died out, measured on
     Kepler at 25 steps an orbit), θ < 0.5 and θ/(1 − θ) · change ≤ bound (the rest of a
-    geometric series); or no change at all."""
-    if change == 0.0:
+    geometric series); or, once ``noise`` may dominate the changes (from the third iteration
+    on, where an iteration at round-off stagnates and θ means nothing), a change within the
+    bound itself."""
+    if change == 0.0 or (noise and change <= bound):
         return True
     if not last > 0.0:
         return False
@@ -743,16 +745,16 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
     as f at the last node; ``ys`` is scratch; ``cost`` counts evaluations and iterations.
 
     Settled (``_settled``, from the second iteration on, the contraction θ measured on the
-    last two changes and on b₆): what the iteration still owes to the state at the step's end, which
-    the run carries on from, is below the unit round-off of each component's scale (its size,
-    or its change over the step where that is larger; for the work terms at least
-    ``w_floor``, the system's energy scale: their rates may be round-off of cancelling
-    terms); and what it owes anywhere inside the step (bounded on the Newton basis of g:
-    Σ_k |Δg_k| max|∫ w_k| dt for v and the work terms, Σ_k |Δg_k| max|∫∫ w_k| dt² for q) is
-    within ``inside_tol`` relative (what outputs inside the step read; ``inf`` where only the
-    end is used). Also converged: the change of b₆ at round-off relative to the
-    accelerations (IAS15's test), or, after three iterations, that change no longer falling
-    (stagnating at round-off: converged if below 1e-13)."""
+    last two changes and on b₆): what the iteration still owes to the state at the step's
+    end, which the run carries on from, is below the unit round-off of the state's scale (the
+    largest |q| and |q̇|, or their changes over the step where those are larger; each work
+    term's size, at least ``w_floor``, the system's energy scale: their rates may be
+    round-off of cancelling terms); and what it owes anywhere inside the step (bounded on the
+    Newton basis of g: Σ_k |Δg_k| max|∫ w_k| dt for v and the work terms,
+    Σ_k |Δg_k| max|∫∫ w_k| dt² for q) is within ``inside_tol`` relative (what outputs inside
+    the step read; ``inf`` where only the end is used). Also converged: the change of b₆ at
+    round-off relative to the accelerations (IAS15's test), or, after three iterations, that
+    change no longer falling (stagnating at round-off: converged if below 1e-13)."""
     n = ks.n_q
     m = n + 2
     ny = y.size
@@ -768,6 +770,12 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
     iterations = 0
     last_end = 0.0
     last_inside = 0.0
+    # the state's scale: the largest |q| and |q̇| (or their changes over the step)
+    scale_q = 0.0
+    scale_v = 0.0
+    for j in range(n):
+        scale_q = max(scale_q, abs(y[j]), dt * abs(y[n + j]))
+        scale_v = max(scale_v, abs(y[n + j]), dt * abs(F0[j]))
     for it in range(_RADAU_MAX_ITERATIONS):
         b_prev[:, :] = b
         g_prev[:, :] = g
@@ -798,7 +806,7 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
         if _RADAU_RHO_FLOOR < previous < math.inf:
             rho = max(rho, pc / previous)
         iterations = it + 1
-        # this iteration's change of the state, relative to each component's scale
+        # this iteration's change of the state, relative to the state's scale
         end = 0.0
         inside = 0.0
         for j in range(m):
@@ -813,19 +821,17 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
                 d = abs(g[kk, j] - g_prev[kk, j])
                 iv += d * _RADAU_NEWTON_V[kk]
                 ix += d * _RADAU_NEWTON_X[kk]
-            sv = max(abs(y[n + j]), dt * abs(F0[j]))
-            if j >= n:
-                sv = max(sv, w_floor)
+            sv = scale_v if j < n else max(abs(y[n + j]), dt * abs(F0[j]), w_floor)
             if iv > 0.0:
-                end = max(end, dt * abs(ev) / sv)
-                inside = max(inside, dt * iv / sv)
+                end = max(end, dt * abs(ev) / sv if sv > 0.0 else math.inf)
+                inside = max(inside, dt * iv / sv if sv > 0.0 else math.inf)
             if j < n and ix > 0.0:
-                sq = max(abs(y[j]), dt * abs(y[n + j]))
-                end = max(end, dt * dt * abs(ex) / sq)
-                inside = max(inside, dt * dt * ix / sq)
+                end = max(end, dt * dt * abs(ex) / scale_q if scale_q > 0.0 else math.inf)
+                inside = max(inside, dt * dt * ix / scale_q if scale_q > 0.0 else math.inf)
         theta_b6 = pc / previous if previous > 0.0 else 1.0
-        settled = (it >= 1 and _settled(end, last_end, theta_b6, _RADAU_ROUND_OFF)
-                   and _settled(inside, last_inside, theta_b6, inside_tol))
+        noise = it >= 2
+        settled = (it >= 1 and _settled(end, last_end, theta_b6, _RADAU_ROUND_OFF, noise)
+                   and _settled(inside, last_inside, theta_b6, inside_tol, noise))
         last_end = end
         last_inside = inside
         if settled or pc < 1e-16 or (it >= 2 and pc >= previous):
@@ -956,6 +962,8 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     y_start = np.empty(ny)
     comp_start = np.empty(ny)
     cost = np.zeros(3, dtype=np.int64)  # evaluations, iterations, side steps
+    # what outputs inside a step read of its iteration (nothing when they all take side steps)
+    inside_tol = _RADAU_INSIDE_SHARE * dense_tol if dense_tol > 0.0 else math.inf
     n_out = t_out.size
     k = 0
     steps = 0
@@ -990,8 +998,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         while True:
             cost[:] = 0
             converged, iterations, rho = _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p,
-                                                        w_floor, _RADAU_INSIDE_SHARE * dense_tol,
-                                                        cost, inc, dy)
+                                                        w_floor, inside_tol, cost, inc, dy)
             s_.n_evaluations += cost[0]
             s_.n_iterations += cost[1]
             s_.n_side += cost[2]
