@@ -476,6 +476,12 @@ class Radau15(Stepper):
         if self.model.events:
             self.kernels.event(self.t, self.y, self.p, self.g_old)
 
+    @property
+    def n_side(self) -> int:
+        """Outputs (and event states) taken by a step of their own, where a step's expansion
+        was not good enough for them."""
+        return self._count("n_side")
+
     def set_parameters(self, p: np.ndarray) -> None:
         super().set_parameters(p)
         self._restart()

@@ -206,8 +206,10 @@ def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, p, w_floor, cost, out):
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _event_at(ks, mode, t, F, F0, y0, comp, t0, h, p, w_floor, cost, ytmp, g, i):
-    """Event function ``i`` at time t inside the last step (state projected)."""
-    _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, p, w_floor, cost, ytmp)
+    """Event function ``i`` at time t inside the last step (state projected); NaN where a
+    side step did not converge."""
+    if not _state_in_step(ks, mode, t, F, F0, y0, comp, t0, h, p, w_floor, cost, ytmp):
+        return math.nan
     if ks.n_c > 0:
         ks.project(t, ytmp, p)
     ks.event(t, ytmp, p, g)
@@ -218,7 +220,8 @@ def _event_at(ks, mode, t, F, F0, y0, comp, t0, h, p, w_floor, cost, ytmp, g, i)
 def _locate_event(ks, mode, F, F0, y0, comp, t0, h, p, w_floor, cost, i, a, fa, b, fb):
     """Root of event ``i`` bracketed by (a, fa) and (b, fb), fb on the far side of the sign
     change or zero: Illinois false position, bisecting when the bracket shrinks slowly.
-    Returns the bracket end on the far side (so the event has happened there)."""
+    Returns the bracket end on the far side (so the event has happened there); NaN where
+    the state inside the step could not be had (a side step did not converge)."""
     ytmp = np.empty(y0.size)
     g = np.empty(ks.n_ev)
     side = 0
@@ -236,6 +239,8 @@ def _locate_event(ks, mode, F, F0, y0, comp, t0, h, p, w_floor, cost, i, a, fa, 
             if not (a < c < b):
                 c = 0.5 * (a + b)
         fc = _event_at(ks, mode, c, F, F0, y0, comp, t0, h, p, w_floor, cost, ytmp, g, i)
+        if math.isnan(fc):
+            return fc
         if (fc > 0.0) == (fb > 0.0) or fc == 0.0:
             b = c
             fb = fc
@@ -618,6 +623,10 @@ _RADAU_SLOW = 6
 # The iteration is settled when what it still owes to the state at the end of the step is
 # below this fraction of each component's scale (the unit round-off).
 _RADAU_ROUND_OFF = 2.0**-53
+# Once the changes may be noise, a change of this many times the bound settles it: a work
+# term whose rate is round-off of cancelling terms changes by a few units of round-off of
+# the energy scale from one iteration to the next, however long the iteration goes on.
+_RADAU_NOISE = 4.0
 
 
 def _defect_factors(nodes):
@@ -711,6 +720,20 @@ def _radau_predict(b, g, e, q):
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def _radau_rescale(b, g, e, q):
+    """The expansion for a step q times as long (b_k q^(k+1)), which becomes the prediction
+    ``e`` too."""
+    m = b.shape[1]
+    qk = q
+    for kk in range(7):
+        for j in range(m):
+            b[kk, j] *= qk
+            e[kk, j] = b[kk, j]
+        qk *= q
+    _radau_g_from_b(b, g)
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _kahan(x, comp, i, inc):
     """x[i] += inc, with the low-order bits lost kept in comp[i] and added next time."""
     d = inc + comp[i]
@@ -727,9 +750,9 @@ def _settled(change, last, theta_b6, bound, noise):
     changes alone undercounts what is left once the fast parts have died out, measured on
     Kepler at 25 steps an orbit), θ < 0.5 and θ/(1 − θ) · change ≤ bound (the rest of a
     geometric series); or, once ``noise`` may dominate the changes (from the third iteration
-    on, where an iteration at round-off stagnates and θ means nothing), a change within the
-    bound itself."""
-    if change == 0.0 or (noise and change <= bound):
+    on, where an iteration at round-off stagnates and θ means nothing), a change within
+    ``_RADAU_NOISE`` times the bound."""
+    if change == 0.0 or (noise and change <= _RADAU_NOISE * bound):
         return True
     if not last > 0.0:
         return False
@@ -753,8 +776,9 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
     Newton basis of g: Σ_k |Δg_k| max|∫ w_k| dt for v and the work terms,
     Σ_k |Δg_k| max|∫∫ w_k| dt² for q) is within ``inside_tol`` relative (what outputs inside
     the step read; ``inf`` where only the end is used). Also converged: the change of b₆ at
-    round-off relative to the accelerations (IAS15's test), or, after three iterations, that
-    change no longer falling (stagnating at round-off: converged if below 1e-13)."""
+    round-off relative to the accelerations (IAS15's test, on the accelerations only), or,
+    after three iterations, that change no longer falling (stagnating at round-off:
+    converged if below 1e-13)."""
     n = ks.n_q
     m = n + 2
     ny = y.size
@@ -797,9 +821,11 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
                     db6[j] = _RADAU_C[6, 6] * delta
         cost[0] += 7
         cost[1] += 1
+        # b₆ of the accelerations (the work rates do not act back on the motion: theirs
+        # settles with it, and may be round-off of cancelling terms amplified)
         change = 0.0
         scale = 0.0
-        for j in range(m):
+        for j in range(n):
             change = max(change, abs(db6[j]))
             scale = max(scale, abs(dy[n + j]))
         pc = change / scale if scale > 0.0 else 0.0
@@ -959,8 +985,9 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     b_start = np.empty((7, m))
     F1 = np.empty(m)
     n_ev = ks.n_ev
-    y_start = np.empty(ny)
-    comp_start = np.empty(ny)
+    y_new = np.empty(ny)
+    comp_new = np.empty(ny)
+    g_new = np.empty(max(n_ev, 1))
     cost = np.zeros(3, dtype=np.int64)  # evaluations, iterations, side steps
     # what outputs inside a step read of its iteration (nothing when they all take side steps)
     inside_tol = _RADAU_INSIDE_SHARE * dense_tol if dense_tol > 0.0 else math.inf
@@ -971,6 +998,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         Y_out[k, :] = y
         k += 1
     t_last = t_out[n_out - 1] if n_out > 0 else s_.t
+    t_target = t_last  # the time to land on (an earlier output where a side step failed)
     while k < n_out:
         if steps >= max_steps:
             return Status.MAX_STEPS, k
@@ -978,12 +1006,13 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         tc0 = s_.t_comp
         dt = s_.h
         landing = False
-        if t0 + dt * (1.0 + _LANDING_STRETCH) >= t_last:
-            # from the compensated time t₀ + t_comp (t_last − t₀ is exact once t₀ ≥
-            # t_last/2, Sterbenz): the state is integrated over exactly the span the clock
+        if t0 + dt * (1.0 + _LANDING_STRETCH) >= t_target:
+            # from the compensated time t₀ + t_comp (t_target − t₀ is exact once t₀ ≥
+            # t_target/2, Sterbenz): the state is integrated over exactly the span the clock
             # advances, leaving no time shift at a landing
-            dt = (t_last - t0) - tc0
+            dt = (t_target - t0) - tc0
             landing = True
+            _radau_rescale(b, g, e, dt / s_.h)  # the prediction, for this step's length
         if dt <= 10.0 * abs(np.nextafter(t0, np.inf) - t0):
             return Status.STEP_UNDERFLOW, k
         if s_.f0_ready == 0:  # F₀ at the start of the step
@@ -993,15 +1022,15 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
             s_.n_evaluations += 1
             for j in range(m):
                 F0[j] = dy[n + j]
-        s_.f0_ready = 0
+            s_.f0_ready = 1
         b_start[:, :] = b
+        dt_first = dt  # the step b_start predicts
         while True:
             cost[:] = 0
             converged, iterations, rho = _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p,
                                                         w_floor, inside_tol, cost, inc, dy)
             s_.n_evaluations += cost[0]
             s_.n_iterations += cost[1]
-            s_.n_side += cost[2]
             for j in range(m):
                 if not math.isfinite(b[6, j]):
                     return Status.NOT_FINITE, k
@@ -1022,100 +1051,113 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
             if dt_new < 0.25 * dt or not converged:
                 # rejected: the prediction the step started from, for the shorter step
                 s_.n_rejected += 1
-                q = dt_new / dt
-                qk = q
-                for kk in range(7):
-                    for j in range(m):
-                        b[kk, j] = b_start[kk, j] * qk
-                        e[kk, j] = b[kk, j]
-                    qk *= q
-                _radau_g_from_b(b, g)
+                b[:, :] = b_start
+                _radau_rescale(b, g, e, dt_new / dt_first)
                 dt = dt_new
                 landing = False
                 continue
             break
-        # accept: increments of q, v and the work terms over the step, added compensated
-        y_start[:] = y
-        comp_start[:] = comp
+        # the step's end, not committed yet (a side step to an output inside the step that
+        # does not converge has the step redone, landing on that output)
         _radau_increments(n, y, F0, b, dt, inc)
+        y_new[:] = y
+        comp_new[:] = comp
         local = 0.0
         scale = 1.0
         for j in range(n):
             local = max(local, abs(b[6, j]) * _RADAU_X[6] * dt * dt)
         for i in range(2 * n + 2):
-            _kahan(y, comp, i, inc[i])
+            _kahan(y_new, comp_new, i, inc[i])
         for i in range(2 * n):
-            if not math.isfinite(y[i]):
+            if not math.isfinite(y_new[i]):
                 return Status.NOT_FINITE, k
-            scale = max(scale, abs(y[i]))
+            scale = max(scale, abs(y_new[i]))
         # the time, compensated too (or exactly the output time landed on)
         if landing:
-            s_.t = t_last
-            s_.t_comp = 0.0
+            t_new = t_target
+            tc_new = 0.0
         else:
             dtc = dt + tc0
-            tn = t0 + dtc
-            s_.t_comp = dtc - (tn - t0)
-            s_.t = tn
+            t_new = t0 + dtc
+            tc_new = dtc - (t_new - t0)
         if ks.n_c > 0:
-            ks.project(s_.t, y, p)
-            comp[:] = 0.0
+            ks.project(t_new, y_new, p)
+            comp_new[:] = 0.0
         # f at the end: the next step's F₀, and the defect that bounds the expansion's error
         for i in range(ny):
-            inc[i] = y[i]
-        rhs(s_.t, inc.ctypes, pp, dyp)
+            inc[i] = y_new[i]
+        rhs(t_new, inc.ctypes, pp, dyp)
         s_.n_evaluations += 1
         for j in range(m):
             F1[j] = dy[n + j]
-        bound = _radau_interpolant_error(n, y_start, y, F0, b, F1, dt, w_floor)
+        bound = _radau_interpolant_error(n, y, y_new, F0, b, F1, dt, w_floor)
         s_.dense_error = max(s_.dense_error, bound)
         mode = DENSE_RADAU if bound <= _RADAU_DENSE_SHARE * dense_tol else DENSE_RADAU_STEP
+        start = t0 + tc0
+        cost[:] = 0
+        redo = -1
         if n_ev > 0:
-            g_new = np.empty(n_ev)
-            ks.event(s_.t, y, p, g_new)
+            ks.event(t_new, y_new, p, g_new)
             first = -1
-            t_ev = s_.t
-            cost[:] = 0
+            t_ev = t_new
             for i in range(n_ev):
                 if _crossed(g_old[i], g_new[i], ev_dir[i]):
-                    ti = _locate_event(ks, mode, b, F0, y_start, comp_start, t0 + tc0, dt, p,
-                                       w_floor, cost, i, t0, g_old[i], s_.t, g_new[i])
+                    ti = _locate_event(ks, mode, b, F0, y, comp, start, dt, p, w_floor, cost, i,
+                                       t0, g_old[i], t_new, g_new[i])
+                    if math.isnan(ti):  # a side step of the search did not converge
+                        return Status.NOT_CONVERGED, k
                     if first < 0 or ti < t_ev:
                         first = i
                         t_ev = ti
             if first >= 0:
-                k = _radau_outputs(ks, mode, t_out, Y_out, k, t_ev, y, False, b, F0,
-                                   y_start, comp_start, t0 + tc0, dt, p, w_floor, cost)
-                if k < 0:
-                    return Status.NOT_CONVERGED, -k - 1
-                if t_ev < s_.t:
-                    if not _state_in_step(ks, mode, t_ev, b, F0, y_start, comp_start, t0 + tc0,
-                                          dt, p, w_floor, cost, y):
-                        return Status.NOT_CONVERGED, k
-                    if ks.n_c > 0:
-                        ks.project(t_ev, y, p)
-                s_.n_evaluations += cost[0]
-                s_.n_iterations += cost[1]
-                s_.n_side += cost[2]
-                comp[:] = 0.0
-                s_.t = t_ev
-                s_.t_comp = 0.0
-                s_.n_steps += 1
-                s_.last_event = first
-                s_.n_events += 1
-                return Status.EVENT, k
-            s_.n_evaluations += cost[0]
-            s_.n_iterations += cost[1]
-            s_.n_side += cost[2]
-            g_old[:] = g_new
-        cost[:] = 0
-        k = _radau_outputs(ks, mode, t_out, Y_out, k, s_.t, y, True, b, F0, y_start,
-                           comp_start, t0 + tc0, dt, p, w_floor, cost)
-        if k < 0:
-            return Status.NOT_CONVERGED, -k - 1
+                k2 = _radau_outputs(ks, mode, t_out, Y_out, k, t_ev, y_new, False, b, F0, y,
+                                    comp, start, dt, p, w_floor, cost)
+                if k2 >= 0:
+                    k = k2
+                    if t_ev < t_new:
+                        if not _state_in_step(ks, mode, t_ev, b, F0, y, comp, start, dt, p,
+                                              w_floor, cost, y_new):
+                            return Status.NOT_CONVERGED, k
+                        if ks.n_c > 0:
+                            ks.project(t_ev, y_new, p)
+                    s_.n_evaluations += cost[0]
+                    s_.n_iterations += cost[1]
+                    s_.n_side += cost[2]
+                    y[:] = y_new
+                    comp[:] = 0.0
+                    s_.t = t_ev
+                    s_.t_comp = 0.0
+                    s_.f0_ready = 0
+                    s_.n_steps += 1
+                    s_.last_event = first
+                    s_.n_events += 1
+                    return Status.EVENT, k
+                redo = -k2 - 1
+        if redo < 0:
+            k2 = _radau_outputs(ks, mode, t_out, Y_out, k, t_new, y_new, True, b, F0, y, comp,
+                                start, dt, p, w_floor, cost)
+            if k2 >= 0:
+                k = k2
+            else:
+                redo = -k2 - 1
         s_.n_evaluations += cost[0]
         s_.n_iterations += cost[1]
         s_.n_side += cost[2]
+        if redo >= 0:
+            # outputs before t_out[redo] are written; the step is redone, landing there
+            k = redo
+            t_target = t_out[redo]
+            s_.n_rejected += 1
+            b[:, :] = b_start
+            _radau_rescale(b, g, e, s_.h / dt_first)
+            continue
+        t_target = t_last
+        y[:] = y_new
+        comp[:] = comp_new
+        s_.t = t_new
+        s_.t_comp = tc_new
+        if n_ev > 0:
+            g_old[:] = g_new
         for j in range(m):
             F0[j] = F1[j]
         s_.f0_ready = 1
