@@ -19,7 +19,10 @@ Methods:
   model; its local tolerance is a thousandth of the tolerance (errors add up over a run).
 - ``radau15``: adaptive 15th-order Gauss–Radau predictor–corrector (the IAS15 scheme,
   generalised to velocity-dependent forces), events, projection: the end error stays at the
-  round-off floor over long runs (energy error growing like √N). Works for every model.
+  round-off floor over long runs (energy error growing like √N). Works for every model. Its
+  steps keep their own length (landing only on the last time asked for); outputs inside a
+  step come from the step's expansion where its error estimate is within a tenth of the
+  tolerance, otherwise from a step of their own from the step's start (``n_side``).
 - ``yoshida8`` / ``yoshida6`` / ``verlet``: symmetric compositions of velocity Verlet (orders
   8, 6, 2), symplectic and time-reversible, for separable Hamiltonians (bounded energy error).
 - ``gauss6``: three-stage Gauss–Legendre collocation (order 6), symplectic, on Hamilton's
@@ -400,7 +403,9 @@ class DOP853(Stepper):
 
 class Radau15(Stepper):
     """Adaptive 15th-order Gauss–Radau predictor–corrector (the IAS15 scheme) for
-    q̈ = f(t, q, q̇): machine precision over long runs (see ``kernels.radau15_advance``)."""
+    q̈ = f(t, q, q̇): machine precision over long runs, dense output within the tolerance
+    (``dense_tolerance``; see ``kernels.radau15_advance``). Each ``advance`` ends on its last
+    output time, so the state is always at the last output returned (or at an event)."""
 
     method = "radau15"
     #: The controller keeps ε_b = max|b₆| / max|F| at ε = 0.01 √tolerance, within these bounds:
