@@ -21,7 +21,7 @@ Methods:
   generalised to velocity-dependent forces), events, projection: the end error stays at the
   round-off floor over long runs (energy error growing like √N). Works for every model. Its
   steps keep their own length (landing only on the last time asked for); outputs inside a
-  step come from the step's expansion where its error estimate is within a tenth of the
+  step come from the step's expansion where its error estimate is within a thousandth of the
   tolerance, otherwise from a step of their own from the step's start (``n_side``).
 - ``yoshida8`` / ``yoshida6`` / ``verlet``: symmetric compositions of velocity Verlet (orders
   8, 6, 2), symplectic and time-reversible, for separable Hamiltonians (bounded energy error).
@@ -441,8 +441,9 @@ class Radau15(Stepper):
         self.F0 = np.zeros(m)
         self.dy = np.zeros(self.y.size)
         self.comp = np.zeros(self.y.size)
-        #: Outputs inside a step come from its expansion where the bound of that error is
-        #: within a tenth of this (relative to the state scale), else from a step of their own.
+        #: Outputs inside a step come from its expansion where the estimate of that error is
+        #: within a thousandth of this (relative to the state scale), else from a step of
+        #: their own (``kernels._RADAU_DENSE_SHARE``).
         self.dense_tolerance = self.tolerance
         self._restart()
 
