@@ -684,6 +684,10 @@ _RADAU_NEWTON_V, _RADAU_NEWTON_X = _newton_factors(_RADAU_NODES)
 # 2e-12 where the steps' own is 1e-13; this costs side steps for 1 % of the double
 # pendulum's 100 Hz outputs, 7 % of the bead on a wire's.
 _RADAU_DENSE_SHARE = 0.001
+# ... or within this much of the state scale (64 units of round-off, what a run's own
+# round-off soon exceeds), up to half the tolerance: at tolerances near round-off a thousandth
+# would have side steps take nearly every output.
+_RADAU_DENSE_FLOOR = 2.0**-47
 # ... and what the iteration still owes inside the step within this share of the tolerance.
 _RADAU_INSIDE_SHARE = 1e-4
 
@@ -1005,7 +1009,8 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     output inside a step is the step's expansion (through f at its end as well:
     ``_radau_dense_expansion``) integrated to it, when the estimate of the error of the
     step's own expansion (``_radau_interpolant_error``; the correction is at most that) is
-    within ``_RADAU_DENSE_SHARE`` × ``dense_tol`` (relative to the state scale), and
+    within ``_RADAU_DENSE_SHARE`` × ``dense_tol`` (or ``_RADAU_DENSE_FLOOR``, up to half of
+    ``dense_tol``; relative to the state scale), and
     otherwise a side step of its own from the step's start (``_radau_side_step``), as landing
     would give (``n_side`` counts them; ``dense_error`` keeps the largest estimate seen); a
     side step that does not converge has the step redone, landing on its output. The step's
@@ -1033,6 +1038,8 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     b8 = np.empty((8, m))
     g_new = np.empty(max(n_ev, 1))
     cost = np.zeros(3, dtype=np.int64)  # evaluations, iterations, side steps
+    # what the outputs inside a step may be off by
+    dense_limit = max(_RADAU_DENSE_SHARE * dense_tol, min(0.5 * dense_tol, _RADAU_DENSE_FLOOR))
     # what outputs inside a step read of its iteration (nothing when they all take side
     # steps; never better than round-off)
     dense_inside = (max(_RADAU_INSIDE_SHARE * dense_tol, _RADAU_ROUND_OFF) if dense_tol > 0.0
@@ -1151,7 +1158,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
             for j in range(m):
                 F1[j] = dy[n + j]
         s_.dense_error = max(s_.dense_error, bound)
-        mode = DENSE_RADAU if bound <= _RADAU_DENSE_SHARE * dense_tol else DENSE_RADAU_STEP
+        mode = DENSE_RADAU if bound <= dense_limit else DENSE_RADAU_STEP
         cost[:] = 0
         redo = -1
         if n_ev > 0:
