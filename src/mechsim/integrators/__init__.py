@@ -49,7 +49,7 @@ Events (``dop853``, ``radau15``). A model may declare state events (``Model.even
 ``Event(name, direction)``), computed by the kernel function ``event(t, y, p, out)``, and
 discrete modes (``Model.modes``), extra state entries after the work terms that stay constant
 between events. The kernel checks the event functions after every accepted step, locates the
-earliest sign change (in the event's direction) on the dense output to ~1e-14 relative in t,
+earliest sign change (in the event's direction) on the dense output to 4 ulps of t,
 writes the outputs up to it and stops there with status ``Status.EVENT``. ``DOP853.advance``
 then calls ``model.handle_event(index, t, y) -> y_new`` (a velocity jump, a new mode, or y
 unchanged to record a time), restarts the integration at (t, y_new) (projection, new first
