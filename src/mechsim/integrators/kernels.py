@@ -204,7 +204,7 @@ def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, ou
         return True
     if mode == DENSE_RADAU:
         out[:] = y0
-        _radau_state_at(frac, ks.n_q, y0, F0, F, h, comp, out)
+        _radau_dense_at(frac, ks.n_q, y0, F0, F, h, comp, out)
         return True
     return _radau_side_step(ks, t0 + tc, y0, comp, F0, F, h, frac, p, w_floor, cost, out)
 
@@ -674,6 +674,10 @@ def _newton_factors(nodes):
 
 
 _RADAU_NEWTON_V, _RADAU_NEWTON_X = _newton_factors(_RADAU_NODES)
+# Σ_k C[j, k] V_k and Σ_k C[j, k] X_k: a change of g_j moves the step's end by that (times
+# dt, dt²) in v and q.
+_RADAU_CV = np.ascontiguousarray(_RADAU_C @ _RADAU_V[:7])
+_RADAU_CX = np.ascontiguousarray(_RADAU_C @ _RADAU_X[:7])
 # An output inside a step comes from the step's (corrected) expansion when the estimate of
 # the error of its own expansion is within this share of the tolerance, else from a side step
 # of its own. The corrected expansion is off by at most that error plus the correction, each
@@ -696,17 +700,33 @@ _RADAU_INSIDE_SHARE = 1e-4
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_state_at(s, n, y0, F0, b, dt, comp, ys):
-    """y at t₀ + s·dt from the expansion F(s) = F₀ + Σ_k b_k s^(k+1) of the second derivatives
-    of q and the first derivatives of the work terms (compensation of y₀ included); b has 7
-    rows (the step's) or 8 (its dense output, ``_radau_dense_expansion``)."""
+    """y at t₀ + s·dt from the expansion F(s) = F₀ + Σ_k b_k s^(k+1) (7 rows) of the second
+    derivatives of q and the first derivatives of the work terms (compensation of y₀
+    included)."""
     m = F0.size
     for j in range(m):
         iv = 0.0
         ix = 0.0
-        for k in range(b.shape[0] - 1, -1, -1):
+        for k in range(6, -1, -1):
             iv = iv * s + b[k, j] * _RADAU_V[k]
             ix = ix * s + b[k, j] * _RADAU_X[k]
         # first integral (v or W): y[n + j]; second (q) only for the accelerations
+        ys[n + j] = y0[n + j] + (comp[n + j] + s * dt * (F0[j] + s * iv))
+        if j < n:
+            ys[j] = y0[j] + (comp[j] + s * dt * (y0[n + j] + s * dt * (0.5 * F0[j] + s * ix)))
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def _radau_dense_at(s, n, y0, F0, b8, dt, comp, ys):
+    """``_radau_state_at`` for the dense output's expansion (8 rows,
+    ``_radau_dense_expansion``)."""
+    m = F0.size
+    for j in range(m):
+        iv = 0.0
+        ix = 0.0
+        for k in range(7, -1, -1):
+            iv = iv * s + b8[k, j] * _RADAU_V[k]
+            ix = ix * s + b8[k, j] * _RADAU_X[k]
         ys[n + j] = y0[n + j] + (comp[n + j] + s * dt * (F0[j] + s * iv))
         if j < n:
             ys[j] = y0[j] + (comp[j] + s * dt * (y0[n + j] + s * dt * (0.5 * F0[j] + s * ix)))
@@ -788,11 +808,12 @@ def _settled(change, last, theta_b6, bound, noise):
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, ys, dy):
+def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, ys, dy, dg):
     """Predictor–corrector iteration of the step of length dt from (t0, y): the expansion
     ``b`` (with its divided differences ``g``) is corrected in place until it is settled.
     Returns (converged, iterations, contraction ρ of b₆ measured above round-off); ``dy`` ends
-    as f at the last node; ``ys`` is scratch; ``cost`` counts evaluations and iterations.
+    as f at the last node; ``ys`` and ``dg`` (7, N_Q + 2) are scratch; ``cost`` counts
+    evaluations and iterations.
 
     Settled (``_settled``, from the second iteration on, the contraction θ measured on the
     last two changes and on b₆): what the iteration still owes to the state at the step's
@@ -812,9 +833,7 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
     yp = ys.ctypes
     dyp = dy.ctypes
     pp = p.ctypes
-    b_prev = np.empty((7, m))
-    g_prev = np.empty((7, m))
-    db6 = np.empty(m)
+    inside_wanted = inside_tol < math.inf
     previous = math.inf
     converged = False
     rho = 0.0
@@ -828,8 +847,6 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
         scale_q = max(scale_q, abs(y[j]), dt * abs(y[n + j]))
         scale_v = max(scale_v, abs(y[n + j]), dt * abs(F0[j]))
     for it in range(_RADAU_MAX_ITERATIONS):
-        b_prev[:, :] = b
-        g_prev[:, :] = g
         for i in range(ny):
             ys[i] = y[i]
         for node in range(1, 8):
@@ -842,10 +859,9 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
                     r = (r - g[jj - 1, j]) / (h - _RADAU_NODES[jj])
                 delta = r - g[node - 1, j]
                 g[node - 1, j] = r
+                dg[node - 1, j] = delta  # this iteration's change of g (b = Cᵀ g)
                 for kk in range(node):
                     b[kk, j] += _RADAU_C[node - 1, kk] * delta
-                if node == 7:
-                    db6[j] = _RADAU_C[6, 6] * delta
         cost[0] += 7
         cost[1] += 1
         # b₆ of the accelerations (the work rates do not act back on the motion: theirs
@@ -853,7 +869,7 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
         change = 0.0
         scale = 0.0
         for j in range(n):
-            change = max(change, abs(db6[j]))
+            change = max(change, abs(_RADAU_C[6, 6] * dg[6, j]))
             scale = max(scale, abs(dy[n + j]))
         pc = change / scale if scale > 0.0 else 0.0
         if _RADAU_RHO_FLOOR < previous < math.inf:
@@ -868,18 +884,20 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
             iv = 0.0
             ix = 0.0
             for kk in range(7):
-                d = b[kk, j] - b_prev[kk, j]
-                ev += d * _RADAU_V[kk]
-                ex += d * _RADAU_X[kk]
-                d = abs(g[kk, j] - g_prev[kk, j])
-                iv += d * _RADAU_NEWTON_V[kk]
-                ix += d * _RADAU_NEWTON_X[kk]
+                d = dg[kk, j]
+                ev += d * _RADAU_CV[kk]
+                ex += d * _RADAU_CX[kk]
+                if inside_wanted:
+                    iv += abs(d) * _RADAU_NEWTON_V[kk]
+                    ix += abs(d) * _RADAU_NEWTON_X[kk]
             sv = scale_v if j < n else max(abs(y[n + j]), dt * abs(F0[j]), w_floor)
-            if iv > 0.0:
+            if ev != 0.0:
                 end = max(end, dt * abs(ev) / sv if sv > 0.0 else math.inf)
+            if iv > 0.0:
                 inside = max(inside, dt * iv / sv if sv > 0.0 else math.inf)
-            if j < n and ix > 0.0:
+            if j < n and ex != 0.0:
                 end = max(end, dt * dt * abs(ex) / scale_q if scale_q > 0.0 else math.inf)
+            if j < n and ix > 0.0:
                 inside = max(inside, dt * dt * ix / scale_q if scale_q > 0.0 else math.inf)
         theta_b6 = pc / previous if previous > 0.0 else 1.0
         noise = it >= 2 and pc >= previous  # stagnating: the changes are noise
@@ -929,7 +947,7 @@ def _radau_side_step(ks, t0, y0, comp0, F0, b, dt, frac, p, w_floor, cost, out):
     inc = np.empty(y0.size)
     dy = np.empty(y0.size)
     converged, _, _ = _radau_iterate(ks, t0, y0, comp0, F0, bs, gs, frac * dt, p, w_floor,
-                                     math.inf, cost, inc, dy)
+                                     math.inf, cost, inc, dy, np.empty((7, m)))
     _radau_increments(n, y0, F0, bs, frac * dt, inc)
     c = comp0.copy()
     out[:] = y0
@@ -1038,6 +1056,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     y_new = np.empty(ny)
     comp_new = np.empty(ny)
     b8 = np.empty((8, m))
+    dg = np.empty((7, m))
     g_new = np.empty(max(n_ev, 1))
     cost = np.zeros(3, dtype=np.int64)  # evaluations, iterations, side steps
     # what the outputs inside a step may be off by
@@ -1088,7 +1107,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
             # the inside of the step matters only where an output falls in it
             inside_tol = dense_inside if t_out[k] - t0 < dt else math.inf
             converged, iterations, rho = _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p,
-                                                        w_floor, inside_tol, cost, inc, dy)
+                                                        w_floor, inside_tol, cost, inc, dy, dg)
             s_.n_evaluations += cost[0]
             s_.n_iterations += cost[1]
             for j in range(m):
