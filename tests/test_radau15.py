@@ -39,18 +39,22 @@ def _kepler_exact(t: float, e: float) -> np.ndarray:
 
 
 def test_kepler_100_orbits_at_round_off() -> None:
-    """e = 0.5 … 0.503, 100 orbits: the end error is the random walk of round-off (the force is
-    evaluated to a few ulps each time: Brouwer's law), about 1e-12 for a = 1 — what IAS15
-    reaches in double precision — and never the truncation error (which would be 1e-10 …
-    1e-8 at a tenth of the steps)."""
+    """e = 0.5 … 0.515, 100 orbits: the end error is the random walk of round-off (the force is
+    evaluated to a few ulps each time: Brouwer's law), a few 1e-12 for a = 1 — what IAS15
+    reaches in double precision (REBOUND's IAS15 ends this problem 1.9e-12 … 1.3e-11 off,
+    ``mechsim bench kepler``) — and never the truncation error (which would be 1e-10 … 1e-8
+    at a tenth of the steps). A random walk scatters: measured on 64 orbits, e = 0.45 … 0.56,
+    the median is 2e-12 … 2.5e-12 and the largest 7e-12 … 1e-11, so the median of 16 is
+    judged, and the largest."""
     T = 100 * 2 * math.pi
     errors = []
-    for e in (0.5, 0.501, 0.502, 0.503):
+    for i in range(16):
+        e = 0.5 + 0.001 * i
         st = make_stepper(mechsim.load_system("kepler", eccentricity=e), "radau15", 1e-14)
         y = st.advance(np.array([T]))[0]
         errors.append(np.max(np.abs(y[:4] - _kepler_exact(T, e))))
         assert st.n_steps < 100 * 100  # ~60 an orbit
-    assert np.median(errors) <= 2e-12 and max(errors) <= 1e-11, errors
+    assert np.median(errors) <= 5e-12 and max(errors) <= 2e-11, errors
 
 
 #: The CR3BP of ``cr3bp``'s defaults in the synodic frame (ξ, η, ξ̇, η̇) at t = 5 and 10, from
@@ -74,9 +78,12 @@ def test_cr3bp_at_round_off(formulation: str) -> None:
     model = mechsim.load_system("cr3bp", formulation=formulation)
     times = np.array(sorted(_CR3BP))
     Y = make_stepper(model, "radau15", 1e-14).advance(times)[:, :4]
-    for row, t in zip(Y, times, strict=True):
-        ref = np.array(_CR3BP[t]) if formulation == "synodic" else _inertial(_CR3BP[t], t)
-        assert np.max(np.abs(row - ref)) <= 1e-12, (t, row - ref)
+    # at 100 Hz, t = 5 falls inside a step: from its expansion, or from a step of its own
+    Y100 = make_stepper(model, "radau15", 1e-14).advance(np.arange(1, 1001) / 100.0)
+    for rows in (Y, Y100[[499, 999], :4]):
+        for row, t in zip(rows, times, strict=True):
+            ref = np.array(_CR3BP[t]) if formulation == "synodic" else _inertial(_CR3BP[t], t)
+            assert np.max(np.abs(row - ref)) <= 1e-12, (t, row - ref)
 
 
 def test_velocity_dependent_force_and_work_terms() -> None:
@@ -102,4 +109,87 @@ def test_events_located_on_the_expansion() -> None:
     assert [name for _, name in st.events] == ["departure"]
     t_ev = st.events[0][0]
     y = make_stepper(m, "radau15", 1e-12).advance(np.array([t_ev]))[0]
+    assert abs(math.cos(y[1]) - 2 * math.cos(th0) / 3) < 1e-10
+
+
+def _relative(Y: np.ndarray, R: np.ndarray, n: int) -> float:
+    """The larger error of q and of q̇, each relative to the reference's largest |q|, |q̇|."""
+    return max(float(np.max(np.abs(Y[:, :n] - R[:, :n])) / np.max(np.abs(R[:, :n]))),
+               float(np.max(np.abs(Y[:, n:2 * n] - R[:, n:2 * n])) / np.max(np.abs(R[:, n:2 * n]))))
+
+
+@pytest.mark.parametrize(("system", "params"), [
+    ("kepler", {"eccentricity": 0.5}), ("double_pendulum", {}), ("spherical_pendulum", {}),
+    ("bead_on_wire", {})])
+@pytest.mark.parametrize("tolerance", [1e-10, 1e-12])
+def test_outputs_inside_steps_meet_the_tolerance(system: str, params: dict,
+                                                 tolerance: float) -> None:
+    """100 Hz outputs, asked for in blocks as a node does, over two orbits (Kepler) or two
+    time scales (the double pendulum is chaotic): radau15 takes its own steps and gives the
+    outputs inside them from each step's expansion (or from a step of their own where its
+    error estimate is too large); against Kepler's equation, or DOP853 at 1e-14, they are
+    within the tolerance of the state scale."""
+    model = mechsim.load_system(system, **params)
+    n = len(model.coordinates)
+    span = 4 * math.pi if system == "kepler" else 2 * model.time_scale()
+    t = np.arange(1, int(span * 100) + 1) / 100.0
+    reference = make_stepper(model, "exact" if system == "kepler" else "dop853", 1e-14)
+    R = reference.advance(t)
+    st = make_stepper(model, "radau15", tolerance)
+    Y = np.vstack([st.advance(t[i:i + 100]) for i in range(0, t.size, 100)])
+    assert _relative(Y, R, n) <= tolerance
+    if system == "kepler":
+        assert st.n_steps < t.size / 5  # not a step per output
+
+
+def test_outputs_the_expansion_cannot_give_take_steps_of_their_own() -> None:
+    """Kepler (e = 0.5) at tolerance 1e-3 takes ~22 steps an orbit, whose expansions are off
+    by up to ~7e-10 between the nodes; with outputs asked for within 1e-10, the outputs the
+    step's error estimate does not clear take a step of their own from the step's start (as
+    landing there would), and all are within 1e-10 of Kepler's equation — over the same
+    steps as the run that takes every output from the expansions."""
+    model = mechsim.load_system("kepler", eccentricity=0.5)
+    t = np.arange(1, 1257) / 100.0
+    R = make_stepper(model, "exact").advance(t)
+    loose = make_stepper(model, "radau15", 1e-3)
+    assert _relative(loose.advance(t), R, 2) > 1e-10  # the expansions alone would not do
+    st = make_stepper(model, "radau15", 1e-3)
+    st.dense_tolerance = 1e-10
+    Y = st.advance(t)
+    assert _relative(Y, R, 2) <= 1e-10
+    assert 0 < st.n_side < t.size  # both ways taken
+    assert st.n_steps == loose.n_steps and np.array_equal(Y[-1], loose.advance(t[-1:])[0])
+
+
+@pytest.mark.parametrize("system", ["gas_in_box", "sphere_slide", "collision"])
+def test_events_match_dop853(system: str) -> None:
+    """Events inside steps that also hold outputs: the same events at the same times (to
+    1e-10 s) as DOP853 at 1e-14, and the outputs around them within 1e-10 of the state
+    scale (radau15 at 1e-12, 100 Hz asked for in blocks)."""
+    model = mechsim.load_system(system)
+    n = len(model.coordinates)
+    t = np.arange(1, 501) / 100.0
+    reference = make_stepper(model, "dop853", 1e-14)
+    R = reference.advance(t)
+    st = make_stepper(model, "radau15", 1e-12)
+    Y = np.vstack([st.advance(t[i:i + 100]) for i in range(0, t.size, 100)])
+    assert [name for _, name in st.events] == [name for _, name in reference.events]
+    assert st.events
+    assert np.max(np.abs(np.array(st.events)[:, 0].astype(float)
+                         - np.array(reference.events)[:, 0].astype(float))) <= 1e-10
+    assert _relative(Y, R, n) <= 1e-10
+
+
+def test_events_located_on_steps_of_their_own() -> None:
+    """With every state inside a step taken by a step of its own (no trust in the expansion:
+    ``dense_tolerance`` 0), the event search runs on those too: the bead still leaves the
+    sphere where cos θ = (2/3) cos θ₀."""
+    th0 = 0.3
+    m = mechsim.load_system("sphere_slide", formulation="polar",
+                            **{"initial.angle": th0, "initial_rate.angle": 0.0})
+    st = make_stepper(m, "radau15", 1e-12)
+    st.dense_tolerance = 0.0
+    st.advance(np.arange(1, 301) / 100.0)
+    assert [name for _, name in st.events] == ["departure"] and st.n_side > 0
+    y = make_stepper(m, "radau15", 1e-12).advance(np.array([st.events[0][0]]))[0]
     assert abs(math.cos(y[1]) - 2 * math.cos(th0) / 3) < 1e-10

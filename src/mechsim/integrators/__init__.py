@@ -19,7 +19,10 @@ Methods:
   model; its local tolerance is a thousandth of the tolerance (errors add up over a run).
 - ``radau15``: adaptive 15th-order Gauss–Radau predictor–corrector (the IAS15 scheme,
   generalised to velocity-dependent forces), events, projection: the end error stays at the
-  round-off floor over long runs (energy error growing like √N). Works for every model.
+  round-off floor over long runs (energy error growing like √N). Works for every model. Its
+  steps keep their own length (landing only on the last time asked for); outputs inside a
+  step come from the step's expansion where its error estimate is within a thousandth of the
+  tolerance, otherwise from a step of their own from the step's start (``n_side``).
 - ``yoshida8`` / ``yoshida6`` / ``verlet``: symmetric compositions of velocity Verlet (orders
   8, 6, 2), symplectic and time-reversible, for separable Hamiltonians (bounded energy error).
 - ``gauss6``: three-stage Gauss–Legendre collocation (order 6), symplectic, on Hamilton's
@@ -46,7 +49,7 @@ Events (``dop853``, ``radau15``). A model may declare state events (``Model.even
 ``Event(name, direction)``), computed by the kernel function ``event(t, y, p, out)``, and
 discrete modes (``Model.modes``), extra state entries after the work terms that stay constant
 between events. The kernel checks the event functions after every accepted step, locates the
-earliest sign change (in the event's direction) on the dense output to ~1e-14 relative in t,
+earliest sign change (in the event's direction) on the dense output to 4 ulps of t,
 writes the outputs up to it and stops there with status ``Status.EVENT``. ``DOP853.advance``
 then calls ``model.handle_event(index, t, y) -> y_new`` (a velocity jump, a new mode, or y
 unchanged to record a time), restarts the integration at (t, y_new) (projection, new first
@@ -134,7 +137,7 @@ def precompile() -> None:
         L.gauss_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, m2, m2, v),
         L.evaluate_outputs: (KERNEL_SET, v, m2, v, True, True, True, True, m2, m2, m2, m3),
         L.radau15_advance: (KERNEL_SET, new_state(RADAU_STATE, 0.0), v, v, v, m2, 0.0, 0, v, m2,
-                            m2, m2, v, v, v, iv, 0.0),
+                            m2, m2, v, v, v, iv, 0.0, 0.0, 0.0),
     }
     for loop, args in signatures.items():
         loop.compile(tuple(a if a is KERNEL_SET else typeof(a) for a in args))
@@ -400,7 +403,9 @@ class DOP853(Stepper):
 
 class Radau15(Stepper):
     """Adaptive 15th-order Gauss–Radau predictor–corrector (the IAS15 scheme) for
-    q̈ = f(t, q, q̇): machine precision over long runs (see ``kernels.radau15_advance``)."""
+    q̈ = f(t, q, q̇): machine precision over long runs, dense output within the tolerance
+    (``dense_tolerance``; see ``kernels.radau15_advance``). Each ``advance`` ends on its last
+    output time, so the state is always at the last output returned (or at an event)."""
 
     method = "radau15"
     #: The controller keeps ε_b = max|b₆| / max|F| at ε = 0.01 √tolerance, within these bounds:
@@ -426,6 +431,7 @@ class Radau15(Stepper):
         self.g_old = np.zeros(self.ev_dir.size)
         self.tau = float(model.time_scale())
         self.a_floor = 0.0
+        self.w_floor = 0.0
         self.max_steps = int(max_steps)
         self.eps = min(max(0.01 * math.sqrt(self.tolerance), self.eps_range[0]),
                        self.eps_range[1])
@@ -435,6 +441,10 @@ class Radau15(Stepper):
         self.F0 = np.zeros(m)
         self.dy = np.zeros(self.y.size)
         self.comp = np.zeros(self.y.size)
+        #: Outputs inside a step come from its expansion where the estimate of that error is
+        #: within a thousandth of this (relative to the state scale), else from a step of
+        #: their own (``kernels._RADAU_DENSE_SHARE``).
+        self.dense_tolerance = self.tolerance
         self._restart()
 
     def _restart(self) -> None:
@@ -447,12 +457,17 @@ class Radau15(Stepper):
         forces do not depend on may grow without bound (a falling centre of mass), and a
         floor following it made the scale ~1e5 times the accelerations by |R| ~ 8e5 m,
         loosening the control of the orbit beside it to a 2e-4 end error at tolerance
-        1e-13."""
+        1e-13. The work terms' scale (``w_floor``: their errors are judged against it, their
+        rates may be round-off of cancelling terms) is the system's energy scale here,
+        max(|T|, |V|, |h|)."""
         self.kernels.project(self.t, self.y, self.p)
         n = self.kernels.n_q
         self.a_floor = self.FLOOR * float(np.max(np.abs(self.y[:n]) / self.tau**2
                                                  + np.abs(self.y[n:2 * n]) / self.tau,
                                                  initial=0.0))
+        energy = np.zeros(3)
+        self.kernels.energy(self.t, self.y, self.p, energy)
+        self.w_floor = float(np.max(np.abs(energy)))
         self.kernels.rhs(self.t, self.y, self.p, self.dy)
         h0 = loops().dop853_initial_step(self.ks, self.t, self.y, self.p, self.dy.copy(),
                                          self.tolerance, self.tolerance)
@@ -463,8 +478,15 @@ class Radau15(Stepper):
         self.e[:] = 0.0
         self.comp[:] = 0.0
         self.state["last_event"] = -1
+        self.state["f0_ready"] = 0
         if self.model.events:
             self.kernels.event(self.t, self.y, self.p, self.g_old)
+
+    @property
+    def n_side(self) -> int:
+        """Outputs (and event states) taken by a step of their own, where a step's expansion
+        was not good enough for them."""
+        return self._count("n_side")
 
     def set_parameters(self, p: np.ndarray) -> None:
         super().set_parameters(p)
@@ -487,7 +509,7 @@ class Radau15(Stepper):
             status, written = advance(
                 self.ks, self.state, self.y, self.p, t_out[done:], Y[done:], self.eps,
                 self.max_steps, self.comp, self.b, self.g, self.e, self.F0, self.dy,
-                self.g_old, self.ev_dir, self.a_floor)
+                self.g_old, self.ev_dir, self.a_floor, self.w_floor, self.dense_tolerance)
             done += written
             self.t = float(self.state["t"][0])
             if status != Status.EVENT:

@@ -56,9 +56,12 @@ DOP853_STATE = np.dtype(_COMMON + [
 FIXED_STATE = np.dtype(_COMMON)
 
 #: Gauss–Radau (IAS15 scheme): next step h, last accepted step h_old, the predictor–corrector
-#: iterations spent, the compensation of t, event bookkeeping.
+#: iterations spent, the compensation of t, event bookkeeping; whether F₀ (f at the current
+#: state) is ready, outputs (or event states) computed by side steps of their own where the
+#: expansion's error bound was too large, and the largest such bound seen (relative).
 RADAU_STATE = np.dtype(_COMMON + [("h", _F), ("h_old", _F), ("n_iterations", _I),
-                                  ("t_comp", _F), ("last_event", _I), ("n_events", _I)])
+                                  ("t_comp", _F), ("last_event", _I), ("n_events", _I),
+                                  ("f0_ready", _I), ("n_side", _I), ("dense_error", _F)])
 
 
 def new_state(dtype: np.dtype, t: float) -> np.ndarray:
