@@ -476,6 +476,8 @@ class SimulatorNode(Node):
                 self.samples_published += k
                 self.t = float(block.times[b - 1])
                 self._y = block.Y[b - 1].copy()
+                if block.left == 0:
+                    self.outlet.hand_over()  # the block's samples to the sinks, at once
             self.costs["publish"] += time.perf_counter() - t0
         if block.left == 0 and block.reason is not None:
             self._fail(block.reason)
@@ -485,6 +487,7 @@ class SimulatorNode(Node):
         """Forget the samples computed ahead and not published (a change applies from the
         next sample)."""
         block, self._ahead = self._ahead, None
+        self.outlet.hand_over()
         if block is not None and block.left and not self.failed:
             self._rewind()
 
@@ -567,6 +570,10 @@ class SimulatorNode(Node):
         msg = DiagnosticArray(header=self.factory.header(ns), status=[status])
         self.outlet.publish(self.t_diag, msg, ns)
 
+    def destroy_node(self) -> None:
+        self.outlet.hand_over()  # what was published reaches the sinks
+        super().destroy_node()
+
     # --- real-time pacing (only when not stepped by the caller) ---------------------------
     def _start_realtime(self) -> None:
         """(Re)start the one pacing timer from the current state."""
@@ -602,6 +609,7 @@ class SimulatorNode(Node):
     def set_paused(self, paused: bool) -> None:
         """Pause or resume (pacing restarts from the current state, so no catching up)."""
         self.paused = paused
+        self.outlet.hand_over()
         if not paused:
             self._start_realtime()
 
@@ -736,15 +744,17 @@ class SimulatorNode(Node):
         self._effort_topic = self.resolve_topic_name("effort")
         self._inbox: np.ndarray | None = None  # newest accepted command, not applied yet
         self._answered = -1  # samples_published when the latest command arrived
-        self.create_subscription(Float64MultiArray, "effort", self._on_effort, STATE_QOS,
-                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self._effort_sub = self.create_subscription(
+            Float64MultiArray, "effort", self._on_effort, STATE_QOS,
+            callback_group=MutuallyExclusiveCallbackGroup())
 
     def _effort_reset(self, new_epoch: bool) -> None:
         """A new model or stepper starts without effort (as its parameter vector); the next
         command applies again. A new epoch also restores the full set of laws."""
         with self._effort_lock:
             self._inbox = None
-        at = self.model.effort_slice()
+        #: Where the effort sits in the parameter vector (None: the model takes none).
+        self._effort_at = at = self.model.effort_slice()
         if at is not None:
             self.p[at] = 0.0
         self._held_until: float | None = None  # effort held (nonzero) until this sim time
@@ -753,7 +763,7 @@ class SimulatorNode(Node):
 
     def _on_effort(self, msg: Float64MultiArray) -> None:
         u = np.asarray(msg.data, dtype=np.float64)
-        at, names = self.model.effort_slice(), [c.name for c in self.model.coordinates]
+        at, names = self._effort_at, [c.name for c in self.model.coordinates]
         if at is None:
             self._reject("system", f"{self.model.id} ({self.model.formulation}) takes no "
                          "effort (its kernels are not derived from a Lagrangian)")
@@ -780,15 +790,16 @@ class SimulatorNode(Node):
             self.get_logger().warning(f"{self._effort_topic}: command ignored: {reason}")
 
     def _closed_loop(self) -> bool:
-        """Something publishes commands to a system that takes them."""
-        return (self.model.effort_slice() is not None
-                and self.count_publishers(self._effort_topic) > 0)
+        """Something publishes commands to a system that takes them (a publisher matched
+        with the effort subscription: asked of the subscription, not of the whole graph,
+        which costs a hundred times more with a scene's nodes in it)."""
+        return self._effort_at is not None and self._effort_sub.get_publisher_count() > 0
 
     def _effort_step(self) -> bool:
         """Before the next sample period (from ``self.t``): apply the newest command, or zero
         once the held effort has timed out. True when the node must step sample by sample: an
         effort is held (its timeout falls on a sample) or a controller is present."""
-        at = self.model.effort_slice()
+        at = self._effort_at
         if at is None:
             return False
         closed = self._closed_loop()
