@@ -112,6 +112,9 @@ class Outlet:
         #: Published samples not yet handed to the sinks: [stamps, topics, columns, first,
         #: end] of one chunk (``hand_over``).
         self._held: list[Any] | None = None
+        #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
+        self._live: list[tuple[_Channel, np.ndarray]] = []
+        self._live_for: Any = None
 
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         resolved = self.node.resolve_topic_name(topic)
@@ -128,6 +131,7 @@ class Outlet:
         """Count every topic's subscribers now (read by ``wanted`` and ``publish_chunk``)."""
         for topic, ch in self.channels.items():
             self.subscribers[topic] = ch.publisher.get_subscription_count()
+        self._live_for = None
 
     def wanted(self, topic: str) -> bool:
         """Does anything consume ``topic`` (a sink, or a subscriber anywhere as counted at the
@@ -150,8 +154,11 @@ class Outlet:
         a = 0 if part is None else part.start
         b = len(ns) if part is None else part.stop
         n = b - a
-        live = [(self.channels[topic], rows) for topic, rows, _ in topics
-                if self.subscribers.get(topic, 0) > 0]
+        if self._live_for is not topics:  # once per chunk (and count of subscribers)
+            self._live = [(self.channels[topic], rows) for topic, rows, _ in topics
+                          if self.subscribers.get(topic, 0) > 0]
+            self._live_for = topics
+        live = self._live
         step = LOSSLESS_DEPTH if self.lossless else max(n, 1)
         for start in range(a, b, step):
             for ch, rows in live:
