@@ -236,6 +236,9 @@ class SimulatorNode(Node):
         self._pending: _Change | None = None
         #: Samples computed ahead of the wall clock by a paced run (0: only the due ones).
         self.lookahead = 0
+        #: Samples by which this node's blocks computed ahead are shifted (a paced scene
+        #: spreads its nodes' blocks over the ticks instead of computing them all in one).
+        self.stagger = 0
         self._ahead: _Block | None = None
         self._ahead_failed = False
 
@@ -525,7 +528,10 @@ class SimulatorNode(Node):
             elif self.lookahead > due and not self._ahead_failed:
                 last = _BLOCK if self.end_time is None else int(math.floor(
                     (self.end_time - self.t) / dt + 1e-9))
-                n = max(due, min(self.lookahead, last, _BLOCK))
+                # To the next block boundary (every lookahead samples, shifted by stagger).
+                ahead_n = self.lookahead - (self.samples_published + self.stagger) \
+                    % self.lookahead
+                n = max(due, min(ahead_n, last, _BLOCK))
             times = self.t + dt * np.arange(1, n + 1)
             try:
                 t0 = time.perf_counter()
@@ -791,8 +797,8 @@ class SimulatorNode(Node):
 
     def _closed_loop(self) -> bool:
         """Something publishes commands to a system that takes them (a publisher matched
-        with the effort subscription: asked of the subscription, not of the whole graph,
-        which costs a hundred times more with a scene's nodes in it)."""
+        with the effort subscription: asked of the subscription, ~1 µs, not of the graph,
+        ~20 µs with a scene's 36 nodes in it)."""
         return self._effort_at is not None and self._effort_sub.get_publisher_count() > 0
 
     def _effort_step(self) -> bool:
