@@ -133,6 +133,13 @@ class Outlet:
             self.subscribers[topic] = ch.publisher.get_subscription_count()
         self._live_for = None
 
+    def needs_rows(self, topic: str) -> bool:
+        """Are the CDR bytes of ``topic``'s samples needed (a subscriber as counted at the
+        last ``refresh``, or a sink that records bytes: ``write_chunk``)? Other sinks take
+        values or messages, so a chunk nobody reads as bytes is not encoded."""
+        return self.subscribers.get(topic, 0) > 0 or any(
+            hasattr(sink, "write_chunk") for sink in self.sinks)
+
     def wanted(self, topic: str) -> bool:
         """Does anything consume ``topic`` (a sink, or a subscriber anywhere as counted at the
         last ``refresh``)?"""
@@ -143,11 +150,12 @@ class Outlet:
         return self.subscribers.get(topic, 0) > 0
 
     def publish_chunk(self, ns: np.ndarray,
-                      topics: list[tuple[str, np.ndarray, Callable[[int], Any]]],
+                      topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]],
                       columns: Mapping[str, Any] | None = None,
                       part: slice | None = None) -> None:
         """The messages of a chunk of samples stamped ``ns``, already encoded: for each
-        (topic, rows, message), row i holds the CDR bytes of sample i. The bytes are
+        (topic, rows, message), row i holds the CDR bytes of sample i (rows None where
+        ``needs_rows`` was false when the chunk was encoded). The bytes are
         published at once (only on topics with subscribers at the last ``refresh``); the
         sinks get them later, in one hand-off per chunk (``hand_over``). ``part``: only these
         samples of the chunk."""
@@ -156,7 +164,7 @@ class Outlet:
         n = b - a
         if self._live_for is not topics:  # once per chunk (and count of subscribers)
             self._live = [(self.channels[topic], rows) for topic, rows, _ in topics
-                          if self.subscribers.get(topic, 0) > 0]
+                          if rows is not None and self.subscribers.get(topic, 0) > 0]
             self._live_for = topics
         live = self._live
         step = LOSSLESS_DEPTH if self.lossless else max(n, 1)

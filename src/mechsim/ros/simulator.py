@@ -173,7 +173,7 @@ class _Block:
     times: np.ndarray
     Y: np.ndarray  # rows that passed the guards
     ns: np.ndarray
-    topics: list[tuple[str, np.ndarray, Callable[[int], Any]]]
+    topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]]  # rows: see Outlet
     columns: dict[str, Any]
     reason: str | None  # why the system stops after the last row (a guard), if it does
     released: int = 0
@@ -429,8 +429,14 @@ class SimulatorNode(Node):
                           None if c.frames is None else c.frames[i])
 
         enc = self.encoder
+        needs_rows = self.outlet.needs_rows
+
+        def encode(key: str, topic: str) -> np.ndarray | None:
+            """The topic's CDR rows, only where someone reads bytes."""
+            return enc.encode(key, c) if needs_rows(topic) else None
+
         columns: dict[str, Any] = {}
-        topics: list[tuple[str, np.ndarray, Callable[[int], Any]]] = []
+        topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]] = []
         if n:
             if c.energy is not None:
                 columns[self.t_energy] = messages.EnergyColumns.of(c)
@@ -443,16 +449,16 @@ class SimulatorNode(Node):
             if c.frames is not None:
                 columns[self.t_tf] = f.transform_columns(c.frames)
             if self.publish_clock:
-                topics.append((self.t_clock, enc.encode("clock", c),
+                topics.append((self.t_clock, encode("clock", self.t_clock),
                                lambda i: messages.clock(int(ns[i]))))
             if f.joints:
                 columns[self.t_state] = {f.coordinate_names[j]: c.q[:, j] for j in f.joints}
-                topics.append((self.t_state, enc.encode("state", c),
+                topics.append((self.t_state, encode("state", self.t_state),
                                _builder(f.state, sample, ns)))
             if f.attitude is not None:
-                topics.append((self.t_pose, enc.encode("pose", c),
+                topics.append((self.t_pose, encode("pose", self.t_pose),
                                _builder(f.pose, sample, ns)))
-                topics.append((self.t_twist, enc.encode("twist", c),
+                topics.append((self.t_twist, encode("twist", self.t_twist),
                                _builder(f.twist, sample, ns)))
             for key, topic, build in (("energy", self.t_energy, f.energy),
                                       ("invariants", self.t_inv, f.invariants),
@@ -461,7 +467,7 @@ class SimulatorNode(Node):
                 if getattr(c, "frames" if key == "tf" else key) is None:
                     continue
                 self.computed["frames" if key == "tf" else key] += n
-                topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
+                topics.append((topic, encode(key, topic), _builder(build, sample, ns)))
         self.costs["encode"] += time.perf_counter() - t0
         return _Block(times, Y, ns, topics, columns, reason)
 
