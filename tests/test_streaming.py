@@ -325,3 +325,112 @@ def test_paced_parameter_set_applies_from_the_next_sample(ros_context: Any) -> N
         assert energy.potential == pytest.approx(m * g * R * (1 - math.cos(phi)),
                                                  rel=1e-12, abs=1e-12), (i, change)
     assert change < len(states) - 50, "the change came early enough to test what follows"
+
+
+class _Chunks:
+    """A sink taking chunks of CDR rows (as the recorder does): the stamps of each hand-off
+    per topic, and the number of hand-offs."""
+
+    def __init__(self) -> None:
+        self.handoffs = 0
+        self.stamps: dict[str, list[int]] = {}
+
+    def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
+        self.handoffs += 1
+        for topic, _, _, rows in topics:
+            assert len(rows) == len(ns), topic
+            self.stamps.setdefault(topic, []).extend(int(x) for x in ns)
+
+    def write_serialized(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int,
+                         data: bytes) -> None:
+        pass
+
+    def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
+        pass
+
+
+def test_paced_run_hands_sinks_whole_blocks_of_every_sample(ros_context: Any) -> None:
+    """A paced run publishes a sample or two per node and tick, but a chunk sink gets them a
+    block at a time (the samples computed ahead), every one once and in order: the hand-offs
+    are far fewer than the samples, and the stamps of each node's topics are the whole grid."""
+    from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
+    from mechsim.ros.launch import run_scene
+    from mechsim.scene import parse_scene
+
+    scene = parse_scene({"name": "blocks", "pacing": "realtime", "real_time_factor": 1.0,
+                         "publish_rate": 100.0,
+                         "systems": [{"system": "pendulum"},
+                                     {"system": "kepler", "origin": [2.0, 0.0, 0.0]}]})
+    sink = _Chunks()
+    run = run_scene(scene, duration=2.0, sinks=[sink], context=ros_context)
+    assert not run.failures and not run.interrupted
+    offset = int(DEFAULT_TIME_OFFSET * 1e9)
+    grid = [offset + k * 10_000_000 for k in range(201)]
+    for topic in ("/clock", "/pendulum/state", "/pendulum/energy", "/kepler/state",
+                  "/kepler/invariants"):
+        assert sink.stamps[topic] == grid, topic
+    assert sorted(sink.stamps["/tf"]) == sorted(grid * 2)
+    published = {t: n for t, n in run.messages.items() if n}
+    assert {t: len(s) for t, s in sink.stamps.items()} == {
+        t: n for t, n in published.items() if t in sink.stamps}
+    samples = sum(run.samples.values())
+    assert samples == 2 * 201
+    # One hand-off per block of samples computed ahead (a quarter of a second: 25), plus
+    # the ones a diagnostics report or the end of the run makes: not one per tick.
+    assert sink.handoffs <= samples / 10, sink.handoffs
+
+
+def test_paced_recording_holds_every_sample_as_a_fast_one(tmp_path: Path) -> None:
+    """A paced recording and a fast one of the same scene: the same messages on every topic
+    (counts: published == metadata.yaml == read back), each node's topics in time order on
+    the sample grid with the same stamps, the same states and energies (the integration
+    runs in blocks of another length: equal to round-off)."""
+    from rosbags.highlevel import AnyReader
+
+    from mechsim.ros import record
+    from mechsim.scene import parse_scene
+
+    scene = parse_scene({"name": "paced_bag", "pacing": "realtime", "real_time_factor": 1.0,
+                         "publish_rate": 100.0,
+                         "systems": [{"system": "pendulum"},
+                                     {"system": "rigid_body", "origin": [2.0, 0.0, 0.0]},
+                                     {"system": "kepler", "origin": [4.0, 0.0, 0.0]}]})
+    read: dict[str, dict[str, list[tuple[int, list[float]]]]] = {}
+    for mode in ("paced", "fast"):
+        path = tmp_path / mode
+        run, _ = record.run_with_outputs(scene, fast=mode == "fast", duration=2.0,
+                                         bag=str(path))
+        assert not run.failures and not run.interrupted
+        published = {t: n for t, n in run.messages.items() if n}
+        meta = yaml.safe_load((path / "metadata.yaml").read_text())[
+            "rosbag2_bagfile_information"]
+        assert published == {t["topic_metadata"]["name"]: t["message_count"]
+                             for t in meta["topics_with_message_count"]}, mode
+        got: dict[str, list[tuple[int, list[float]]]] = {}
+        with AnyReader([path]) as reader:  # file order
+            for con, ns, raw in reader.messages():
+                values: list[float] = []
+                leaf = con.topic.rpartition("/")[2]
+                if leaf in ("state", "energy", "pose"):
+                    m = reader.deserialize(raw, con.msgtype)
+                    values = (list(m.position) + list(m.velocity) if leaf == "state" else
+                              [m.kinetic, m.potential, m.total] if leaf == "energy" else
+                              [m.pose.orientation.x, m.pose.orientation.y,
+                               m.pose.orientation.z, m.pose.orientation.w])
+                got.setdefault(con.topic, []).append((ns, values))
+        assert {t: len(v) for t, v in got.items()} == published, mode
+        read[mode] = got
+    paced, fast = read["paced"], read["fast"]
+    assert set(paced) == set(fast)
+    grid = [s for s, _ in fast["/clock"]]
+    assert len(grid) == 201 and grid == sorted(grid)
+    for topic in paced:
+        stamps = [s for s, _ in paced[topic]]
+        if topic == "/tf":  # every system's frames, each node's in order
+            assert sorted(stamps) == sorted(s for s, _ in fast[topic])
+        elif topic.rpartition("/")[2] in ("system_info", "tf_static", "diagnostics"):
+            assert len(stamps) == len(fast[topic]), topic
+        else:
+            assert stamps == grid, topic  # every sample once, in time order
+        for (_, a), (_, b) in zip(paced[topic], fast[topic], strict=True):
+            assert a == pytest.approx(b, rel=1e-9, abs=1e-9), topic

@@ -270,6 +270,8 @@ class RerunSink:
         self.closed = False
         self.peaks: dict[str, float] = {}  # entity -> largest |value| sent (scalars)
         self._live_next: float | None = time.monotonic() + LIVE_PERIOD if live else None
+        #: A live stream gets each sample as it is published (``Outlet.hand_over``).
+        self.immediate = live
         self._live_blueprint: tuple[Any, ...] = ()
 
     # --- sink protocol ------------------------------------------------------------------------

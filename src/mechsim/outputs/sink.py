@@ -17,6 +17,10 @@ class Sink(Protocol):
     have them (``mechsim.outputs.messages.Columns``: state positions, energy, invariants,
     observables, /tf), messages for the others,
     ``write_bytes(topic, type_name, qos, ns, data)`` one message already encoded,
-    ``write_serialized(topic, type_name, msg, qos, ns, data)`` a message with its bytes."""
+    ``write_serialized(topic, type_name, msg, qos, ns, data)`` a message with its bytes.
+
+    A paced run hands a sink each node's samples a block at a time (those computed ahead),
+    in the order they were published, not as each is published; a sink with a true
+    ``immediate`` attribute (a live view) gets every sample as it is published."""
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None: ...

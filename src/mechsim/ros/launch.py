@@ -21,6 +21,7 @@ so a child stopped while starting exits quietly).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import signal
@@ -307,11 +308,13 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         for n in nodes:
             executor.add_node(n)
         serving = Serving(executor)
-        for n in nodes:
+        for i, n in enumerate(nodes):
             # A node stepping a closed loop waits for its controller's commands in between.
             n.serve = serving.wait
             if not fast:  # computed ahead, published as the wall clock makes them due
                 n.lookahead = paced_lookahead(scene.publish_rate, scene.real_time_factor)
+                # Each tick computes the blocks of a few nodes, not every node's at once.
+                n.stagger = i * n.lookahead // len(nodes)
         startup = time.monotonic() - start
         start = time.monotonic()
         dt = 1.0 / scene.publish_rate
@@ -346,6 +349,10 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
                 serving.let_in()  # a service or parameter request waits one chunk at most
                 # A report per diagnostics period of simulated time, on the samples up to it.
                 t0 = time.perf_counter()
+                if t >= next_diag - 1e-12:
+                    with held_signals():
+                        for n in nodes:
+                            n.outlet.hand_over()  # the samples published up to now
                 while t >= next_diag - 1e-12:
                     feed.deliver(stamp_ns(next_diag, offset))
                     diag.publish_now()
@@ -353,11 +360,20 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
                 diag_cost += time.perf_counter() - t0
                 if progress is not None and duration is not None:
                     progress(t, duration)
+            with held_signals():
+                for n in nodes:
+                    n.outlet.hand_over()
     except (KeyboardInterrupt, _Stop):
         interrupted = True
     finally:
         if main_thread:
             signal.signal(signal.SIGTERM, previous_term)
+        # Every sample published reaches the sinks, however the run ended (a sink's own
+        # error is raised by its close).
+        with held_signals():
+            for n in nodes:
+                with contextlib.suppress(Exception):
+                    n.outlet.hand_over()
         try:
             feed.deliver()
             diag.publish_now()

@@ -109,6 +109,12 @@ class Outlet:
         #: Subscribers per topic as last counted (``refresh``): asking the middleware costs
         #: microseconds per topic, too much for every sample of a paced run.
         self.subscribers: dict[str, int] = {}
+        #: Published samples not yet handed to the sinks: [stamps, topics, columns, first,
+        #: end] of one chunk (``hand_over``).
+        self._held: list[Any] | None = None
+        #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
+        self._live: list[tuple[_Channel, np.ndarray]] = []
+        self._live_for: Any = None
 
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         resolved = self.node.resolve_topic_name(topic)
@@ -125,6 +131,14 @@ class Outlet:
         """Count every topic's subscribers now (read by ``wanted`` and ``publish_chunk``)."""
         for topic, ch in self.channels.items():
             self.subscribers[topic] = ch.publisher.get_subscription_count()
+        self._live_for = None
+
+    def needs_rows(self, topic: str) -> bool:
+        """Are the CDR bytes of ``topic``'s samples needed (a subscriber as counted at the
+        last ``refresh``, or a sink that records bytes: ``write_chunk``)? Other sinks take
+        values or messages, so a chunk nobody reads as bytes is not encoded."""
+        return self.subscribers.get(topic, 0) > 0 or any(
+            hasattr(sink, "write_chunk") for sink in self.sinks)
 
     def wanted(self, topic: str) -> bool:
         """Does anything consume ``topic`` (a sink, or a subscriber anywhere as counted at the
@@ -136,33 +150,66 @@ class Outlet:
         return self.subscribers.get(topic, 0) > 0
 
     def publish_chunk(self, ns: np.ndarray,
-                      topics: list[tuple[str, np.ndarray, Callable[[int], Any]]],
+                      topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]],
                       columns: Mapping[str, Any] | None = None,
                       part: slice | None = None) -> None:
         """The messages of a chunk of samples stamped ``ns``, already encoded: for each
-        (topic, rows, message), row i holds the CDR bytes of sample i. The same bytes are
-        published (only on topics with subscribers at the last ``refresh``) and handed to
-        chunk sinks (``write_chunk``: the recorder) in one call. ``columns``: per topic, the
-        evaluated values the rows were encoded from; a sink with ``write_columns`` gets those
-        (one call per topic) instead of messages. Any other sink gets ``message(i)``, built
-        only for the topics it wants, sample by sample in time order. ``part``: only these
-        samples of the chunk (each sink is handed its own slice, made only if it takes it)."""
+        (topic, rows, message), row i holds the CDR bytes of sample i (rows None where
+        ``needs_rows`` was false when the chunk was encoded). The bytes are
+        published at once (only on topics with subscribers at the last ``refresh``); the
+        sinks get them later, in one hand-off per chunk (``hand_over``). ``part``: only these
+        samples of the chunk."""
         a = 0 if part is None else part.start
-        if part is not None:
-            ns = ns[part]
-        n = len(ns)
-        live = [(self.channels[topic], rows) for topic, rows, _ in topics
-                if self.subscribers.get(topic, 0) > 0]
+        b = len(ns) if part is None else part.stop
+        n = b - a
+        if self._live_for is not topics:  # once per chunk (and count of subscribers)
+            self._live = [(self.channels[topic], rows) for topic, rows, _ in topics
+                          if rows is not None and self.subscribers.get(topic, 0) > 0]
+            self._live_for = topics
+        live = self._live
         step = LOSSLESS_DEPTH if self.lossless else max(n, 1)
-        for start in range(a, a + n, step):
+        for start in range(a, b, step):
             for ch, rows in live:
                 publish = ch.publisher.publish
-                for r in rows[start:min(start + step, a + n)]:
+                for r in rows[start:min(start + step, b)]:
                     publish(r.tobytes())
             if self.lossless:
                 self._acknowledged([ch for ch, _ in live])
         for topic, _, _ in topics:
             self.counts[topic] += n
+        if not self.sinks or not n:
+            return
+        held = self._held
+        if held is not None and held[1] is topics and held[4] == a:
+            held[4] = b  # the next samples of the chunk held: handed over together
+        else:
+            self.hand_over()
+            self._held = [ns, topics, columns, a, b]
+        if any(getattr(sink, "immediate", False) for sink in self.sinks):
+            self.hand_over()
+
+    def hand_over(self) -> None:
+        """Hand the published samples held for the sinks over to them, in one call per sink
+        (per topic for ``write_columns``): ``write_chunk`` (the recorder) gets the CDR rows;
+        a sink with ``write_columns`` gets the evaluated values the rows were encoded from
+        (for the topics that have them) instead of messages; any other sink gets messages,
+        built only for the topics it wants, sample by sample in time order.
+
+        Samples are held from their publication to the end of their chunk (``publish_chunk``),
+        so a paced run that publishes a sample or two per tick hands each sink a whole chunk
+        at once; every other message of this outlet (``publish``, ``record``) hands the held
+        ones over first, so each sink sees this outlet's messages in the order they were
+        published. A sink that must see every sample as it is published (a live view) says
+        so with a true ``immediate`` attribute. The runner hands over what is held before it
+        reports diagnostics and when it stops: nothing published is left out."""
+        held, self._held = self._held, None
+        if held is None:
+            return
+        ns, topics, columns, a, b = held
+        part = None if a == 0 and b == len(ns) else slice(a, b)
+        if part is not None:
+            ns = ns[part]
+        n = b - a
         columns = columns or {}
         for sink in self.sinks:
             write_chunk = getattr(sink, "write_chunk", None)
@@ -204,6 +251,7 @@ class Outlet:
                     f"{LOSSLESS_WAIT:g} s; no longer waiting for it (messages may be lost)")
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
+        self.hand_over()
         ch = self.channels[topic]
         # The CDR bytes with zero padding (reproducible), made once: published as they are
         # and handed to a recorder.
@@ -221,6 +269,7 @@ class Outlet:
         """Publish a message already encoded (``data``: CDR bytes, padding zero). A sink that
         records bytes (``write_bytes``) gets them; any other gets ``message()``, made only if
         it wants the topic."""
+        self.hand_over()
         ch = self.channels[topic]
         ch.publisher.publish(data)
         self.counts[topic] += 1
@@ -239,6 +288,7 @@ class Outlet:
         """Hand a message this node did not publish (an input it applied, such as an effort
         command) to the sinks only, so a recording holds it like a published one; counted
         with the published ones."""
+        self.hand_over()
         self.counts[topic] = self.counts.get(topic, 0) + 1
         name = type_name(type(msg))
         for sink in self.sinks:

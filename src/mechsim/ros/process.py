@@ -11,8 +11,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from typing import Any
 
 _PR_SET_PDEATHSIG = 1
@@ -63,27 +62,33 @@ def raise_if_stop(error: BaseException) -> None:
 _held = threading.local()
 
 
-@contextmanager
-def held_signals() -> Iterator[None]:
+class held_signals:  # noqa: N801 - used like the function it was: ``with held_signals():``
     """Hold SIGINT and SIGTERM for the block (files being created or completed) and raise
     KeyboardInterrupt after it if one came. Main thread only (elsewhere: no effect). Nested
-    blocks cost nothing: the outermost one holds them."""
-    if threading.current_thread() is not threading.main_thread() \
-            or getattr(_held, "depth", 0):
-        yield
-        return
-    got: list[int] = []
-    previous = {s: signal.signal(s, lambda n, f: got.append(n))
-                for s in (signal.SIGINT, signal.SIGTERM)}
-    _held.depth = 1
-    try:
-        yield
-    finally:
+    blocks cost next to nothing (a paced run enters one per sample and node): the outermost
+    one holds them."""
+
+    __slots__ = ("_got", "_previous")
+
+    def __enter__(self) -> None:
+        self._previous: dict[Any, Any] | None = None
+        if getattr(_held, "depth", 0) or threading.current_thread() \
+                is not threading.main_thread():
+            return
+        got: list[int] = []
+        self._got = got
+        self._previous = {s: signal.signal(s, lambda n, f: got.append(n))
+                          for s in (signal.SIGINT, signal.SIGTERM)}
+        _held.depth = 1
+
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if self._previous is None:
+            return
         _held.depth = 0
-        for s, handler in previous.items():
+        for s, handler in self._previous.items():
             signal.signal(s, handler)
-    if got:
-        raise KeyboardInterrupt
+        if self._got and exc_type is None:
+            raise KeyboardInterrupt
 
 
 #: A consumer process stops once nothing arrived for this long after its stop signal (the

@@ -173,7 +173,7 @@ class _Block:
     times: np.ndarray
     Y: np.ndarray  # rows that passed the guards
     ns: np.ndarray
-    topics: list[tuple[str, np.ndarray, Callable[[int], Any]]]
+    topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]]  # rows: see Outlet
     columns: dict[str, Any]
     reason: str | None  # why the system stops after the last row (a guard), if it does
     released: int = 0
@@ -236,6 +236,9 @@ class SimulatorNode(Node):
         self._pending: _Change | None = None
         #: Samples computed ahead of the wall clock by a paced run (0: only the due ones).
         self.lookahead = 0
+        #: Samples by which this node's blocks computed ahead are shifted (a paced scene
+        #: spreads its nodes' blocks over the ticks instead of computing them all in one).
+        self.stagger = 0
         self._ahead: _Block | None = None
         self._ahead_failed = False
 
@@ -426,8 +429,14 @@ class SimulatorNode(Node):
                           None if c.frames is None else c.frames[i])
 
         enc = self.encoder
+        needs_rows = self.outlet.needs_rows
+
+        def encode(key: str, topic: str) -> np.ndarray | None:
+            """The topic's CDR rows, only where someone reads bytes."""
+            return enc.encode(key, c) if needs_rows(topic) else None
+
         columns: dict[str, Any] = {}
-        topics: list[tuple[str, np.ndarray, Callable[[int], Any]]] = []
+        topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]] = []
         if n:
             if c.energy is not None:
                 columns[self.t_energy] = messages.EnergyColumns.of(c)
@@ -440,16 +449,16 @@ class SimulatorNode(Node):
             if c.frames is not None:
                 columns[self.t_tf] = f.transform_columns(c.frames)
             if self.publish_clock:
-                topics.append((self.t_clock, enc.encode("clock", c),
+                topics.append((self.t_clock, encode("clock", self.t_clock),
                                lambda i: messages.clock(int(ns[i]))))
             if f.joints:
                 columns[self.t_state] = {f.coordinate_names[j]: c.q[:, j] for j in f.joints}
-                topics.append((self.t_state, enc.encode("state", c),
+                topics.append((self.t_state, encode("state", self.t_state),
                                _builder(f.state, sample, ns)))
             if f.attitude is not None:
-                topics.append((self.t_pose, enc.encode("pose", c),
+                topics.append((self.t_pose, encode("pose", self.t_pose),
                                _builder(f.pose, sample, ns)))
-                topics.append((self.t_twist, enc.encode("twist", c),
+                topics.append((self.t_twist, encode("twist", self.t_twist),
                                _builder(f.twist, sample, ns)))
             for key, topic, build in (("energy", self.t_energy, f.energy),
                                       ("invariants", self.t_inv, f.invariants),
@@ -458,7 +467,7 @@ class SimulatorNode(Node):
                 if getattr(c, "frames" if key == "tf" else key) is None:
                     continue
                 self.computed["frames" if key == "tf" else key] += n
-                topics.append((topic, enc.encode(key, c), _builder(build, sample, ns)))
+                topics.append((topic, encode(key, topic), _builder(build, sample, ns)))
         self.costs["encode"] += time.perf_counter() - t0
         return _Block(times, Y, ns, topics, columns, reason)
 
@@ -476,6 +485,8 @@ class SimulatorNode(Node):
                 self.samples_published += k
                 self.t = float(block.times[b - 1])
                 self._y = block.Y[b - 1].copy()
+                if block.left == 0:
+                    self.outlet.hand_over()  # the block's samples to the sinks, at once
             self.costs["publish"] += time.perf_counter() - t0
         if block.left == 0 and block.reason is not None:
             self._fail(block.reason)
@@ -485,6 +496,7 @@ class SimulatorNode(Node):
         """Forget the samples computed ahead and not published (a change applies from the
         next sample)."""
         block, self._ahead = self._ahead, None
+        self.outlet.hand_over()
         if block is not None and block.left and not self.failed:
             self._rewind()
 
@@ -522,7 +534,10 @@ class SimulatorNode(Node):
             elif self.lookahead > due and not self._ahead_failed:
                 last = _BLOCK if self.end_time is None else int(math.floor(
                     (self.end_time - self.t) / dt + 1e-9))
-                n = max(due, min(self.lookahead, last, _BLOCK))
+                # To the next block boundary (every lookahead samples, shifted by stagger).
+                ahead_n = self.lookahead - (self.samples_published + self.stagger) \
+                    % self.lookahead
+                n = max(due, min(ahead_n, last, _BLOCK))
             times = self.t + dt * np.arange(1, n + 1)
             try:
                 t0 = time.perf_counter()
@@ -567,6 +582,10 @@ class SimulatorNode(Node):
         msg = DiagnosticArray(header=self.factory.header(ns), status=[status])
         self.outlet.publish(self.t_diag, msg, ns)
 
+    def destroy_node(self) -> None:
+        self.outlet.hand_over()  # what was published reaches the sinks
+        super().destroy_node()
+
     # --- real-time pacing (only when not stepped by the caller) ---------------------------
     def _start_realtime(self) -> None:
         """(Re)start the one pacing timer from the current state."""
@@ -602,6 +621,7 @@ class SimulatorNode(Node):
     def set_paused(self, paused: bool) -> None:
         """Pause or resume (pacing restarts from the current state, so no catching up)."""
         self.paused = paused
+        self.outlet.hand_over()
         if not paused:
             self._start_realtime()
 
@@ -736,15 +756,17 @@ class SimulatorNode(Node):
         self._effort_topic = self.resolve_topic_name("effort")
         self._inbox: np.ndarray | None = None  # newest accepted command, not applied yet
         self._answered = -1  # samples_published when the latest command arrived
-        self.create_subscription(Float64MultiArray, "effort", self._on_effort, STATE_QOS,
-                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self._effort_sub = self.create_subscription(
+            Float64MultiArray, "effort", self._on_effort, STATE_QOS,
+            callback_group=MutuallyExclusiveCallbackGroup())
 
     def _effort_reset(self, new_epoch: bool) -> None:
         """A new model or stepper starts without effort (as its parameter vector); the next
         command applies again. A new epoch also restores the full set of laws."""
         with self._effort_lock:
             self._inbox = None
-        at = self.model.effort_slice()
+        #: Where the effort sits in the parameter vector (None: the model takes none).
+        self._effort_at = at = self.model.effort_slice()
         if at is not None:
             self.p[at] = 0.0
         self._held_until: float | None = None  # effort held (nonzero) until this sim time
@@ -753,7 +775,7 @@ class SimulatorNode(Node):
 
     def _on_effort(self, msg: Float64MultiArray) -> None:
         u = np.asarray(msg.data, dtype=np.float64)
-        at, names = self.model.effort_slice(), [c.name for c in self.model.coordinates]
+        at, names = self._effort_at, [c.name for c in self.model.coordinates]
         if at is None:
             self._reject("system", f"{self.model.id} ({self.model.formulation}) takes no "
                          "effort (its kernels are not derived from a Lagrangian)")
@@ -780,15 +802,16 @@ class SimulatorNode(Node):
             self.get_logger().warning(f"{self._effort_topic}: command ignored: {reason}")
 
     def _closed_loop(self) -> bool:
-        """Something publishes commands to a system that takes them."""
-        return (self.model.effort_slice() is not None
-                and self.count_publishers(self._effort_topic) > 0)
+        """Something publishes commands to a system that takes them (a publisher matched
+        with the effort subscription: asked of the subscription, ~1 µs, not of the graph,
+        ~20 µs with a scene's 36 nodes in it)."""
+        return self._effort_at is not None and self._effort_sub.get_publisher_count() > 0
 
     def _effort_step(self) -> bool:
         """Before the next sample period (from ``self.t``): apply the newest command, or zero
         once the held effort has timed out. True when the node must step sample by sample: an
         effort is held (its timeout falls on a sample) or a controller is present."""
-        at = self.model.effort_slice()
+        at = self._effort_at
         if at is None:
             return False
         closed = self._closed_loop()

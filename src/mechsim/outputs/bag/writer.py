@@ -256,6 +256,7 @@ class BagWriter:
         self._file.flush()
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
+        self._qos_yaml: dict[str, str] = {}
         self._last_flush_ns: int | None = None
         self._last_flush_wall = time.monotonic()
         try:
@@ -283,9 +284,13 @@ class BagWriter:
                 self._schemas[type_name] = w.register_schema(
                     type_name, SCHEMA_ENCODING, message_definition(type_name).encode())
             h = type_description_hash(type_name)
+            key = repr(qos)  # a few distinct profiles among a scene's topics: YAML once each
+            offered = self._qos_yaml.get(key)
+            if offered is None:
+                offered = self._qos_yaml[key] = dump_yaml([qos])
             channels[topic] = w.register_channel(
                 topic, SERIALIZATION, self._schemas[type_name],
-                {"offered_qos_profiles": dump_yaml([qos]), "topic_type_hash": h})
+                {"offered_qos_profiles": offered, "topic_type_hash": h})
             self.stats.topics[topic] = TopicInfo(topic, type_name, [qos], h)
             return
         if item[0] == "custom":
