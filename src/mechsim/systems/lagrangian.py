@@ -453,8 +453,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += [f"    a[{i}] = x_{i}" for i in range(n)]
     else:
         m = n + nc
-        body.append(f"    A = np.zeros(({m}, {m}))")
-        body.append(f"    b = np.empty({m})")
+        body.append(f"    A = _zero_matrix({m}, {m})")
+        body.append(f"    b = _vector({m})")
         assign: list[tuple[str, Expr]] = []
         for i in range(n):
             for j in range(n):
@@ -491,7 +491,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += _emit([("P_diss", P_diss), ("dE", dE)])
         external = "dE + P_diss"
     else:
-        body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+        body = [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                 "    accel(t, y, p, acc, lam)"]
         body += pre
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
@@ -506,7 +506,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     if nc:
         body = list(pre)
         body[1:1 + n] = []  # q read inside the loop
-        body += [f"    G = np.empty(({nc}, {n}))", f"    r = np.empty({nc})",
+        body += [f"    G = _matrix({nc}, {n})", f"    r = _vector({nc})",
                  f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
         inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         inner += _emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
@@ -514,7 +514,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
                           for j in range(n)],
                        indent="        ")
         inner += ["        _project_onto(G, r, qq)",
-                  "        if np.max(np.abs(r)) < 1e-15:", "            break"]
+                  "        if _all_below(r, 1e-15):", "            break"]
         body += inner
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
@@ -544,7 +544,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
             vel = _emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
                          for i, vs in enumerate(d.v)])
         else:
-            vel = [f"    A = np.zeros(({n}, {n}))", f"    b = np.empty({n})"]
+            vel = [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
             vel += _emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
                           if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
             vel += ["    x = _solve(A, b)"] + [f"    {vs.name} = x[{i}]"
@@ -580,7 +580,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     body = list(pre)
     uses_lam = any(set(lam) & e.free_symbols for e in obs)
     if uses_lam or any(set(a_syms) & e.free_symbols for e in obs):
-        body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                  "    accel(t, y, p, acc, lam)"]
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
@@ -592,7 +592,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     evx = [e for _, e in d.events]
     body = list(pre)
     if any((set(lam) | set(a_syms)) & e.free_symbols for e in evx):
-        body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                  "    accel(t, y, p, acc, lam)"]
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
