@@ -16,8 +16,8 @@ the imports and the run being the same in both. Inside each process the CPU is s
 - ``model``: the system's module, its declaration and the cache key of its kernels;
 - ``derive``: sympy deriving the equations (``kernel_source`` less what follows);
 - ``codegen``: common subexpressions and printing of the kernel source (``_emit``);
-- ``compile``: numba compiling (or loading from its cache) the model's kernel functions and
-  making their kernel set;
+- ``compile``: numba compiling (or loading from its cache) the model's kernel functions, where
+  a loop needs them or a call from Python, and making their kernel set;
 - ``run``: the rest (the shared loops loaded from numba's cache, the integration);
 - ``exit``: the process's total less the above (the interpreter's shut-down, mostly).
 
@@ -81,6 +81,18 @@ from mechsim.simulate import simulate
 from mechsim.systems import lagrangian, system_class
 from mechsim.systems.base import Model
 
+from numba.core import event
+
+class Compiling(event.Listener):
+    # numba's compilations, wherever they start (a kernel called from Python compiles too)
+    def on_start(self, ev):
+        charge()
+        stack.append("compile")
+    def on_end(self, ev):
+        charge()
+        stack.pop()
+
+event.register("numba:compile", Compiling())
 codegen.Kernels._compile = timed("compile", codegen.Kernels._compile)
 contract.make_kernel_set = timed("compile", contract.make_kernel_set)
 lagrangian._emit = timed("codegen", lagrangian._emit)

@@ -7,7 +7,9 @@ caller (up to a second for ``np.max``), while these are compiled once per machin
 from numba's cache, so a new model's kernels compile without them. Same arithmetic and the
 same arrays as the numpy calls they stand for. The allocators have explicit signatures: a
 size written as a literal in kernel code converts to them (without, numba would compile one
-per literal value)."""
+per literal value). ``solve`` and ``project_onto`` are compiled for the arrays generated code
+passes when this module is imported (``contract`` imports it, so set-up compiles them with
+the shared loops) and stay open to other argument types."""
 
 from __future__ import annotations
 
@@ -103,7 +105,7 @@ def zero_matrix(m, n):  # type: ignore[no-untyped-def]
     return np.zeros((m, n))
 
 
-@njit(cache=True)
+@njit("boolean(float64[::1], float64)", cache=True)
 def all_below(r, bound):  # type: ignore[no-untyped-def]
     """Whether every |r[k]| < bound (False where one is nan): ``np.max(np.abs(r)) < bound``
     for a non-empty r."""
@@ -111,3 +113,8 @@ def all_below(r, bound):  # type: ignore[no-untyped-def]
         if not abs(r[k]) < bound:
             return False
     return True
+
+
+#: The argument types generated kernels pass (C-contiguous float64 matrices and vectors).
+solve.compile("float64[::1](float64[:, ::1], float64[::1])")
+project_onto.compile("void(float64[:, ::1], float64[::1], float64[::1])")

@@ -127,7 +127,7 @@ def _frame_omega(E, dE, rate, f, out):
 
 def _power(u, rate, p):
     """Power m r̈·ṙ of the force that drives the point along the curve at constant u̇."""
-    return p[P_MASS] * rate ** 3 * (4.0 * u + 18.0 * u ** 3)
+    return p[P_MASS] * (rate * (rate * rate)) * (4.0 * u + 18.0 * (u * (u * u)))
 
 
 def rhs(t, y, p, dy):
@@ -139,7 +139,7 @@ def rhs(t, y, p, dy):
 
 def energy(t, y, p, out):
     u, rate = y[0], y[1]
-    out[0] = 0.5 * p[P_MASS] * rate * rate * (1.0 + 4.0 * u * u + 9.0 * u ** 4)
+    out[0] = 0.5 * p[P_MASS] * rate * rate * (1.0 + 4.0 * u * u + 9.0 * ((u * u) * (u * u)))
     out[1] = 0.0
     out[2] = out[0]
 
@@ -166,8 +166,8 @@ def observables(t, y, p, out):
         for j in range(3):
             out[3 * f + j] = w[j]
         out[9 + f] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-    speed2 = 1.0 + 4.0 * u * u + 9.0 * u ** 4
-    b2 = 36.0 * u ** 4 + 36.0 * u * u + 4.0  # |r' × r''|²
+    speed2 = 1.0 + 4.0 * u * u + 9.0 * ((u * u) * (u * u))
+    b2 = 36.0 * ((u * u) * (u * u)) + 36.0 * u * u + 4.0  # |r' × r''|²
     out[12] = math.sqrt(b2) / speed2 ** 1.5  # κ = |r' × r''| / |r'|³
     out[13] = 12.0 / b2  # τ = (r' × r'')·r''' / |r' × r''|², r''' = (0, 0, 6)
     out[14] = abs(rate) * math.sqrt(speed2)
