@@ -34,6 +34,7 @@ from typing import ClassVar
 
 import numpy as np
 import sympy as sp
+from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
@@ -325,7 +326,7 @@ class _KernelPrinter(PythonCodePrinter):
 
     def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
         b, e = expr.as_base_exp()
-        base = self.parenthesize(b, 1000)  # always parenthesised
+        base = self.parenthesize(b, PRECEDENCE["Pow"], strict=False)  # a factor of a product
         if isinstance(e, sp.Rational) and e.q == 2 and abs(e.p) <= 7:
             root = f"math.sqrt({self._print(b)})"
             whole = abs(e.p) // 2
