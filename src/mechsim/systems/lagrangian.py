@@ -27,6 +27,7 @@ No equation of motion is typed by hand, so no typo of the source documents can r
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -407,8 +408,20 @@ def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
     return lines
 
 
+#: A load of one entry of an argument array into a local (what ``_prelude`` writes).
+_LOAD = re.compile(r"    (\w+) = [ypqz]\[\d+\]")
+
+
 def _func(name: str, args: str, body: list[str]) -> str:
-    return "\n".join([codegen.decorator(name), f"def {name}({args}):", *body, "    return", ""])
+    """The source of kernel function ``name``: ``body`` without the loads of arguments it
+    never reads (every function starts from the same prelude; numba would type and lower each
+    dead load before LLVM drops it)."""
+    loads = [_LOAD.fullmatch(line) for line in body]
+    read = set(re.findall(r"\w+", "\n".join(
+        line for line, load in zip(body, loads, strict=True) if not load)))
+    kept = [line for line, load in zip(body, loads, strict=True)
+            if line != "    t = t" and (load is None or load.group(1) in read)]
+    return "\n".join([codegen.decorator(name), f"def {name}({args}):", *kept, "    return", ""])
 
 
 def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
