@@ -31,6 +31,10 @@ def add_parser(sub: Any) -> None:
     b.add_argument("--brouwer", action="store_true",
                    help="Brouwer's law: radau15's energy error against the number of steps "
                    "on perturbed Kepler orbits (brouwer.png, brouwer.json)")
+    b.add_argument("--derive", action="store_true",
+                   help="CPU of deriving and compiling each system (PROBLEM: system ids; "
+                   "default all) in new processes against a warm start (derive.md, "
+                   "derive.json)")
     b.add_argument("--steps", type=int, default=10_000_000,
                    help="steps per run for --brouwer (default 10^7)")
     b.add_argument("--runs", type=int, default=16, help="perturbed runs for --brouwer")
@@ -51,6 +55,16 @@ def cmd_bench(a: argparse.Namespace) -> int:
         from mechsim.bench.brouwer import run_brouwer
 
         run_brouwer(out, n_steps=a.steps, runs=a.runs)
+        return 0
+    if a.derive:
+        from mechsim.bench.derive import run_derive
+        from mechsim.systems import system_ids
+
+        for s in a.systems:
+            if s not in system_ids():
+                raise ParameterError("PROBLEM", f"--derive: no system {s!r} (have: "
+                                     f"{', '.join(system_ids())})")
+        run_derive(out, list(a.systems))
         return 0
     if a.streaming:
         from mechsim.bench.streaming import run_streaming

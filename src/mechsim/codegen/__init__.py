@@ -100,7 +100,19 @@ RUNTIME = fingerprint(source_fingerprint(sorted(Path(__file__).parent.glob("*.py
 def decorator(name: str) -> str:
     """The decorator line of a generated function (contract function or helper): compiled
     lazily, for what its callers pass, with IEEE arithmetic (a division by zero gives inf or
-    nan, which the loops report as a non-finite state, instead of raising inside a loop)."""
+    nan, which the loops report as a non-finite state, instead of raising inside a loop).
+
+    Numba gives every compiled function two entry points besides its own: one for calls from
+    Python and one for calls through a function value; building them is about a third of
+    compiling a small kernel. A helper (any name outside the contract) is only called from
+    the module's compiled code, so it gets neither; a ``HOT`` function is called from Python
+    and through its pointer wrapper (``KernelSource.text``), so it gets no function-value
+    entry. The same code runs either way."""
+    if name not in FUNCTIONS:
+        return ('@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, '
+                'no_cfunc_wrapper=True)')
+    if name in HOT:
+        return '@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)'
     return '@njit(cache=True, error_model="numpy")'
 
 
@@ -111,8 +123,14 @@ import math
 import numpy as np
 from numba import carray, njit
 
+from mechsim.codegen.support import all_below as _all_below
+from mechsim.codegen.support import matrix as _matrix
 from mechsim.codegen.support import project_onto as _project_onto
 from mechsim.codegen.support import solve as _solve
+from mechsim.codegen.support import tensor as _tensor
+from mechsim.codegen.support import vector as _vector
+from mechsim.codegen.support import zero_matrix as _zero_matrix
+from mechsim.codegen.support import zero_vector as _zero_vector
 
 '''
 #: Arrays of each hot function's pointer wrapper (``contract.HOT``), by size constant.

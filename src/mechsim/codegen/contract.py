@@ -44,6 +44,7 @@ from numba import cfunc, njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 
+from mechsim.codegen import support  # noqa: F401 - compiles the helpers kernels call
 from mechsim.codegen.names import FUNCTIONS, HOT, SIZES
 
 # First-class function values are what keeps the loops generic and compiled; numba labels the

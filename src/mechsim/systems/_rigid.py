@@ -211,7 +211,8 @@ def project(t, y, p):
 def energy(t, y, p, out):
     w = rb_omega(y)
     cw = rotate(rb_unit(y), (p[RB_C1], p[RB_C2], p[RB_C3]))
-    out[0] = 0.5 * (p[RB_I1] * w[0] ** 2 + p[RB_I2] * w[1] ** 2 + p[RB_I3] * w[2] ** 2)
+    out[0] = 0.5 * (p[RB_I1] * (w[0] * w[0]) + p[RB_I2] * (w[1] * w[1])
+                    + p[RB_I3] * (w[2] * w[2]))
     out[1] = p[RB_MG] * cw[2]
     out[2] = out[0] + out[1]
 

@@ -100,7 +100,7 @@ def quat_from_rows(e, out):
         out[0] = (r02 + r20) / s
         out[1] = (r12 + r21) / s
         out[2] = 0.25 * s
-    n = math.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
+    n = math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
     for i in range(4):
         out[i] /= n
 

@@ -5,9 +5,16 @@ A subclass lists plain Python functions (``kernel_functions``) named after the k
 (``mechsim/codegen/contract.py``): rhs, and any of project, accel_q, energy, invariants,
 observables, frames, event; plus private helpers they call. Their source is pasted into the
 model's generated kernel module and compiled by numba, so they may use only ``math``, ``np``,
-each other and the module's constants: the sizes (N_Q, …), one constant per numeric parameter
+each other, the module's constants — the sizes (N_Q, …), one constant per numeric parameter
 giving its index in ``p``, ``P_<NAME>`` (upper case, dots as underscores; e.g. ``p[P_MASS]``),
-and any a subclass adds (``kernel_constants``). Missing contract functions do nothing.
+and any a subclass adds (``kernel_constants``) — and the helpers of ``mechsim.codegen.support``
+under the names the kernel module gives them (``_vector``, ``_matrix``, ``_tensor``,
+``_zero_vector``, ``_zero_matrix``, ``_solve``, …; import them under the same names). Allocating
+through these rather than ``np.empty``/``np.zeros`` spares each new model's compilation numba's
+own implementation of those, an element loop instead of a slice assignment
+``a[i, :] = b[j, :]`` spares it the shape check's error path (about two seconds), and products
+instead of integer powers (``x * x`` for ``x ** 2``: the value numba computes for it) its
+compiled power subroutine (0.1 s). Missing contract functions do nothing.
 
 The functions stay callable from Python too, with the constants of their own module. So that
 both agree, every upper-case constant a kernel function reads must be defined with the same

@@ -27,6 +27,7 @@ No equation of motion is typed by hand, so no typo of the source documents can r
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -34,6 +35,7 @@ from typing import ClassVar
 
 import numpy as np
 import sympy as sp
+from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
@@ -298,19 +300,42 @@ class LagrangianModel(Model):
 # Derivation and code printing
 
 
+#: Largest |n| of an integer power x**n written out as products (``_binary_power``).
+POWER_PRODUCT_MAX = 16
+
+
+def _binary_power(base: str, n: int) -> str:
+    """``base**n`` (n ≥ 1) written out as the products numba evaluates for it: repeated
+    squaring, the powers of the set bits of n multiplied in increasing order (numba's
+    ``int_power``), so the value is the same to the last bit. Numba compiles ``int_power`` as
+    a subroutine in every process that compiles a kernel using ``**`` (about 0.1 s)."""
+    result = ""
+    square = base
+    while n:
+        if n & 1:
+            result = f"({result}*{square})" if result else square
+        n >>= 1
+        if n:
+            square = f"({square}*{square})"
+    return result
+
+
 class _KernelPrinter(PythonCodePrinter):
     """Python printer for numba kernels: half-integer powers as square roots (x**1.5 is a
-    general pow call, x*sqrt(x) is two instructions)."""
+    general pow call, x*sqrt(x) is two instructions), small integer powers as the products
+    numba would evaluate (``_binary_power``)."""
 
     def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
         b, e = expr.as_base_exp()
+        base = self.parenthesize(b, PRECEDENCE["Pow"], strict=False)  # a factor of a product
         if isinstance(e, sp.Rational) and e.q == 2 and abs(e.p) <= 7:
-            base = self.parenthesize(b, 1000)  # always parenthesised
             root = f"math.sqrt({self._print(b)})"
             whole = abs(e.p) // 2
-            text = root if whole == 0 else f"({base}**{whole}*{root})" if whole > 1 \
-                else f"({base}*{root})"
+            text = root if whole == 0 else f"({_binary_power(base, whole)}*{root})"
             return f"(1.0/{text})" if e.p < 0 else text
+        if isinstance(e, sp.Integer) and 2 <= abs(int(e)) <= POWER_PRODUCT_MAX:
+            text = _binary_power(base, abs(int(e)))
+            return f"(1.0/{text})" if e < 0 else text
         return super()._print_Pow(expr, rational=rational)
 
 
@@ -383,8 +408,20 @@ def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
     return lines
 
 
+#: A load of one entry of an argument array into a local (what ``_prelude`` writes).
+_LOAD = re.compile(r"    (\w+) = [ypqz]\[\d+\]")
+
+
 def _func(name: str, args: str, body: list[str]) -> str:
-    return "\n".join([codegen.decorator(name), f"def {name}({args}):", *body, "    return", ""])
+    """The source of kernel function ``name``: ``body`` without the loads of arguments it
+    never reads (every function starts from the same prelude; numba would type and lower each
+    dead load before LLVM drops it)."""
+    loads = [_LOAD.fullmatch(line) for line in body]
+    read = set(re.findall(r"\w+", "\n".join(
+        line for line, load in zip(body, loads, strict=True) if not load)))
+    kept = [line for line, load in zip(body, loads, strict=True)
+            if line != "    t = t" and (load is None or load.group(1) in read)]
+    return "\n".join([codegen.decorator(name), f"def {name}({args}):", *kept, "    return", ""])
 
 
 def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
@@ -453,8 +490,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += [f"    a[{i}] = x_{i}" for i in range(n)]
     else:
         m = n + nc
-        body.append(f"    A = np.zeros(({m}, {m}))")
-        body.append(f"    b = np.empty({m})")
+        body.append(f"    A = _zero_matrix({m}, {m})")
+        body.append(f"    b = _vector({m})")
         assign: list[tuple[str, Expr]] = []
         for i in range(n):
             for j in range(n):
@@ -491,7 +528,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += _emit([("P_diss", P_diss), ("dE", dE)])
         external = "dE + P_diss"
     else:
-        body = [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+        body = [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                 "    accel(t, y, p, acc, lam)"]
         body += pre
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
@@ -506,7 +543,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     if nc:
         body = list(pre)
         body[1:1 + n] = []  # q read inside the loop
-        body += [f"    G = np.empty(({nc}, {n}))", f"    r = np.empty({nc})",
+        body += [f"    G = _matrix({nc}, {n})", f"    r = _vector({nc})",
                  f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
         inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         inner += _emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
@@ -514,7 +551,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
                           for j in range(n)],
                        indent="        ")
         inner += ["        _project_onto(G, r, qq)",
-                  "        if np.max(np.abs(r)) < 1e-15:", "            break"]
+                  "        if _all_below(r, 1e-15):", "            break"]
         body += inner
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
@@ -544,7 +581,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
             vel = _emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
                          for i, vs in enumerate(d.v)])
         else:
-            vel = [f"    A = np.zeros(({n}, {n}))", f"    b = np.empty({n})"]
+            vel = [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
             vel += _emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
                           if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
             vel += ["    x = _solve(A, b)"] + [f"    {vs.name} = x[{i}]"
@@ -580,7 +617,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     body = list(pre)
     uses_lam = any(set(lam) & e.free_symbols for e in obs)
     if uses_lam or any(set(a_syms) & e.free_symbols for e in obs):
-        body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                  "    accel(t, y, p, acc, lam)"]
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
@@ -592,7 +629,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     evx = [e for _, e in d.events]
     body = list(pre)
     if any((set(lam) | set(a_syms)) & e.free_symbols for e in evx):
-        body += [f"    lam = np.empty({max(nc, 1)})", f"    acc = np.empty({n})",
+        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                  "    accel(t, y, p, acc, lam)"]
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]

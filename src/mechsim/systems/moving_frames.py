@@ -38,6 +38,9 @@ import math
 
 import numpy as np
 
+from mechsim.codegen.support import tensor as _tensor
+from mechsim.codegen.support import vector as _vector
+from mechsim.codegen.support import zero_vector as _zero_vector
 from mechsim.params import Parameter, positive
 from mechsim.systems._rotation import quat_from_rows
 from mechsim.systems.base import FrameSpec, Quantity, Structure, Visual
@@ -67,8 +70,8 @@ def _cross(a, b, out):
 
 def _cross_rate(a, da, b, db, out, dout):
     """out = a × b and dout = da × b + a × db."""
-    t1 = np.empty(3)
-    t2 = np.empty(3)
+    t1 = _vector(3)
+    t2 = _vector(3)
     _cross(a, b, out)
     _cross(da, b, t1)
     _cross(a, db, t2)
@@ -78,20 +81,22 @@ def _cross_rate(a, da, b, db, out, dout):
 
 def _twisted_cubic_frames(u, E, dE):
     """Axes E[f, i, :] of frame f (0 VBN, 1 RIC, 2 Frenet) and their u-derivatives dE."""
-    w = np.empty(3)
-    dw = np.empty(3)
+    w = _vector(3)
+    dw = _vector(3)
     # V̂ = T̂ from r' = (1, 2u, 3u²)
     w[0], w[1], w[2] = 1.0, 2.0 * u, 3.0 * u * u
     dw[0], dw[1], dw[2] = 0.0, 2.0, 6.0 * u
     _unit(w, dw, E[0, 0], dE[0, 0])
-    E[2, 0, :] = E[0, 0, :]
-    dE[2, 0, :] = dE[0, 0, :]
+    for k in range(3):
+        E[2, 0, k] = E[0, 0, k]
+        dE[2, 0, k] = dE[0, 0, k]
     # N̂ = Ĉ from (r × r')/u² = (u², −2u, 1)
     w[0], w[1], w[2] = u * u, -2.0 * u, 1.0
     dw[0], dw[1], dw[2] = 2.0 * u, -2.0, 0.0
     _unit(w, dw, E[0, 1], dE[0, 1])
-    E[1, 2, :] = E[0, 1, :]
-    dE[1, 2, :] = dE[0, 1, :]
+    for k in range(3):
+        E[1, 2, k] = E[0, 1, k]
+        dE[1, 2, k] = dE[0, 1, k]
     # B̂ = V̂ × N̂
     _cross_rate(E[0, 0], dE[0, 0], E[0, 1], dE[0, 1], E[0, 2], dE[0, 2])
     # R̂ from sgn(u) r/u = sgn(u) (1, u, u²); sgn(0) = +1 (limit from u > 0)
@@ -110,8 +115,8 @@ def _twisted_cubic_frames(u, E, dE):
 
 def _frame_omega(E, dE, rate, f, out):
     """Body components of ω of frame f: ω = ½ Σ e_i × ė_i (ė = u̇ de/du), then ω·e_j."""
-    wv = np.zeros(3)
-    c = np.empty(3)
+    wv = _zero_vector(3)
+    c = _vector(3)
     for i in range(3):
         _cross(E[f, i], dE[f, i], c)
         for k in range(3):
@@ -122,7 +127,7 @@ def _frame_omega(E, dE, rate, f, out):
 
 def _power(u, rate, p):
     """Power m r̈·ṙ of the force that drives the point along the curve at constant u̇."""
-    return p[P_MASS] * rate ** 3 * (4.0 * u + 18.0 * u ** 3)
+    return p[P_MASS] * (rate * (rate * rate)) * (4.0 * u + 18.0 * (u * (u * u)))
 
 
 def rhs(t, y, p, dy):
@@ -134,16 +139,16 @@ def rhs(t, y, p, dy):
 
 def energy(t, y, p, out):
     u, rate = y[0], y[1]
-    out[0] = 0.5 * p[P_MASS] * rate * rate * (1.0 + 4.0 * u * u + 9.0 * u ** 4)
+    out[0] = 0.5 * p[P_MASS] * rate * rate * (1.0 + 4.0 * u * u + 9.0 * ((u * u) * (u * u)))
     out[1] = 0.0
     out[2] = out[0]
 
 
 def invariants(t, y, p, out):
-    E = np.empty((3, 3, 3))
-    dE = np.empty((3, 3, 3))
+    E = _tensor(3, 3, 3)
+    dE = _tensor(3, 3, 3)
     _twisted_cubic_frames(y[0], E, dE)
-    w = np.empty(3)
+    w = _vector(3)
     _frame_omega(E, dE, y[1], 1, w)
     out[0] = w[1]
     _frame_omega(E, dE, y[1], 2, w)
@@ -152,17 +157,17 @@ def invariants(t, y, p, out):
 
 def observables(t, y, p, out):
     u, rate = y[0], y[1]
-    E = np.empty((3, 3, 3))
-    dE = np.empty((3, 3, 3))
+    E = _tensor(3, 3, 3)
+    dE = _tensor(3, 3, 3)
     _twisted_cubic_frames(u, E, dE)
-    w = np.empty(3)
+    w = _vector(3)
     for f in range(3):
         _frame_omega(E, dE, rate, f, w)
         for j in range(3):
             out[3 * f + j] = w[j]
         out[9 + f] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-    speed2 = 1.0 + 4.0 * u * u + 9.0 * u ** 4
-    b2 = 36.0 * u ** 4 + 36.0 * u * u + 4.0  # |r' × r''|²
+    speed2 = 1.0 + 4.0 * u * u + 9.0 * ((u * u) * (u * u))
+    b2 = 36.0 * ((u * u) * (u * u)) + 36.0 * u * u + 4.0  # |r' × r''|²
     out[12] = math.sqrt(b2) / speed2 ** 1.5  # κ = |r' × r''| / |r'|³
     out[13] = 12.0 / b2  # τ = (r' × r'')·r''' / |r' × r''|², r''' = (0, 0, 6)
     out[14] = abs(rate) * math.sqrt(speed2)
@@ -170,10 +175,10 @@ def observables(t, y, p, out):
 
 def frames(t, y, p, out):
     u = y[0]
-    E = np.empty((3, 3, 3))
-    dE = np.empty((3, 3, 3))
+    E = _tensor(3, 3, 3)
+    dE = _tensor(3, 3, 3)
     _twisted_cubic_frames(u, E, dE)
-    q = np.empty(4)
+    q = _vector(4)
     for f in range(3):
         out[f, 0] = u
         out[f, 1] = u * u

@@ -68,7 +68,7 @@ def invariants(t, y, p, out):
         out[0] = L[3]
         out[1] = L[4]
         out[2] = L[5]
-        size = math.sqrt(L[0] ** 2 + L[1] ** 2 + L[2] ** 2)
+        size = math.sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2])
         out[3] = (w[0] * L[0] + w[1] * L[1] + w[2] * L[2]) / size if size > 0 else 0.0
 
 
@@ -80,8 +80,8 @@ def observables(t, y, p, out):
         out[i] = w[i]
         out[3 + i] = L[i]
         out[6 + i] = ws[i]
-    out[9] = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
-    out[10] = math.sqrt(L[0] ** 2 + L[1] ** 2 + L[2] ** 2)
+    out[9] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    out[10] = math.sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2])
 
 
 def frames(t, y, p, out):
