@@ -28,6 +28,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    code = _run(argv)
+    rerun_sink = sys.modules.get("mechsim.outputs.rerun")
+    if rerun_sink is not None and rerun_sink.writer_stuck():
+        # The error is reported and the temporaries removed; Rerun would wait at exit for a
+        # file writer that hung on a full disk, without a bound.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _run(argv: list[str] | None) -> int:
     # Ctrl-C stops a command even where it was started with SIGINT ignored (a background job
     # of a script, a test runner's worker): Python only installs its handler if not.
     signal.signal(signal.SIGINT, signal.default_int_handler)

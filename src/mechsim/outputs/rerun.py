@@ -201,6 +201,17 @@ class _System:
 #: writer that died on a full disk once left an unbounded flush waiting under load).
 FLUSH_TIMEOUT = 120.0
 
+#: Recordings whose file writer stopped or hung (a full disk): kept referenced, since dropping
+#: one flushes it again without a bound, and Rerun's exit hook is unregistered for the same
+#: reason; a command that saw one ends its process with ``os._exit`` (``writer_stuck``).
+_STUCK: list[Any] = []
+
+
+def writer_stuck() -> bool:
+    """Whether a recording's file writer failed in this process: exiting normally would wait
+    on it without a bound (Rerun's exit hook flushes every recording)."""
+    return bool(_STUCK)
+
 
 class RerunSink:
     """Outlet sink writing a Rerun ``.rrd`` recording; call :meth:`close` to finish the file.
@@ -359,6 +370,11 @@ class RerunSink:
             raise MechsimError(f"rrd {self.path}: write failed ({e.strerror or e}); "
                                "nothing written") from None
         except RuntimeError as e:
+            import rerun as rr
+
+            _STUCK.append(self.rec)
+            with contextlib.suppress(Exception):
+                rr.unregister_shutdown()
             raise MechsimError(f"rrd {self.path}: write failed (Rerun's file writer stopped: "
                                f"{str(e).splitlines()[0] if str(e) else 'no reason given'}); "
                                "nothing written") from None

@@ -1,6 +1,7 @@
 """``mechsim replay DIR``: republish a recorded bag into the live ROS graph.
 
-Messages go out in recording order with their original relative timing (``--rate`` scales it;
+Messages go out in time order (their log times, as ``ros2 bag play``) with their original
+relative timing (``--rate`` scales it;
 ``--rate 0`` = as fast as possible), each on its topic with its recorded type and the QoS of the
 bag metadata (reliability, durability: /tf_static and system_info stay transient local, keeping
 as many messages as the bag has on the topic, at most 100, so a late joiner gets the static

@@ -101,8 +101,10 @@ def check_bag(path: str | Path) -> dict[str, Any]:
 
 
 def read_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:
-    """Messages of a bag in file (= recording) order; MechsimError on a corrupt file (chunk
-    CRCs are checked: a damaged chunk is an error, never wrong messages)."""
+    """Messages of a bag in log-time order within each file, files in order (as ``ros2 bag
+    play`` reads them: a recorder writes each node's samples in blocks, so file order
+    interleaves nodes block by block); MechsimError on a corrupt file (chunk CRCs are checked:
+    a damaged chunk is an error, never wrong messages)."""
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
@@ -115,7 +117,7 @@ def read_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
             with open_regular(f) as stream:
                 reader = make_reader(stream, validate_crcs=True)  # no silent garbage
                 for schema, channel, message in reader.iter_messages(
-                        topics=list(wanted) if wanted else None, log_time_order=False):
+                        topics=list(wanted) if wanted else None, log_time_order=True):
                     yield BagMessage(channel.topic, schema.name if schema else "",
                                      message.log_time, message.data)
         except (McapError, OSError, ValueError, EOFError, AssertionError, KeyError,
