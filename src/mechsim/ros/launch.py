@@ -374,6 +374,8 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
             for n in nodes:
                 with contextlib.suppress(Exception):
                     n.outlet.hand_over()
+                with contextlib.suppress(Exception):
+                    n.outlet.settle()  # a lossless run's last slice acknowledged
         try:
             feed.deliver()
             diag.publish_now()
@@ -646,6 +648,7 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
     finally:
         try:
             if node is not None and sim:
+                node.outlet.settle()  # a lossless run's last slice acknowledged
                 wait_acked([ch.publisher for ch in node.outlet.channels.values()])
             elif node is not None and report is not None:
                 drain(executor, lambda: node.received)

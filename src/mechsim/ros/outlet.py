@@ -102,6 +102,7 @@ class Outlet:
         reader has not taken: no message lost, at the pace of the slowest reader."""
         self.node = node
         self.lossless = lossless
+        self._unacknowledged: list[_Channel] = []  # the last slice's channels (lossless)
         self._gave_up: set[str] = set()
         self.sinks: list[Sink] = sinks if sinks is not None else []
         self.channels: dict[str, _Channel] = {}
@@ -169,12 +170,16 @@ class Outlet:
         live = self._live
         step = LOSSLESS_DEPTH if self.lossless else max(n, 1)
         for start in range(a, b, step):
+            # The previous slice is acknowledged before this one goes out: the history then
+            # never holds more than one slice unacknowledged, and a subscriber takes a slice
+            # while the node computes the next.
+            self.settle()
             for ch, rows in live:
                 publish = ch.publisher.publish
                 for r in rows[start:min(start + step, b)]:
                     publish(r.tobytes())
             if self.lossless:
-                self._acknowledged([ch for ch, _ in live])
+                self._unacknowledged = [ch for ch, _ in live]
         for topic, _, _ in topics:
             self.counts[topic] += n
         if not self.sinks or not n:
@@ -234,6 +239,13 @@ class Outlet:
                 for topic, message in chosen:
                     sink.write(topic, self.channels[topic].type_name, message(a + i),
                                self.channels[topic].qos, int(ns[i]))
+
+    def settle(self) -> None:
+        """Wait for the acknowledgment of the last slice published (``lossless``; the runner
+        calls this when a run ends)."""
+        if self._unacknowledged:
+            channels, self._unacknowledged = self._unacknowledged, []
+            self._acknowledged(channels)
 
     def _acknowledged(self, channels: list[_Channel]) -> None:
         """Wait until every reliable subscriber of ``channels`` has acknowledged what was
