@@ -719,17 +719,15 @@ def _radau_state_at(s, n, y0, F0, b, dt, comp, ys):
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_dense_at(s, n, y0, F0, b8, dt, comp, ys):
     """``_radau_state_at`` for the dense output's expansion (8 rows,
-    ``_radau_dense_expansion``)."""
-    m = F0.size
-    for j in range(m):
-        iv = 0.0
-        ix = 0.0
-        for k in range(7, -1, -1):
-            iv = iv * s + b8[k, j] * _RADAU_V[k]
-            ix = ix * s + b8[k, j] * _RADAU_X[k]
-        ys[n + j] = y0[n + j] + (comp[n + j] + s * dt * (F0[j] + s * iv))
+    ``_radau_dense_expansion``): its first 7 rows as the step's own, plus the eighth row's
+    term b₇ s⁸, integrated (kept apart: the step's 7-row loop, with its bound a constant, is
+    the iteration's hot path)."""
+    _radau_state_at(s, n, y0, F0, b8[:7], dt, comp, ys)
+    s9 = s**9
+    for j in range(F0.size):
+        ys[n + j] += dt * s9 * b8[7, j] * _RADAU_V[7]
         if j < n:
-            ys[j] = y0[j] + (comp[j] + s * dt * (y0[n + j] + s * dt * (0.5 * F0[j] + s * ix)))
+            ys[j] += dt * dt * s9 * s * b8[7, j] * _RADAU_X[7]
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
