@@ -211,7 +211,8 @@ class LinearOscillator(LagrangianModel):
         if not driven:  # the free solution alone (no particular one to add)
             x, v = free_solution(t - t0, y0[0], y0[1], w0, beta)
             return state_rows(y0, [x, v, np.full(t.size, y0[2]), y0[3] + e0 - energy(x, v)])
-        if self.particular_solution(np.array([t0])) is None:
+        at_t0 = self.particular_solution(np.array([t0]))
+        if at_t0 is None:
             return None  # undamped resonance: secular growth, not this form
 
         def particular(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -219,7 +220,7 @@ class LinearOscillator(LagrangianModel):
             assert out is not None
             return out
 
-        xp0, vp0 = particular(np.array([t0]))
+        xp0, vp0 = at_t0
         u, du = free_solution(t - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
         xp, vp = particular(t)
         x, v = xp + u, vp + du
