@@ -973,6 +973,18 @@ def _radau_dense_expansion(F0, b, F1, b8):
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def _radau_derivatives(s_, rhs, t, y, inc, pp, dy, n, out):
+    """``out`` ← the second derivatives of q and the work rates at (t, y) (one evaluation,
+    counted; ``inc`` and ``dy`` are scratch)."""
+    for i in range(y.size):
+        inc[i] = y[i]
+    rhs(t, inc.ctypes, pp, dy.ctypes)
+    s_.n_evaluations += 1
+    for j in range(out.size):
+        out[j] = dy[n + j]
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_interpolant_error(n, y0, y1, F0, b, F1, dt, w_floor):
     """Bound of the error of the step's expansion between its ends, relative to the state
     scale (the larger of max|q|, max|q̇| at both ends; for each work term its size there, at
@@ -1047,7 +1059,6 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
     rhs = ks.rhs
     pp = p.ctypes
     inc = np.empty(ny)
-    dyp = dy.ctypes
     b_start = np.empty((7, m))
     F1 = np.empty(m)
     n_ev = ks.n_ev
@@ -1091,12 +1102,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
         if dt <= 10.0 * abs(np.nextafter(t0, np.inf) - t0):
             return Status.STEP_UNDERFLOW, k
         if s_.f0_ready == 0:  # F₀ at the start of the step
-            for i in range(ny):
-                inc[i] = y[i]
-            rhs(t0, inc.ctypes, pp, dyp)
-            s_.n_evaluations += 1
-            for j in range(m):
-                F0[j] = dy[n + j]
+            _radau_derivatives(s_, rhs, t0, y, inc, pp, dy, n, F0)
             s_.f0_ready = 1
         b_start[:, :] = b
         dt_first = dt  # the step b_start predicts
@@ -1159,23 +1165,13 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
             tc_new = dtc - (t_new - t0)
         # f at the end: the defect that estimates the expansion's error (on the expansion's
         # own end, before the projection moves it), and the next step's F₀
-        for i in range(ny):
-            inc[i] = y_new[i]
-        rhs(t_new, inc.ctypes, pp, dyp)
-        s_.n_evaluations += 1
-        for j in range(m):
-            F1[j] = dy[n + j]
+        _radau_derivatives(s_, rhs, t_new, y_new, inc, pp, dy, n, F1)
         bound = _radau_interpolant_error(n, y, y_new, F0, b, F1, dt, w_floor)
         _radau_dense_expansion(F0, b, F1, b8)
         if ks.n_c > 0:
             ks.project(t_new, y_new, p)
             comp_new[:] = 0.0
-            for i in range(ny):
-                inc[i] = y_new[i]
-            rhs(t_new, inc.ctypes, pp, dyp)
-            s_.n_evaluations += 1
-            for j in range(m):
-                F1[j] = dy[n + j]
+            _radau_derivatives(s_, rhs, t_new, y_new, inc, pp, dy, n, F1)
         s_.dense_error = max(s_.dense_error, bound)
         mode = DENSE_RADAU if bound <= dense_limit else DENSE_RADAU_STEP
         cost[:] = 0
