@@ -61,5 +61,13 @@ def _run(argv: list[str] | None) -> int:
         return EXIT_USAGE
 
 
+def entry() -> None:
+    """The console command: :func:`main`, then a quick exit (``exit_process``)."""
+    code = main()
+    from mechsim.ros.process import exit_process
+
+    exit_process(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

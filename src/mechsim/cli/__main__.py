@@ -1,7 +1,5 @@
 """``python -m mechsim.cli``: the same as the ``mechsim`` command."""
 
-import sys
+from mechsim.cli import entry
 
-from mechsim.cli import main
-
-sys.exit(main())
+entry()

@@ -39,6 +39,7 @@ from mechsim.errors import MechsimError, ParameterError
 from mechsim.ros.process import (
     die_with_parent,
     drain,
+    exit_process,
     held_signals,
     stop_on_sigterm,
     stopping,
@@ -720,4 +721,4 @@ def _main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(_main(sys.argv[1:]))
+    exit_process(_main(sys.argv[1:]))

@@ -115,3 +115,25 @@ def write_report(path: str | None, data: dict[str, Any]) -> None:
         from mechsim.files import write_atomic
 
         write_atomic(path, json.dumps(data))
+
+
+def exit_process(code: int) -> None:
+    """End a command's process with ``code`` without tearing the interpreter down.
+
+    By the time a command returns, its outputs are complete and its ROS contexts shut down;
+    what a normal exit adds is the interpreter's finalization, about 0.3 s of CPU with sympy,
+    numba and rclpy loaded, on every command. Exit handlers still run. If a thread that a
+    normal exit would wait for is still alive, the process exits normally instead."""
+    import atexit
+    import sys
+
+    main = threading.main_thread()
+    if any(t is not main and not t.daemon and t.is_alive() for t in threading.enumerate()):
+        sys.exit(code)
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe or stream: nothing left to deliver
+            pass
+    os._exit(code)
