@@ -4,14 +4,15 @@
 Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-bootstrap.json):
 
 1. venv      create ./.venv with a Python 3.11 interpreter;
-2. pip       pip install -r requirements.txt;
+2. pip       pip install --no-compile -r requirements.txt;
 3. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
              .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
 4. project   pip install -e . --no-deps --no-build-isolation;
 5. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/);
-6. loops     compile mechsim's shared integrator loops (numba, once per machine, ~15 s of
-             CPU) so that the first run of a system only compiles that system's kernels;
+6. loops     compile mechsim's shared integrator loops (numba, once per machine, ~25 s of
+             CPU) so that the first run of a system only compiles that system's kernels; this
+             runs in the background from after step 4, beside the interface builds;
 7. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
              with (skipped, with a note, where node or npm is missing; that test then skips).
 
@@ -108,6 +109,38 @@ def run_logged(step: str, cmd: list[str], *, append: bool = False) -> None:
         raise StepFailed(f"`{what}` exited {rc}: {last_error_line(log)}", log)
 
 
+class Pending:
+    """A step's command running in the background: :meth:`wait` raises StepFailed as
+    ``run_logged`` would."""
+
+    def __init__(self, step: str, cmd: list[str], log: Path) -> None:
+        self.step, self.cmd, self.log = step, cmd, log
+        self._out = log.open("w")
+        self._out.write(f"$ {' '.join(cmd)}\n")
+        self._out.flush()
+        self.proc = subprocess.Popen(cmd, stdout=self._out, stderr=subprocess.STDOUT, cwd=ROOT,
+                                     env=clean_env())
+
+    def wait(self) -> None:
+        rc = self.proc.wait()
+        self._out.close()
+        if rc != 0:
+            what = " ".join([Path(self.cmd[0]).name, *self.cmd[1:4]])
+            raise StepFailed(f"`{what}` exited {rc}: {last_error_line(self.log)}", self.log)
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        self._out.close()
+
+
+def start_logged(step: str, cmd: list[str]) -> Pending:
+    """Start cmd in the background with output to the step's log."""
+    LOG_DIR.mkdir(parents=True, exist_ok=True)
+    return Pending(step, cmd, LOG_DIR / f"{step}.log")
+
+
 def last_error_line(log: Path) -> str:
     """The most telling line of a failed command's log (Python exception, compiler/pip error)."""
     lines = [ln.strip() for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
@@ -158,8 +191,11 @@ def step_venv() -> None:
 
 
 def step_pip() -> None:
-    say("pip install -r requirements.txt (1-2 min in a new venv)")
-    run_logged("pip", [str(VENV_PY), "-m", "pip", "install", "-r", str(REQUIREMENTS)])
+    say("pip install -r requirements.txt (about a minute in a new venv)")
+    # --no-compile: byte-compiling every installed module took half of this step's CPU; Python
+    # compiles what is imported, once, on first import.
+    run_logged("pip", [str(VENV_PY), "-m", "pip", "install", "--no-compile", "-r",
+                       str(REQUIREMENTS)])
 
 
 def venv_paths() -> dict[str, str]:
@@ -203,10 +239,10 @@ def step_project() -> None:
                            "--no-build-isolation", "-e", str(ROOT)])
 
 
-def step_loops() -> None:
-    say("compiling the shared integrator loops (numba, ~15 s)")
-    run_logged("loops", [str(VENV_PY), "-c",
-                         "import mechsim.integrators as i; i.precompile()"])
+def step_loops() -> Pending:
+    say("compiling the shared integrator loops (numba, ~25 s of CPU, alongside the next steps)")
+    return start_logged("loops", [str(VENV_PY), "-c",
+                                  "import mechsim.integrators as i; i.precompile()"])
 
 
 #: What the compiled loops are made from (their cache key inside mechsim covers the same).
@@ -277,7 +313,7 @@ def save_stamp(stamp: dict[str, str]) -> None:
     tmp.replace(STAMP)
 
 
-def plan() -> list[tuple[str, str, Callable[[], None]]]:
+def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     """(step name, input hash, action), in order. A step's hash includes what it builds on."""
     venv_key = hashlib.sha256(f"{VENV}|{PY_VERSION}".encode()).hexdigest()[:16]
     pip_key = sha256_files([REQUIREMENTS], venv_key)
@@ -287,17 +323,18 @@ def plan() -> list[tuple[str, str, Callable[[], None]]]:
         if re.match(r"\s*(ros-|catkin|setuptools)", ln, re.IGNORECASE)
     )
     build_key = hashlib.sha256(f"{venv_key}|{build_reqs}".encode()).hexdigest()[:16]
-    steps: list[tuple[str, str, Callable[[], None]]] = [
+    steps: list[tuple[str, str, Callable[[], Pending | None]]] = [
         ("venv", venv_key, step_venv),
         ("pip", pip_key, step_pip),
         ("cmake-paths", pip_key, step_cmake_paths),
         ("project", sha256_files([ROOT / "pyproject.toml", ROOT / "setup.cfg"], venv_key),
          step_project),
     ]
+    # The loops compile in the background (one core) while the interfaces build.
+    steps.append(("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops))
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
-    steps.append(("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops))
     steps.append(("foxglove", sha256_files([FOXGLOVE / "package.json",
                                             FOXGLOVE / "package-lock.json"]), step_foxglove))
     return steps
@@ -316,26 +353,39 @@ def bootstrap(force: bool = False) -> int:
         return 0
     with locked():
         stamp = {} if force or not VENV_PY.exists() else load_stamp()
-        for name, key, action in steps:
-            if stamp.get(name) == key:
-                continue
-            # Not current until the step succeeds again; a pip run may restore the wheels'
-            # original cmake files, so it also invalidates the path rewrite.
-            for stale in (name, "cmake-paths") if name == "pip" else (name,):
-                stamp.pop(stale, None)
-            if VENV.is_dir():
+        pending: list[tuple[str, str, Pending]] = []
+        try:
+            for name, key, action in steps:
+                if stamp.get(name) == key:
+                    continue
+                # Not current until the step succeeds again; a pip run may restore the
+                # wheels' original cmake files, so it also invalidates the path rewrite.
+                for stale in (name, "cmake-paths") if name == "pip" else (name,):
+                    stamp.pop(stale, None)
+                if VENV.is_dir():
+                    save_stamp(stamp)
+                running = action()
+                if running is not None:  # stamped once it has finished
+                    pending.append((name, key, running))
+                    continue
+                if name == "venv":
+                    stamp = {}
+                stamp[name] = key
                 save_stamp(stamp)
-            try:
-                action()
-            except StepFailed as e:
-                where = f" (log: {e.log})" if e.log else ""
-                print(f"bootstrap: FAILED at step '{name}': {e.reason}{where}",
-                      file=sys.stderr, flush=True)
-                return 1
-            if name == "venv":
-                stamp = {}
-            stamp[name] = key
-            save_stamp(stamp)
+            while pending:
+                name, key, running = pending[0]
+                running.wait()
+                pending.pop(0)
+                stamp[name] = key
+                save_stamp(stamp)
+        except StepFailed as e:
+            where = f" (log: {e.log})" if e.log else ""
+            print(f"bootstrap: FAILED at step '{name}': {e.reason}{where}",
+                  file=sys.stderr, flush=True)
+            return 1
+        finally:
+            for _, _, running in pending:
+                running.stop()
     say(f"done ({time.monotonic() - t0:.1f} s)")
     return 0
 
