@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -287,11 +288,13 @@ def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: 
 
 
 def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,
-                  t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                  t: np.ndarray, motion: FreeMotion | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Rows [q, q̇] of the attitude q(t) ((x, y, z, w), world_R_body) and its rate
     q̇ = ½ q ⊗ (ω, 0), and rows of the body ω(t), of a torque-free rigid body with principal
     moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; one compiled pass,
-    ``_torque_free_motion``).
+    ``_torque_free_motion``; ``motion``: ``free_motion(moments, q0, w0)`` if already at
+    hand, its constants depend on nothing else).
 
     ω(t) (Landau & Lifshitz, Mechanics §37; catalog 003 §7.7 [SUPPLEMENT]): with the moments
     relabelled so that the polhode circles axis c (the largest moment if |L|² > 2E I_mid, else
@@ -315,6 +318,40 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     the same angle through theta functions).
     """
     t = np.ascontiguousarray(t, dtype=float)
+    if motion is None:
+        motion = free_motion(moments, q0, w0)
+    if isinstance(motion, UniformSpin):
+        q0, w0, speed, axis = motion
+        half = 0.5 * speed * t
+        turn = (axis[0] * np.sin(half), axis[1] * np.sin(half), axis[2] * np.sin(half),
+                np.cos(half))
+        Q = quat_product(tuple(q0), turn)
+        Qd = quat_product(Q, (w0[0], w0[1], w0[2], 0.0))
+        return (np.stack([*Q, *(0.5 * x for x in Qd)], axis=1),
+                np.repeat(w0[None, :], t.size, axis=0))
+    rows, W = np.empty((t.size, 8)), np.empty((t.size, 3))
+    _torque_free_motion(t, *motion, rows, W)
+    return rows, W
+
+
+class UniformSpin(NamedTuple):
+    """``free_motion`` at rest or spinning about a principal axis: ω = w0 constant,
+    q(t) = q0 ⊗ exp(ω t / 2), ``speed`` = |ω|, ``axis`` = ω/|ω| (z at rest)."""
+
+    q0: np.ndarray
+    w0: np.ndarray
+    speed: float
+    axis: np.ndarray
+
+
+#: The arguments of ``_torque_free_motion`` before the times (c, ratios, axes, Iw, w0, q0, p),
+#: or a uniform spin.
+FreeMotion = tuple[np.ndarray, ...] | UniformSpin
+
+
+def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray
+                ) -> FreeMotion:
+    """The constants of ``free_rotation`` from q(0) = q0, ω(0) = w0 (see there)."""
     I = np.asarray(moments, dtype=float)
     w0 = np.asarray(w0, dtype=float)
     q0 = np.asarray(q0, dtype=float)
@@ -328,13 +365,7 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
         # at rest, or spinning about a principal axis: ω constant, q(t) = q0 ⊗ exp(ω t / 2)
         speed = float(np.linalg.norm(w0))
         axis = w0 / speed if speed > 0 else np.array([0.0, 0.0, 1.0])
-        half = 0.5 * speed * t
-        turn = (axis[0] * np.sin(half), axis[1] * np.sin(half), axis[2] * np.sin(half),
-                np.cos(half))
-        Q = quat_product(tuple(q0), turn)
-        Qd = quat_product(Q, (w0[0], w0[1], w0[2], 0.0))
-        return (np.stack([*Q, *(0.5 * x for x in Qd)], axis=1),
-                np.repeat(w0[None, :], t.size, axis=0))
+        return UniformSpin(q0, w0, speed, axis)
     order = np.argsort(I, kind="stable")
     mid = int(order[1])
     # which axis the polhode circles: sign of |L|² − 2E I_mid, summed without cancellation
@@ -379,10 +410,9 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     consts = np.array([nu, u0, scale, m1, N, whole, turn0, lam / Ia,
                        lam * (Ic - Ia) / (Ia * Ic * nu), amp_a, s_b * amp_b, s_c * amp_c,
                        flip])
-    rows, W = np.empty((t.size, 8)), np.empty((t.size, 3))
-    _torque_free_motion(t, consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p,
-                        rows, W)
-    return rows, W
+    return (consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p)
+
+
 
 
 @dataclass(frozen=True)
@@ -478,8 +508,23 @@ class QuaternionRigidBody(DirectModel):
         if not self.torque_free():
             return None
         t = np.asarray(t, dtype=float)
+        y0 = np.asarray(y0, dtype=float)
         rows = np.empty((t.size, len(y0)))
         rows[:, :8], _ = free_rotation(self.rigid.moments, y0[:4], np.array(rb_omega(y0)),
-                                       t - t0)
+                                       t - t0, self._free_motion(y0))
         rows[:, 8:] = y0[8:]
         return rows
+
+    #: Initial states whose ``free_motion`` is kept (``propagate``), per model.
+    MOTION_CACHE_SIZE = 8
+
+    def _free_motion(self, y0: np.ndarray) -> FreeMotion:
+        """``free_motion`` from the state y0, computed once per state and parameter values
+        (its constants depend on nothing else; t₀ only shifts the times)."""
+        key = (y0.tobytes(), tuple(self.values.items()))
+        cache = self.__dict__.setdefault("_free_motion_cache", {})
+        if key not in cache:
+            if len(cache) >= self.MOTION_CACHE_SIZE:
+                cache.clear()
+            cache[key] = free_motion(self.rigid.moments, y0[:4], np.array(rb_omega(y0)))
+        return cache[key]  # type: ignore[no-any-return]
