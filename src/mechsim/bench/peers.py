@@ -93,11 +93,7 @@ def _dist_version(family: str) -> str:
         return "?"
 
 
-def _tolerances(quick: bool, loosest: float = 1e-1, tightest: float = 1e-13) -> list[float]:
-    """Decades of a tolerance knob (mechsim's methods and scipy's alike). From 1e-1: the error
-    levels start at 1e-4, and an adaptive method's error at a tolerance is often far below it
-    (mechsim's DOP853 runs at 1e-3 × the tolerance locally), so a sweep starting at 1e-3 would
-    leave both families only an upper bound at the loose levels."""
+def _tolerances(quick: bool, loosest: float = 1e-3, tightest: float = 1e-13) -> list[float]:
     if quick:
         return [1e-4, 1e-7, 1e-10]
     n = round(math.log10(loosest / tightest))
