@@ -42,8 +42,10 @@ import numpy as np
 from numba import njit
 
 from mechsim.systems._elliptic import (
+    _amplitudes,
     agm_ratios,
     am_dn,
+    carlson_rf,
     complete_third_kind,
     elliptic_f,
     third_kind,
@@ -260,12 +262,14 @@ def _euler_frame(w: np.ndarray, phi: float, axes: np.ndarray, Iw: np.ndarray, fl
 @njit(cache=True)
 def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: np.ndarray,
                         Iw: np.ndarray, w0: np.ndarray, q0: np.ndarray, p: np.ndarray,
-                        rows: np.ndarray, W: np.ndarray) -> None:
+                        rates: np.ndarray, coefs: np.ndarray, rows: np.ndarray,
+                        W: np.ndarray) -> None:
     """Rows [q, q̇ = ½ q ⊗ (ω, 0)] and ω of ``free_rotation`` at each time t (see there).
     ``c`` = (ν, u₀, 2^N a_N, m1, N, Π(−N | m), Π(−N; am u₀), λ/I_a, λ(I_c − I_a)/(I_a I_c ν),
     A_a, ±A_b, ±A_c, flip), ``axes`` = (a, b, c, i, j), ``Iw`` = I/|L|; φ = (λ/I_a) t −
     λ(I_c − I_a)/(I_a I_c ν) (Π(−N; am u) − Π(−N; am u₀)); q = g ⊗ e ⊗ p*, e the Euler frame,
-    g = q0 ⊗ p ⊗ e(0)*."""
+    g = q0 ⊗ p ⊗ e(0)*. am u, dn u and Π(−N; am u) from the Fourier series ``rates``,
+    ``coefs`` (``_period_series``) where it has terms, else by ``am_dn`` and ``third_kind``."""
     nu, u0, scale, m1, N, whole, turn0 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
     precession, wobble, flip = c[7], c[8], c[12]
     a, b, cc = axes[0], axes[1], axes[2]
@@ -273,10 +277,16 @@ def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: 
     g = _qmul(*_qmul(q0[0], q0[1], q0[2], q0[3], p[0], p[1], p[2], p[3]),
               -e0[0], -e0[1], -e0[2], e0[3])
     w = np.empty(3)
+    series = coefs.shape[1] > 0
     for k in range(t.size):
-        am, dn = am_dn(nu * t[k] + u0, ratios, scale, m1)
+        u = nu * t[k] + u0
+        if series:
+            dn, am, turn = _series_sums(rates, coefs, u)
+        else:
+            am, dn = am_dn(u, ratios, scale, m1)
+            turn = third_kind(-N, am, m1, whole)
         w[a], w[b], w[cc] = c[9] * math.cos(am), c[10] * math.sin(am), c[11] * dn
-        phi = precession * t[k] - wobble * (third_kind(-N, am, m1, whole) - turn0)
+        phi = precession * t[k] - wobble * (turn - turn0)
         e = _euler_frame(w, phi, axes, Iw, flip)
         q = _qmul(*_qmul(g[0], g[1], g[2], g[3], e[0], e[1], e[2], e[3]),
                   -p[0], -p[1], -p[2], p[3])
@@ -344,8 +354,8 @@ class UniformSpin(NamedTuple):
     axis: np.ndarray
 
 
-#: The arguments of ``_torque_free_motion`` before the times (c, ratios, axes, Iw, w0, q0, p),
-#: or a uniform spin.
+#: The arguments of ``_torque_free_motion`` between the times and the outputs (c, ratios,
+#: axes, Iw, w0, q0, p, rates, coefs), or a uniform spin.
 FreeMotion = tuple[np.ndarray, ...] | UniformSpin
 
 
@@ -410,7 +420,73 @@ def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndar
     consts = np.array([nu, u0, scale, m1, N, whole, turn0, lam / Ia,
                        lam * (Ic - Ia) / (Ia * Ic * nu), amp_a, s_b * amp_b, s_c * amp_c,
                        flip])
-    return (consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p)
+    rates, coefs = _period_series(ratios, scale, m1, N, whole)
+    if coefs.size:
+        consts[6] = _series_sums(rates, coefs, u0)[2]  # Π(−N; am u₀) from the same series
+    return (consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p, rates, coefs)
+
+
+#: Fourier series of one period of dn u and 1/(1 + N sn²u) are kept up to the last
+#: coefficient above this (relative to the function's mean): beyond, terms are below round-off
+#: (the FFT's own round-off is about 1e-16); sampled densely enough once the upper half of the
+#: spectrum is below ten times it.
+SERIES_FLOOR = 1e-16
+#: The most samples per period tried for the series; a motion needing more (close to the
+#: separatrix, where the period 2K grows without bound) is evaluated term by term instead.
+SERIES_MAX_SAMPLES = 2048
+
+
+def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """dn u and Π(−N; am u) as Fourier series over the period 2K of u, for ``_torque_free_motion``
+    to evaluate in a few operations per sample instead of the descending recursion and
+    Carlson's R_F, R_J: with θ = πu/K, dn u = π/2K + Σ dₙ cos nθ, so am u = ∫dn =
+    πu/2K + Σ dₙ (K/nπ) sin nθ, and likewise 1/(1 + N sn²u) = Π(−N | m)/K + Σ fₙ cos nθ gives
+    Π(−N; am u) = (Π(−N | m)/K) u + Σ fₙ (K/nπ) sin nθ. The coefficients come from samples
+    of one period (FFT), doubled until the upper half of the spectrum is below round-off
+    (both functions are analytic, so the coefficients fall geometrically). Returns ``rates``
+    (π/K, π/2K, Π(−N | m)/K) and ``coefs`` (3, n): dₙ, then the sine coefficients of am and
+    Π; no coefficients (shape (3, 0)) where the series would need more than
+    ``SERIES_MAX_SAMPLES`` samples or the motion is on the separatrix."""
+    none = np.empty(3), np.empty((3, 0))
+    if m1 == 0.0 or not math.isfinite(whole):
+        return none
+    K = float(carlson_rf(0.0, m1, 1.0))
+    rates = np.array([math.pi / K, 0.5 * math.pi / K, whole / K])
+    M = 64
+    while M <= SERIES_MAX_SAMPLES:
+        am, dn = np.empty(M), np.empty(M)
+        _amplitudes(2.0 * K * np.arange(M) / M, ratios, scale, m1, am, dn)
+        f = 1.0 / (1.0 + N * np.sin(am) ** 2)
+        spec = np.stack([np.fft.rfft(dn).real, np.fft.rfft(f).real]) * (2.0 / M)
+        top = np.abs(spec[:, M // 4:]).max(axis=1)
+        if np.all(top <= 10.0 * SERIES_FLOOR * np.abs(0.5 * spec[:, 0])):
+            break
+        M *= 2
+    else:
+        return none
+    # up to the first coefficient at round-off (they fall geometrically; later ones are noise)
+    low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * np.abs(0.5 * spec[:, :1])
+    n = int(max(np.argmax(row) if row.any() else row.size for row in low))
+    k = np.arange(1, n + 1)
+    d, fn = spec[0, 1:n + 1], spec[1, 1:n + 1]
+    return rates, np.stack([d, d * K / (k * math.pi), fn * K / (k * math.pi)])
+
+
+@njit(cache=True)
+def _series_sums(rates: np.ndarray, coefs: np.ndarray, u: float
+                 ) -> tuple[float, float, float]:
+    """dn u, am u and Π(−N; am u) from ``_period_series`` (Clenshaw's recurrence for the three
+    sums at once)."""
+    theta = rates[0] * u
+    c, s = math.cos(theta), math.sin(theta)
+    two_c = 2.0 * c
+    d1 = d2 = a1 = a2 = p1 = p2 = 0.0
+    for k in range(coefs.shape[1] - 1, -1, -1):
+        d1, d2 = coefs[0, k] + two_c * d1 - d2, d1
+        a1, a2 = coefs[1, k] + two_c * a1 - a2, a1
+        p1, p2 = coefs[2, k] + two_c * p1 - p2, p1
+    return rates[1] + (d1 * c - d2), rates[1] * u + a1 * s, rates[2] * u + p1 * s
 
 
 
