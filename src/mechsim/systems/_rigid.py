@@ -246,17 +246,39 @@ def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: 
 
 
 @njit(cache=True)
+def _half_angle(y: float, x: float) -> tuple[float, float]:
+    """cos and sin of ½ atan2(y, x) without trigonometry: for x ≥ 0 the cosine √((r + x)/2r)
+    first, else the sine ±√((r − x)/2r) (the sign of y, −0 included), the other from
+    sin α = 2 sin(α/2) cos(α/2) = y/r, so that neither difference cancels; atan2 itself at the
+    origin."""
+    r = math.sqrt(x * x + y * y)
+    if r == 0.0:
+        half = 0.5 * math.atan2(y, x)
+        return math.cos(half), math.sin(half)
+    if x >= 0.0:
+        c = math.sqrt((r + x) / (2.0 * r))
+        return c, y / (2.0 * r * c)
+    sn = math.copysign(math.sqrt((r - x) / (2.0 * r)), y)
+    return y / (2.0 * r * sn), sn
+
+
+@njit(cache=True)
 def _euler_frame(w: np.ndarray, phi: float, axes: np.ndarray, Iw: np.ndarray, flip: float
                  ) -> tuple[float, float, float, float]:
     """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from ω (``free_rotation``): (sin θ/2 cos(φ−ψ)/2,
-    sin θ/2 sin(φ−ψ)/2, cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2)."""
+    sin θ/2 sin(φ−ψ)/2, cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2), with θ = atan2(|L_⊥|, L_a)
+    and ψ = atan2(flip L_i, flip L_j) (+ π when flipped); the half angles of θ and ψ
+    algebraically (``_half_angle``), those of φ ± ψ by the addition theorems."""
     a, i, j = axes[0], axes[3], axes[4]
     na, ni, nj = Iw[a] * w[a], Iw[i] * w[i], Iw[j] * w[j]
-    half = 0.5 * math.atan2(math.hypot(ni, nj), na)
-    psi = math.atan2(flip * ni, flip * nj) + (math.pi if flip < 0.0 else 0.0)
-    d, s = 0.5 * (phi - psi), 0.5 * (phi + psi)
-    sh, ch = math.sin(half), math.cos(half)
-    return sh * math.cos(d), sh * math.sin(d), ch * math.sin(s), ch * math.cos(s)
+    ch, sh = _half_angle(math.sqrt(ni * ni + nj * nj), na)
+    cp, sp = _half_angle(flip * ni, flip * nj)
+    if flip < 0.0:  # ψ/2 + π/2
+        cp, sp = -sp, cp
+    cf, sf = math.cos(0.5 * phi), math.sin(0.5 * phi)
+    cd, sd = cf * cp + sf * sp, sf * cp - cf * sp  # (φ − ψ)/2
+    cs, ss = cf * cp - sf * sp, sf * cp + cf * sp  # (φ + ψ)/2
+    return sh * cd, sh * sd, ch * ss, ch * cs
 
 
 @njit(cache=True)
@@ -473,7 +495,7 @@ def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole:
     return rates, np.stack([d, d * K / (k * math.pi), fn * K / (k * math.pi)])
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})  # fused multiply-adds: one rounding less per step
 def _series_sums(rates: np.ndarray, coefs: np.ndarray, u: float
                  ) -> tuple[float, float, float]:
     """dn u, am u and Π(−N; am u) from ``_period_series`` (Clenshaw's recurrence for the three
@@ -483,9 +505,10 @@ def _series_sums(rates: np.ndarray, coefs: np.ndarray, u: float
     two_c = 2.0 * c
     d1 = d2 = a1 = a2 = p1 = p2 = 0.0
     for k in range(coefs.shape[1] - 1, -1, -1):
-        d1, d2 = coefs[0, k] + two_c * d1 - d2, d1
-        a1, a2 = coefs[1, k] + two_c * a1 - a2, a1
-        p1, p2 = coefs[2, k] + two_c * p1 - p2, p1
+        # (cₖ − b₊₂) + 2 cos θ b₊₁: only the last product and sum wait on the previous step
+        d1, d2 = (coefs[0, k] - d2) + two_c * d1, d1
+        a1, a2 = (coefs[1, k] - a2) + two_c * a1, a1
+        p1, p2 = (coefs[2, k] - p2) + two_c * p1, p1
     return rates[1] + (d1 * c - d2), rates[1] * u + a1 * s, rates[2] * u + p1 * s
 
 
