@@ -35,8 +35,8 @@ def test_series_agree_with_term_by_term(moments: tuple, omega: tuple) -> None:
     assert not isinstance(motion, _rigid.UniformSpin)
     assert motion[-1].shape[1] > 0  # the series are used
     t = np.sort(rng.uniform(0.0, 100.0, 300))
-    rows, W = _rigid.free_rotation(moments, q0, np.array(omega), t, motion)
-    rows2, W2 = _rigid.free_rotation(moments, q0, np.array(omega), t, _term_by_term(motion))
+    rows, W = _rigid.free_rotation_at(motion, t)
+    rows2, W2 = _rigid.free_rotation_at(_term_by_term(motion), t)
     assert np.max(np.abs(W - W2)) < 1e-12 * np.max(np.abs(W2))
     assert np.max(np.abs(rows[:, :4] - rows2[:, :4])) < 1e-11
     assert np.max(np.abs(rows[:, 4:] - rows2[:, 4:])) < 1e-11 * np.max(np.abs(rows2[:, 4:]))

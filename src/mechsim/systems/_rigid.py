@@ -320,13 +320,11 @@ def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: 
 
 
 def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,
-                  t: np.ndarray, motion: FreeMotion | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows [q, q̇] of the attitude q(t) ((x, y, z, w), world_R_body) and its rate
     q̇ = ½ q ⊗ (ω, 0), and rows of the body ω(t), of a torque-free rigid body with principal
     moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; one compiled pass,
-    ``_torque_free_motion``; ``motion``: ``free_motion(moments, q0, w0)`` if already at
-    hand, its constants depend on nothing else).
+    ``_torque_free_motion``): ``free_rotation_at(free_motion(moments, q0, w0), t)``.
 
     ω(t) (Landau & Lifshitz, Mechanics §37; catalog 003 §7.7 [SUPPLEMENT]): with the moments
     relabelled so that the polhode circles axis c (the largest moment if |L|² > 2E I_mid, else
@@ -349,9 +347,12 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     closed form with the elliptic integral of the third kind (``elliptic_pi``; L&L §37 give
     the same angle through theta functions).
     """
+    return free_rotation_at(free_motion(moments, q0, w0), t)
+
+
+def free_rotation_at(motion: FreeMotion, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``free_rotation`` from its constants ``motion`` (``free_motion``) at the times t."""
     t = np.ascontiguousarray(t, dtype=float)
-    if motion is None:
-        motion = free_motion(moments, q0, w0)
     if isinstance(motion, UniformSpin):
         q0, w0, speed, axis = motion
         half = 0.5 * speed * t
@@ -609,8 +610,7 @@ class QuaternionRigidBody(DirectModel):
         t = np.asarray(t, dtype=float)
         y0 = np.asarray(y0, dtype=float)
         rows = np.empty((t.size, len(y0)))
-        rows[:, :8], _ = free_rotation(self.rigid.moments, y0[:4], np.array(rb_omega(y0)),
-                                       t - t0, self._free_motion(y0))
+        rows[:, :8], _ = free_rotation_at(self._free_motion(y0), t - t0)
         rows[:, 8:] = y0[8:]
         return rows
 
