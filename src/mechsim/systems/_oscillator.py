@@ -264,11 +264,13 @@ class LinearOscillator(LagrangianModel):
             y0 = np.asarray(y0, dtype=float)
             key = (float(t0), y0.tobytes(), tuple(self.values.items()))
             cache = self.__dict__.setdefault("_drive_mode_cache", {})
-            if key not in cache:
+            if key in cache:
+                modes = cache.get(key)  # (None too: no modal form)
+            else:
+                modes = self._drive_modes(t0, y0)
                 if len(cache) >= self.MODE_CACHE_SIZE:
                     cache.clear()
-                cache[key] = self._drive_modes(t0, y0)
-            modes = cache[key]
+                cache[key] = modes
             if modes is not None:
                 rows = np.empty((t.size, y0.size))
                 _modal_rows(np.ascontiguousarray(t - t0), *modes, self.value("mass"),

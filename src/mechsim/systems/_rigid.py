@@ -622,8 +622,10 @@ class QuaternionRigidBody(DirectModel):
         (its constants depend on nothing else; t₀ only shifts the times)."""
         key = (y0.tobytes(), tuple(self.values.items()))
         cache = self.__dict__.setdefault("_free_motion_cache", {})
-        if key not in cache:
+        motion = cache.get(key)
+        if motion is None:
+            motion = free_motion(self.rigid.moments, y0[:4], np.array(rb_omega(y0)))
             if len(cache) >= self.MOTION_CACHE_SIZE:
                 cache.clear()
-            cache[key] = free_motion(self.rigid.moments, y0[:4], np.array(rb_omega(y0)))
-        return cache[key]  # type: ignore[no-any-return]
+            cache[key] = motion
+        return motion
