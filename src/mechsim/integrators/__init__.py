@@ -308,7 +308,7 @@ class ClosedForm(Stepper):
         Y = self.model.propagate(self.t0, self.y0, t_out)
         if Y is None:
             raise IntegrationError(f"{self.model.id}: no closed form for these parameters")
-        if not np.all(np.isfinite(Y)):
+        if not np.isfinite(Y).all():
             raise IntegrationError(f"{self.model.id}: exact: non-finite state")
         self.state["n_evaluations"] += 1
         self.t, self.y = float(t_out[-1]), Y[-1].copy()

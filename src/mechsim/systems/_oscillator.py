@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import sympy as sp
+from numba import njit
 
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
@@ -49,20 +50,23 @@ def free_solution(t: np.ndarray, x0: float, v0: float, omega0: float,
     return decay * (x0 * ch + c / w * sh), decay * (v0 * ch - s / w * sh)
 
 
-def free_velocity_modes(x0: float, v0: float, omega0: float, beta: float
-                        ) -> tuple[list[complex], list[complex]] | None:
-    """ẋ(t) of ``free_solution`` as Re Σ A_k e^{z_k t}, as (A, z): underdamped
-    (v₀ + i s/ω₁) e^{(−β + iω₁)t}, s = ω₀²x₀ + βv₀; overdamped ½(v₀ ∓ s/ω₂) e^{(−β ± ω₂)t};
-    None when critical (a polynomial times e^{−βt})."""
+def free_modes(x0: float, v0: float, omega0: float, beta: float
+               ) -> tuple[list[complex], list[complex], list[complex]] | None:
+    """``free_solution`` as sums of modes, x(t) = Re Σ B_k e^{z_k t} and ẋ(t) = Re Σ A_k e^{z_k t},
+    as (B, A, z): underdamped one mode, B = x₀ − i(v₀ + βx₀)/ω₁, A = v₀ + i s/ω₁,
+    z = −β + iω₁ (s = ω₀²x₀ + βv₀); overdamped two, B = ½(x₀ ± (v₀ + βx₀)/ω₂),
+    A = ½(v₀ ∓ s/ω₂), z = −β ± ω₂; None when critical (a polynomial times e^{−βt})."""
     kind = regime(omega0, beta)
     if kind == "critical":
         return None
+    c = v0 + beta * x0
     s = omega0 * omega0 * x0 + beta * v0
     if kind == "underdamped":
         w = math.sqrt(omega0 * omega0 - beta * beta)
-        return [complex(v0, s / w)], [complex(-beta, w)]
+        return [complex(x0, -c / w)], [complex(v0, s / w)], [complex(-beta, w)]
     w = math.sqrt(beta * beta - omega0 * omega0)
-    return ([complex(0.5 * (v0 - s / w)), complex(0.5 * (v0 + s / w))],
+    return ([complex(0.5 * (x0 + c / w)), complex(0.5 * (x0 - c / w))],
+            [complex(0.5 * (v0 - s / w)), complex(0.5 * (v0 + s / w))],
             [complex(-beta + w), complex(-beta - w)])
 
 
@@ -112,27 +116,47 @@ def cumulative_integral(f: object, t0: float, t: np.ndarray, max_piece: float) -
     return np.cumsum(np.bincount(owner, weights=pieces, minlength=t.size))
 
 
-def _expm1_over(w: complex, tau: np.ndarray) -> np.ndarray:
-    """∫₀^τ e^{w s} ds = (e^{wτ} − 1)/w (τ at w = 0), without cancellation for small |wτ|:
-    e^{x+iy} − 1 = expm1(x) cos y − 2 sin²(y/2) + i eˣ sin y."""
-    if w == 0:
-        return tau.astype(complex)
-    x, y = w.real * tau, w.imag * tau
-    num = (np.expm1(x) * np.cos(y) - 2.0 * np.sin(0.5 * y) ** 2) + 1j * (np.exp(x) * np.sin(y))
-    return num / w
-
-
-def square_integral(amps: list[complex], rates: list[complex], tau: np.ndarray) -> np.ndarray:
-    """∫₀^τ v(s)² ds for v(s) = Re Σ_k A_k e^{z_k s} (``amps`` A, ``rates`` z), in closed form:
-    v² = ½ Σ_{k,l} Re(A_k A_l e^{(z_k+z_l)s} + A_k Ā_l e^{(z_k+z̄_l)s})."""
-    total = np.zeros(tau.size)
-    for k in range(len(amps)):
-        for j in range(k, len(amps)):
-            pair = (amps[k] * amps[j] * _expm1_over(rates[k] + rates[j], tau)
-                    + amps[k] * np.conj(amps[j])
-                    * _expm1_over(rates[k] + np.conj(rates[j]), tau)).real
-            total += pair if j == k else 2.0 * pair  # (k, j) and (j, k)
-    return 0.5 * total
+@njit(cache=True)
+def _modal_rows(tau: np.ndarray, amp_x: np.ndarray, amp_v: np.ndarray, rates: np.ndarray,
+                pair_amps: np.ndarray, pair_rates: np.ndarray, m: float, k: float, c: float,
+                y0: np.ndarray, rows: np.ndarray) -> None:
+    """Rows [x, ẋ, W_ext, W_d, rest of y0] at the times τ after the anchor, for
+    x = Re Σ B_j e^{z_j τ}, ẋ = Re Σ A_j e^{z_j τ} (``amp_x`` B, ``amp_v`` A, ``rates`` z) and
+    W_d = y0[3] + c ∫₀^τ ẋ² = y0[3] + c Re Σ C_l (e^{w_l τ} − 1)/w_l (``pair_amps`` C,
+    ``pair_rates`` w; τ where w = 0), e^{wτ} − 1 = e^{a+ib} − 1 summed without cancellation
+    for small |wτ| as expm1(a) cos b − 2 sin²(b/2) + i eᵃ sin b; W_ext closes the energy
+    balance. One compiled pass: ``propagate`` of a driven oscillator."""
+    e0 = 0.5 * m * y0[1] * y0[1] + 0.5 * k * y0[0] * y0[0]
+    for i in range(tau.size):
+        s = tau[i]
+        x = 0.0
+        v = 0.0
+        for j in range(rates.size):
+            e = np.exp(rates[j] * s)
+            x += (amp_x[j] * e).real
+            v += (amp_v[j] * e).real
+        w_int = 0.0
+        for j in range(pair_rates.size):
+            w = pair_rates[j]
+            if w == 0.0:
+                w_int += pair_amps[j].real * s
+                continue
+            a, b = w.real * s, w.imag * s
+            g = math.expm1(a) if a != 0.0 else 0.0
+            if b == 0.0:
+                num = complex(g, 0.0)
+            else:  # cos b = 1 − 2 sin²(b/2), sin b = 2 sin(b/2) cos(b/2), eᵃ = 1 + g
+                sh, ch = math.sin(0.5 * b), math.cos(0.5 * b)
+                num = complex(g * (1.0 - 2.0 * sh * sh) - 2.0 * sh * sh,
+                              (1.0 + g) * 2.0 * sh * ch)
+            w_int += (pair_amps[j] * (num / w)).real
+        w_diss = y0[3] + c * w_int
+        rows[i, 0] = x
+        rows[i, 1] = v
+        rows[i, 2] = y0[2] + (0.5 * m * v * v + 0.5 * k * x * x - e0) + (w_diss - y0[3])
+        rows[i, 3] = w_diss
+        for j in range(4, y0.size):
+            rows[i, j] = y0[j]
 
 
 class LinearOscillator(LagrangianModel):
@@ -193,11 +217,71 @@ class LinearOscillator(LagrangianModel):
             v = v - D * w * np.sin(w * t - phi - delta)
         return x, v
 
+    def _drive_modes(self, t0: float, y0: np.ndarray
+                     ) -> tuple[np.ndarray, ...] | None:
+        """The arguments of ``_modal_rows`` for the motion from (t₀, y₀) under the drive: the
+        transient's modes (``free_modes``) and one e^{iωτ} per tone (x_p = Σ D cos(ωt − φ − δ)
+        = Re Σ D e^{i(ωt₀ − φ − δ)} e^{iωτ}), and the terms of ∫ẋ² over pairs of modes: with
+        ẋ = Re Σ A_k e^{z_k τ}, ẋ² = ½ Σ_{k,l} Re(A_k A_l e^{(z_k+z_l)τ}
+        + A_k Ā_l e^{(z_k+z̄_l)τ}). None at critical damping (no modal form) and at an
+        undamped resonance (no periodic particular solution)."""
+        m, w0, beta = self.value("mass"), self.natural_frequency(), self.beta()
+        at_t0 = self.particular_solution(np.array([t0]))
+        if at_t0 is None:
+            return None
+        xp0, vp0 = at_t0
+        modes = free_modes(float(y0[0] - xp0[0]), float(y0[1] - vp0[0]), w0, beta)
+        if modes is None:
+            return None
+        amp_x, amp_v, rates = modes
+        for F, w, phi in self.drive_tones():
+            D, delta = tone_response(F / m, w, w0, beta)
+            B = D * complex(math.cos(w * t0 - phi - delta), math.sin(w * t0 - phi - delta))
+            amp_x.append(B)
+            amp_v.append(1j * w * B)
+            rates.append(complex(0.0, w))
+        pair_amps: list[complex] = []
+        pair_rates: list[complex] = []
+        for k in range(len(rates)):
+            for j in range(k, len(rates)):
+                f = 0.5 if j == k else 1.0  # ½ Σ_{k,l}: (k, j) and (j, k) alike
+                pair_amps += [f * amp_v[k] * amp_v[j], f * amp_v[k] * np.conj(amp_v[j])]
+                pair_rates += [rates[k] + rates[j], rates[k] + np.conj(rates[j])]
+        return (np.array(amp_x), np.array(amp_v), np.array(rates), np.array(pair_amps),
+                np.array(pair_rates))
+
+    #: Anchors whose drive modes are kept (``propagate``), per model.
+    MODE_CACHE_SIZE = 8
+
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
         """x = x_p + transient (free solution from the state at t₀), x_p the sum of the
         responses to the drive's tones. Work terms: without a drive W_d grows by E(t₀) − E(t);
-        with one, W_d = ∫ b ẋ² dt of the exact ẋ in closed form (``square_integral``; by
-        quadrature at critical damping), and W_ext closes the balance."""
+        with one, W_d = ∫ b ẋ² dt of the exact ẋ in closed form (``_modal_rows``; by
+        quadrature at critical damping), and W_ext closes the balance. A driven motion's modes
+        are computed once per anchor (t₀, y₀) and parameter values, and kept on the model."""
+        t = np.asarray(t, dtype=float)
+        if self.drive_tones():
+            y0 = np.asarray(y0, dtype=float)
+            key = (float(t0), y0.tobytes(), tuple(self.values.items()))
+            cache = self.__dict__.setdefault("_drive_mode_cache", {})
+            if key in cache:
+                modes = cache.get(key)  # (None too: no modal form)
+            else:
+                modes = self._drive_modes(t0, y0)
+                if len(cache) >= self.MODE_CACHE_SIZE:
+                    cache.clear()
+                cache[key] = modes
+            if modes is not None:
+                rows = np.empty((t.size, y0.size))
+                _modal_rows(np.ascontiguousarray(t - t0), *modes, self.value("mass"),
+                            self.value("spring_constant"), self._optional("damping"),
+                            np.ascontiguousarray(y0), rows)
+                return rows
+        return self._propagate_numpy(t0, y0, t)
+
+    def _propagate_numpy(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """``propagate`` without a drive, at critical damping, or at an undamped resonance
+        (None)."""
         t = np.asarray(t, dtype=float)
         m, k, c = self.value("mass"), self.value("spring_constant"), self._optional("damping")
         w0, beta = self.natural_frequency(), self.beta()
@@ -225,25 +309,15 @@ class LinearOscillator(LagrangianModel):
         xp, vp = particular(t)
         x, v = xp + u, vp + du
 
-        # W_d = ∫ b ẋ² dt with ẋ = Re Σ A e^{z τ} (transient modes and one e^{iωτ} per tone:
-        # −Dω sin(ωt − φ − δ) = Re(iDω e^{i(ωt₀ − φ − δ)} e^{iωτ})), in closed form
-        modes = free_velocity_modes(y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
-        if modes is not None:
-            amps, rates = modes
-            for F, w, phi in tones:
-                D, delta = tone_response(F / m, w, w0, beta)
-                amps.append(1j * D * w * complex(math.cos(w * t0 - phi - delta),
-                                                 math.sin(w * t0 - phi - delta)))
-                rates.append(complex(0.0, w))
-            w_diss = y0[3] + c * square_integral(amps, rates, t - t0)
-        else:  # critical damping: quadrature of the exact ẋ
+        # critical damping (the other driven cases go through ``_modal_rows``): quadrature of
+        # the exact ẋ
 
-            def power(s: np.ndarray) -> np.ndarray:
-                xs, vs = particular(s)
-                us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
-                return c * (vs + dus) ** 2
+        def power(s: np.ndarray) -> np.ndarray:
+            xs, vs = particular(s)
+            us, dus = free_solution(s - t0, y0[0] - xp0[0], y0[1] - vp0[0], w0, beta)
+            return c * (vs + dus) ** 2
 
-            piece = 0.05 * 2 * math.pi / max(w0, *(w for _, w, _ in tones))
-            w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
+        piece = 0.05 * 2 * math.pi / max(w0, *(w for _, w, _ in tones))
+        w_diss = y0[3] + cumulative_integral(power, t0, t, piece)
         w_ext = y0[2] + (energy(x, v) - e0) + (w_diss - y0[3])
         return state_rows(y0, [x, v, w_ext, w_diss])

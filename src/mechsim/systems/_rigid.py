@@ -36,13 +36,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from mechsim.systems._elliptic import (
+    _amplitudes,
     agm_ratios,
     am_dn,
+    carlson_rf,
     complete_third_kind,
     elliptic_f,
     third_kind,
@@ -243,28 +246,52 @@ def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: 
 
 
 @njit(cache=True)
+def _half_angle(y: float, x: float) -> tuple[float, float]:
+    """cos and sin of ½ atan2(y, x) without trigonometry: for x ≥ 0 the cosine √((r + x)/2r)
+    first, else the sine ±√((r − x)/2r) (the sign of y, −0 included), the other from
+    sin α = 2 sin(α/2) cos(α/2) = y/r, so that neither difference cancels; atan2 itself at the
+    origin."""
+    r = math.sqrt(x * x + y * y)
+    if r == 0.0:
+        half = 0.5 * math.atan2(y, x)
+        return math.cos(half), math.sin(half)
+    if x >= 0.0:
+        c = math.sqrt((r + x) / (2.0 * r))
+        return c, y / (2.0 * r * c)
+    sn = math.copysign(math.sqrt((r - x) / (2.0 * r)), y)
+    return y / (2.0 * r * sn), sn
+
+
+@njit(cache=True)
 def _euler_frame(w: np.ndarray, phi: float, axes: np.ndarray, Iw: np.ndarray, flip: float
                  ) -> tuple[float, float, float, float]:
     """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from ω (``free_rotation``): (sin θ/2 cos(φ−ψ)/2,
-    sin θ/2 sin(φ−ψ)/2, cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2)."""
+    sin θ/2 sin(φ−ψ)/2, cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2), with θ = atan2(|L_⊥|, L_a)
+    and ψ = atan2(flip L_i, flip L_j) (+ π when flipped); the half angles of θ and ψ
+    algebraically (``_half_angle``), those of φ ± ψ by the addition theorems."""
     a, i, j = axes[0], axes[3], axes[4]
     na, ni, nj = Iw[a] * w[a], Iw[i] * w[i], Iw[j] * w[j]
-    half = 0.5 * math.atan2(math.hypot(ni, nj), na)
-    psi = math.atan2(flip * ni, flip * nj) + (math.pi if flip < 0.0 else 0.0)
-    d, s = 0.5 * (phi - psi), 0.5 * (phi + psi)
-    sh, ch = math.sin(half), math.cos(half)
-    return sh * math.cos(d), sh * math.sin(d), ch * math.sin(s), ch * math.cos(s)
+    ch, sh = _half_angle(math.sqrt(ni * ni + nj * nj), na)
+    cp, sp = _half_angle(flip * ni, flip * nj)
+    if flip < 0.0:  # ψ/2 + π/2
+        cp, sp = -sp, cp
+    cf, sf = math.cos(0.5 * phi), math.sin(0.5 * phi)
+    cd, sd = cf * cp + sf * sp, sf * cp - cf * sp  # (φ − ψ)/2
+    cs, ss = cf * cp - sf * sp, sf * cp + cf * sp  # (φ + ψ)/2
+    return sh * cd, sh * sd, ch * ss, ch * cs
 
 
 @njit(cache=True)
 def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: np.ndarray,
                         Iw: np.ndarray, w0: np.ndarray, q0: np.ndarray, p: np.ndarray,
-                        rows: np.ndarray, W: np.ndarray) -> None:
+                        rates: np.ndarray, coefs: np.ndarray, rows: np.ndarray,
+                        W: np.ndarray) -> None:
     """Rows [q, q̇ = ½ q ⊗ (ω, 0)] and ω of ``free_rotation`` at each time t (see there).
     ``c`` = (ν, u₀, 2^N a_N, m1, N, Π(−N | m), Π(−N; am u₀), λ/I_a, λ(I_c − I_a)/(I_a I_c ν),
     A_a, ±A_b, ±A_c, flip), ``axes`` = (a, b, c, i, j), ``Iw`` = I/|L|; φ = (λ/I_a) t −
     λ(I_c − I_a)/(I_a I_c ν) (Π(−N; am u) − Π(−N; am u₀)); q = g ⊗ e ⊗ p*, e the Euler frame,
-    g = q0 ⊗ p ⊗ e(0)*."""
+    g = q0 ⊗ p ⊗ e(0)*. am u, dn u and Π(−N; am u) from the Fourier series ``rates``,
+    ``coefs`` (``_period_series``) where it has terms, else by ``am_dn`` and ``third_kind``."""
     nu, u0, scale, m1, N, whole, turn0 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
     precession, wobble, flip = c[7], c[8], c[12]
     a, b, cc = axes[0], axes[1], axes[2]
@@ -272,10 +299,16 @@ def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: 
     g = _qmul(*_qmul(q0[0], q0[1], q0[2], q0[3], p[0], p[1], p[2], p[3]),
               -e0[0], -e0[1], -e0[2], e0[3])
     w = np.empty(3)
+    series = coefs.shape[1] > 0
     for k in range(t.size):
-        am, dn = am_dn(nu * t[k] + u0, ratios, scale, m1)
+        u = nu * t[k] + u0
+        if series:
+            dn, am, turn = _series_sums(rates, coefs, u)
+        else:
+            am, dn = am_dn(u, ratios, scale, m1)
+            turn = third_kind(-N, am, m1, whole)
         w[a], w[b], w[cc] = c[9] * math.cos(am), c[10] * math.sin(am), c[11] * dn
-        phi = precession * t[k] - wobble * (third_kind(-N, am, m1, whole) - turn0)
+        phi = precession * t[k] - wobble * (turn - turn0)
         e = _euler_frame(w, phi, axes, Iw, flip)
         q = _qmul(*_qmul(g[0], g[1], g[2], g[3], e[0], e[1], e[2], e[3]),
                   -p[0], -p[1], -p[2], p[3])
@@ -291,7 +324,7 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     """Rows [q, q̇] of the attitude q(t) ((x, y, z, w), world_R_body) and its rate
     q̇ = ½ q ⊗ (ω, 0), and rows of the body ω(t), of a torque-free rigid body with principal
     moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; one compiled pass,
-    ``_torque_free_motion``).
+    ``_torque_free_motion``): ``free_rotation_at(free_motion(moments, q0, w0), t)``.
 
     ω(t) (Landau & Lifshitz, Mechanics §37; catalog 003 §7.7 [SUPPLEMENT]): with the moments
     relabelled so that the polhode circles axis c (the largest moment if |L|² > 2E I_mid, else
@@ -314,7 +347,44 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     closed form with the elliptic integral of the third kind (``elliptic_pi``; L&L §37 give
     the same angle through theta functions).
     """
+    return free_rotation_at(free_motion(moments, q0, w0), t)
+
+
+def free_rotation_at(motion: FreeMotion, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``free_rotation`` from its constants ``motion`` (``free_motion``) at the times t."""
     t = np.ascontiguousarray(t, dtype=float)
+    if isinstance(motion, UniformSpin):
+        q0, w0, speed, axis = motion
+        half = 0.5 * speed * t
+        turn = (axis[0] * np.sin(half), axis[1] * np.sin(half), axis[2] * np.sin(half),
+                np.cos(half))
+        Q = quat_product(tuple(q0), turn)
+        Qd = quat_product(Q, (w0[0], w0[1], w0[2], 0.0))
+        return (np.stack([*Q, *(0.5 * x for x in Qd)], axis=1),
+                np.repeat(w0[None, :], t.size, axis=0))
+    rows, W = np.empty((t.size, 8)), np.empty((t.size, 3))
+    _torque_free_motion(t, *motion, rows, W)
+    return rows, W
+
+
+class UniformSpin(NamedTuple):
+    """``free_motion`` at rest or spinning about a principal axis: ω = w0 constant,
+    q(t) = q0 ⊗ exp(ω t / 2), ``speed`` = |ω|, ``axis`` = ω/|ω| (z at rest)."""
+
+    q0: np.ndarray
+    w0: np.ndarray
+    speed: float
+    axis: np.ndarray
+
+
+#: The arguments of ``_torque_free_motion`` between the times and the outputs (c, ratios,
+#: axes, Iw, w0, q0, p, rates, coefs), or a uniform spin.
+FreeMotion = tuple[np.ndarray, ...] | UniformSpin
+
+
+def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray
+                ) -> FreeMotion:
+    """The constants of ``free_rotation`` from q(0) = q0, ω(0) = w0 (see there)."""
     I = np.asarray(moments, dtype=float)
     w0 = np.asarray(w0, dtype=float)
     q0 = np.asarray(q0, dtype=float)
@@ -328,13 +398,7 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
         # at rest, or spinning about a principal axis: ω constant, q(t) = q0 ⊗ exp(ω t / 2)
         speed = float(np.linalg.norm(w0))
         axis = w0 / speed if speed > 0 else np.array([0.0, 0.0, 1.0])
-        half = 0.5 * speed * t
-        turn = (axis[0] * np.sin(half), axis[1] * np.sin(half), axis[2] * np.sin(half),
-                np.cos(half))
-        Q = quat_product(tuple(q0), turn)
-        Qd = quat_product(Q, (w0[0], w0[1], w0[2], 0.0))
-        return (np.stack([*Q, *(0.5 * x for x in Qd)], axis=1),
-                np.repeat(w0[None, :], t.size, axis=0))
+        return UniformSpin(q0, w0, speed, axis)
     order = np.argsort(I, kind="stable")
     mid = int(order[1])
     # which axis the polhode circles: sign of |L|² − 2E I_mid, summed without cancellation
@@ -379,10 +443,76 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     consts = np.array([nu, u0, scale, m1, N, whole, turn0, lam / Ia,
                        lam * (Ic - Ia) / (Ia * Ic * nu), amp_a, s_b * amp_b, s_c * amp_c,
                        flip])
-    rows, W = np.empty((t.size, 8)), np.empty((t.size, 3))
-    _torque_free_motion(t, consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p,
-                        rows, W)
-    return rows, W
+    rates, coefs = _period_series(ratios, scale, m1, N, whole)
+    if coefs.size:
+        consts[6] = _series_sums(rates, coefs, u0)[2]  # Π(−N; am u₀) from the same series
+    return (consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p, rates, coefs)
+
+
+#: Fourier series of one period of dn u and 1/(1 + N sn²u) are kept up to the last
+#: coefficient above this (relative to the function's mean): beyond, terms are below round-off
+#: (the FFT's own round-off is about 1e-16); sampled densely enough once the upper half of the
+#: spectrum is below ten times it.
+SERIES_FLOOR = 1e-16
+#: The most samples per period tried for the series; a motion needing more (close to the
+#: separatrix, where the period 2K grows without bound) is evaluated term by term instead.
+SERIES_MAX_SAMPLES = 2048
+
+
+def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """dn u and Π(−N; am u) as Fourier series over the period 2K of u, for ``_torque_free_motion``
+    to evaluate in a few operations per sample instead of the descending recursion and
+    Carlson's R_F, R_J: with θ = πu/K, dn u = π/2K + Σ dₙ cos nθ, so am u = ∫dn =
+    πu/2K + Σ dₙ (K/nπ) sin nθ, and likewise 1/(1 + N sn²u) = Π(−N | m)/K + Σ fₙ cos nθ gives
+    Π(−N; am u) = (Π(−N | m)/K) u + Σ fₙ (K/nπ) sin nθ. The coefficients come from samples
+    of one period (FFT), doubled until the upper half of the spectrum is below round-off
+    (both functions are analytic, so the coefficients fall geometrically). Returns ``rates``
+    (π/K, π/2K, Π(−N | m)/K) and ``coefs`` (3, n): dₙ, then the sine coefficients of am and
+    Π; no coefficients (shape (3, 0)) where the series would need more than
+    ``SERIES_MAX_SAMPLES`` samples or the motion is on the separatrix."""
+    none = np.empty(3), np.empty((3, 0))
+    if m1 == 0.0 or not math.isfinite(whole):
+        return none
+    K = float(carlson_rf(0.0, m1, 1.0))
+    rates = np.array([math.pi / K, 0.5 * math.pi / K, whole / K])
+    M = 64
+    while M <= SERIES_MAX_SAMPLES:
+        am, dn = np.empty(M), np.empty(M)
+        _amplitudes(2.0 * K * np.arange(M) / M, ratios, scale, m1, am, dn)
+        f = 1.0 / (1.0 + N * np.sin(am) ** 2)
+        spec = np.stack([np.fft.rfft(dn).real, np.fft.rfft(f).real]) * (2.0 / M)
+        top = np.abs(spec[:, M // 4:]).max(axis=1)
+        if np.all(top <= 10.0 * SERIES_FLOOR * np.abs(0.5 * spec[:, 0])):
+            break
+        M *= 2
+    else:
+        return none
+    # up to the first coefficient at round-off (they fall geometrically; later ones are noise)
+    low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * np.abs(0.5 * spec[:, :1])
+    n = int(max(np.argmax(row) if row.any() else row.size for row in low))
+    k = np.arange(1, n + 1)
+    d, fn = spec[0, 1:n + 1], spec[1, 1:n + 1]
+    return rates, np.stack([d, d * K / (k * math.pi), fn * K / (k * math.pi)])
+
+
+@njit(cache=True, fastmath={"contract"})  # fused multiply-adds: one rounding less per step
+def _series_sums(rates: np.ndarray, coefs: np.ndarray, u: float
+                 ) -> tuple[float, float, float]:
+    """dn u, am u and Π(−N; am u) from ``_period_series`` (Clenshaw's recurrence for the three
+    sums at once)."""
+    theta = rates[0] * u
+    c, s = math.cos(theta), math.sin(theta)
+    two_c = 2.0 * c
+    d1 = d2 = a1 = a2 = p1 = p2 = 0.0
+    for k in range(coefs.shape[1] - 1, -1, -1):
+        # (cₖ − b₊₂) + 2 cos θ b₊₁: only the last product and sum wait on the previous step
+        d1, d2 = (coefs[0, k] - d2) + two_c * d1, d1
+        a1, a2 = (coefs[1, k] - a2) + two_c * a1, a1
+        p1, p2 = (coefs[2, k] - p2) + two_c * p1, p1
+    return rates[1] + (d1 * c - d2), rates[1] * u + a1 * s, rates[2] * u + p1 * s
+
+
 
 
 @dataclass(frozen=True)
@@ -478,8 +608,24 @@ class QuaternionRigidBody(DirectModel):
         if not self.torque_free():
             return None
         t = np.asarray(t, dtype=float)
+        y0 = np.asarray(y0, dtype=float)
         rows = np.empty((t.size, len(y0)))
-        rows[:, :8], _ = free_rotation(self.rigid.moments, y0[:4], np.array(rb_omega(y0)),
-                                       t - t0)
+        rows[:, :8], _ = free_rotation_at(self._free_motion(y0), t - t0)
         rows[:, 8:] = y0[8:]
         return rows
+
+    #: Initial states whose ``free_motion`` is kept (``propagate``), per model.
+    MOTION_CACHE_SIZE = 8
+
+    def _free_motion(self, y0: np.ndarray) -> FreeMotion:
+        """``free_motion`` from the state y0, computed once per state and parameter values
+        (its constants depend on nothing else; t₀ only shifts the times)."""
+        key = (y0.tobytes(), tuple(self.values.items()))
+        cache = self.__dict__.setdefault("_free_motion_cache", {})
+        motion = cache.get(key)
+        if motion is None:
+            motion = free_motion(self.rigid.moments, y0[:4], np.array(rb_omega(y0)))
+            if len(cache) >= self.MOTION_CACHE_SIZE:
+                cache.clear()
+            cache[key] = motion
+        return motion
