@@ -63,3 +63,16 @@ def test_step_halving_when_stage_iteration_fails() -> None:
 def test_refused_where_not_applicable() -> None:
     with pytest.raises(mechsim.ParameterError, match="gauss6 needs a conservative"):
         mechsim.simulate(mechsim.load_system("driven_oscillator"), 1.0, 0.1, method="gauss6")
+
+
+@pytest.mark.parametrize("method", ["gauss6", "yoshida8"])
+def test_step_sizing_follows_a_new_model(method: str) -> None:
+    """The fixed-step methods keep the model's time scale between their step estimates; a
+    new model (new parameter values) is asked again, so the step follows it."""
+    short = mechsim.load_system("pendulum", length=0.25)
+    stepper = make_stepper(mechsim.load_system("pendulum"), method, 1e-8)
+    stepper.advance(np.array([0.5]))
+    assert stepper.time_scale() == mechsim.load_system("pendulum").time_scale()
+    stepper.set_model(short)
+    assert stepper.time_scale() == short.time_scale() != mechsim.load_system(
+        "pendulum").time_scale()
