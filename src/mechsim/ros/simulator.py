@@ -449,7 +449,7 @@ class SimulatorNode(Node):
                 columns[self.t_obs] = {name: c.observables[:, j]
                                        for j, name in enumerate(f.observable_names)}
             if c.frames is not None and needs_columns(self.t_tf):
-                columns[self.t_tf] = f.transform_columns(c.frames)
+                columns[self.t_tf] = f.transform_columns(c.frames, c.placed_frames(f))
             if self.publish_clock:
                 topics.append((self.t_clock, encode("clock", self.t_clock),
                                lambda i: messages.clock(int(ns[i]))))
