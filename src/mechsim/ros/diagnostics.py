@@ -406,8 +406,50 @@ class DiagnosticsNode(Node):
 
     def _samples(self, st: SystemState, stream: str, stamps: np.ndarray, values: Any) -> None:
         """Samples of one stream, in the order they were sent (one message, or a chunk):
-        ``values`` as :meth:`feed_chunk` takes them (or an Energy message). A stamp not later
-        than the one before it starts a new epoch there."""
+        ``values`` as :meth:`feed_chunk` takes them (or an Energy message)."""
+        taken, matrix = self._law_values(st, stream, values, len(stamps))
+        self._track(st, stream, stamps, taken, matrix)
+
+    def law_rows(self, ns: str, stream: str, values: Any, n: int
+                 ) -> tuple[list[LawState], np.ndarray] | None:
+        """The values of the laws ``ns``'s ``stream`` carries, for ``n`` samples given as
+        :meth:`feed_chunk` takes them: (laws, laws × n matrix), for :meth:`feed_rows`; None
+        for a system or stream not followed. Valid until the system's laws change (a
+        system_info)."""
+        st = self.systems.get(ns)
+        if st is None or stream not in ("energy", "invariants"):
+            return None
+        return self._law_values(st, stream, values, n)
+
+    def feed_rows(self, ns: str, stream: str, stamps: np.ndarray, laws: list[LawState],
+                  matrix: np.ndarray) -> None:
+        """:meth:`feed_chunk` with the law values already taken (:meth:`law_rows`)."""
+        st = self.systems.get(ns)
+        if st is None or len(stamps) == 0:
+            return
+        self._seen(st, ns)
+        self._track(st, stream, np.asarray(stamps, dtype=np.int64), laws, matrix)
+
+    @staticmethod
+    def _law_values(st: SystemState, stream: str, values: Any, n: int
+                    ) -> tuple[list[LawState], np.ndarray]:
+        """The laws of ``stream`` that ``values`` has, and their values (laws × n)."""
+        taken: list[LawState] = []
+        rows = []
+        for law in st.streams.get(stream, []):
+            if stream == "energy":
+                rows.append(law.law.value(energy=values))
+            elif law.law.name in values:
+                rows.append(law.law.value(invariants=values))
+            else:
+                continue
+            taken.append(law)
+        return taken, np.array(rows, dtype=float).reshape(len(rows), n)
+
+    def _track(self, st: SystemState, stream: str, stamps: np.ndarray,
+               taken: list[LawState], matrix: np.ndarray) -> None:
+        """Track ``taken`` over samples stamped ``stamps`` (their values: ``matrix``). A
+        stamp not later than the one before it starts a new epoch there."""
         n = len(stamps)
         previous = st.stamps.get(stream)
         last = int(stamps[-1])
@@ -421,19 +463,12 @@ class DiagnosticsNode(Node):
                 starts = (np.flatnonzero(back) + 1).tolist()
         if previous is not None and int(stamps[0]) <= previous:
             starts.insert(0, 0)
+        if not starts:
+            if taken and n:
+                track(taken, matrix)
+            return
         laws = st.streams.get(stream, [])
-        taken: list[LawState] = []
-        rows = []
-        for law in laws:
-            if stream == "energy":
-                rows.append(law.law.value(energy=values))
-            elif law.law.name in values:
-                rows.append(law.law.value(invariants=values))
-            else:
-                continue
-            taken.append(law)
-        matrix = np.array(rows, dtype=float).reshape(len(rows), n)
-        edges = starts if starts and starts[0] == 0 else [0, *starts]
+        edges = starts if starts[0] == 0 else [0, *starts]
         for a, b in zip(edges, [*edges[1:], n], strict=True):
             if a in starts:
                 st.epoch += 1
