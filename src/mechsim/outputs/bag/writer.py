@@ -268,13 +268,14 @@ class BagWriter:
                 self._write_item(w, item)
                 self.write_seconds += time.perf_counter() - started
             meta = bag_metadata(self.stats, self.file_name)
-            w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
+            dumped = dump_yaml(meta)
+            w.add_metadata("rosbag2", {"serialized_metadata": dumped})
             w.finish()
         finally:
             w.chunk_indexes.close()
         self._file.flush()
         os.fsync(self._file.fileno())
-        write_atomic(self.path / METADATA_FILE, metadata_text(meta))
+        write_atomic(self.path / METADATA_FILE, metadata_text(meta, dumped))
 
     def _write_item(self, w: McapFile, item: Any) -> None:
         channels = self._channels
