@@ -11,7 +11,7 @@ zero, the frame's origin being fixed). Invariants and observables are ``NamedSca
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import yaml
@@ -215,6 +215,16 @@ class Chunk:
     #: ``frames`` as published (``MessageFactory.placed``), made once for the chunk's /tf
     #: rows and columns (see :meth:`placed_frames`).
     placed: np.ndarray | None = None
+    _time_rows: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def time_rows(self) -> np.ndarray:
+        """The Time fields of the chunk's stamps (``cdr.time_rows``), made once for all its
+        topics."""
+        if self._time_rows is None:
+            from mechsim.outputs.cdr import time_rows
+
+            self._time_rows = time_rows(self.ns)
+        return self._time_rows
 
     def placed_frames(self, factory: MessageFactory) -> np.ndarray:
         """The chunk's frames as ``factory`` publishes them (made at the first call)."""
@@ -337,32 +347,40 @@ class ChunkEncoder:
         "observables", "tf", "clock") for the chunk ("pose" and "twist" only for a model
         with an attitude)."""
         j = self.factory.joints
+        # The Time fields made once for all the topics (one sample: packed with struct).
+        times = c.time_rows() if c.ns.shape[0] > 1 else None
         if topic == "state":
-            return self.state.encode(c.ns, [(self.q, c.q[:, j]), (self.v, c.v[:, j])])
+            return self.state.encode(c.ns, [(self.q, c.q[:, j]), (self.v, c.v[:, j])],
+                                     times)
         if topic == "pose":
             a = self.factory.attitude
             assert a is not None
-            return self.pose.encode(c.ns, [(self.orientation, a.orientation(c.q))])
+            return self.pose.encode(c.ns, [(self.orientation, a.orientation(c.q))],
+                                    times)
         if topic == "twist":
             a = self.factory.attitude
             assert a is not None
-            return self.twist.encode(c.ns, [(self.angular, a.angular_velocity(c.q, c.v))])
+            return self.twist.encode(c.ns, [(self.angular, a.angular_velocity(c.q, c.v))],
+                                     times)
         if topic == "energy":
             assert c.energy is not None
             e = EnergyColumns.of(c)
             terms = np.column_stack([e.kinetic, e.potential, e.total, e.energy_function,
                                      e.work_external, e.work_dissipated])
-            return self.energy.encode(c.ns, [(self.energy_terms, terms)])
+            return self.energy.encode(c.ns, [(self.energy_terms, terms)], times)
         if topic == "invariants":
             assert c.invariants is not None
-            return self.invariants.encode(c.ns, [(self.invariant_values, c.invariants)])
+            return self.invariants.encode(c.ns, [(self.invariant_values, c.invariants)],
+                                          times)
         if topic == "observables":
             assert c.observables is not None
-            return self.observables.encode(c.ns, [(self.observable_values, c.observables)])
+            return self.observables.encode(c.ns, [(self.observable_values, c.observables)],
+                                           times)
         if topic == "tf":
             assert c.frames is not None
             placed = c.placed_frames(self.factory)[:, self.dynamic, :]
-            return self.tf.encode(c.ns, [(self.tf_values, placed.reshape(len(c.ns), -1))])
+            return self.tf.encode(c.ns, [(self.tf_values, placed.reshape(len(c.ns), -1))],
+                                  times)
         if topic == "clock":
-            return self.clock.encode(c.ns)
+            return self.clock.encode(c.ns, (), times)
         raise KeyError(topic)
