@@ -122,6 +122,16 @@ class Block:
     runs: tuple[tuple[int, int, int], ...]
 
 
+def time_rows(ns: np.ndarray) -> np.ndarray:
+    """(N, 8) uint8: the builtin_interfaces/Time fields (int32 sec, uint32 nanosec) of the
+    stamps ``ns`` (int64 nanoseconds), as :meth:`Layout.encode` writes them."""
+    ns = np.asarray(ns, dtype=np.int64)
+    t = np.empty((ns.shape[0], 2), dtype="<u4")
+    t[:, 0] = (ns // 1_000_000_000).astype("<i4").view("<u4")
+    t[:, 1] = (ns % 1_000_000_000).astype("<u4")
+    return t.view(np.uint8)
+
+
 class Layout:
     """The CDR bytes of ``type_name`` with the shape of ``prototype`` (see the module
     docstring). ``size`` includes the 4-byte encapsulation header."""
@@ -158,21 +168,18 @@ class Layout:
                 start = j
         return Block(dt, len(paths), tuple(runs))
 
-    def encode(self, ns: np.ndarray, blocks: Sequence[tuple[Block, np.ndarray]] = ()
-               ) -> np.ndarray:
-        """(N, size) uint8: one message per row, Time fields from ``ns`` (int64 nanoseconds)
-        and each block from its (N, k) matrix (a 1-D array for k = 1)."""
+    def encode(self, ns: np.ndarray, blocks: Sequence[tuple[Block, np.ndarray]] = (),
+               times: np.ndarray | None = None) -> np.ndarray:
+        """(N, size) uint8: one message per row, Time fields from ``ns`` (int64 nanoseconds;
+        ``times``: ``time_rows(ns)`` if already made) and each block from its (N, k) matrix
+        (a 1-D array for k = 1)."""
         n = int(np.shape(ns)[0])
         if n == 1:
             return self._encode_one(int(np.asarray(ns).reshape(-1)[0]), blocks)
         out = np.empty((n, self.size), dtype=np.uint8)
         out[:] = self.template
         if self.time_offsets:
-            ns = np.asarray(ns, dtype=np.int64)
-            t = np.empty((n, 2), dtype="<u4")
-            t[:, 0] = (ns // 1_000_000_000).astype("<i4").view("<u4")
-            t[:, 1] = (ns % 1_000_000_000).astype("<u4")
-            tb = t.view(np.uint8)
+            tb = time_rows(ns) if times is None else times
             for off in self.time_offsets:
                 out[:, off:off + 8] = tb
         for block, values in blocks:

@@ -11,7 +11,7 @@ zero, the frame's origin being fixed). Invariants and observables are ``NamedSca
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import yaml
@@ -77,6 +77,9 @@ class MessageFactory:
         self.invariant_units = [q.unit for q in model.invariants]
         self.observable_names = [q.name for q in model.observables]
         self.observable_units = [q.unit for q in model.observables]
+        #: The frames whose parent is the world (moved by the origin), and the others.
+        self._world = [k for k, f in enumerate(model.frames) if f.parent == "world"]
+        self._origin = np.asarray(origin, dtype=float)
 
     def frame_id(self, frame: str) -> str:
         return "world" if frame == "world" else f"{self.name}/{frame}"
@@ -141,8 +144,7 @@ class MessageFactory:
         frames whose parent is the world moved by the instance's origin, quaternions
         normalised (a zero quaternion left as it is)."""
         out = np.array(frames, dtype=float)
-        world = [k for k, f in enumerate(self.model.frames) if f.parent == "world"]
-        out[..., world, :3] += np.asarray(self.origin, dtype=float)
+        out[..., self._world, :3] += self._origin
         norm = np.sqrt(np.sum(out[..., 3:] * out[..., 3:], axis=-1, keepdims=True))
         out[..., 3:] /= np.where(norm == 0.0, 1.0, norm)
         return out
@@ -164,14 +166,15 @@ class MessageFactory:
             out.append(t)
         return out
 
-    def transform_columns(self, frames: np.ndarray) -> TransformColumns:
+    def transform_columns(self, frames: np.ndarray,
+                          placed: np.ndarray | None = None) -> TransformColumns:
         """The /tf transforms of a chunk (``frames``: (samples, frames, 7) as the model
-        computes them)."""
+        computes them; ``placed``: ``placed(frames)`` if already made)."""
         dynamic = [spec for spec in self.model.frames if not spec.static]
         keep = [k for k, spec in enumerate(self.model.frames) if not spec.static]
+        placed = self.placed(frames) if placed is None else placed
         return TransformColumns([self.frame_id(f.parent) for f in dynamic],
-                                [self.frame_id(f.child) for f in dynamic],
-                                self.placed(frames)[:, keep, :])
+                                [self.frame_id(f.child) for f in dynamic], placed[:, keep, :])
 
     def tf(self, s: Sample, ns: int) -> TFMessage:
         assert s.frames is not None
@@ -209,6 +212,26 @@ class Chunk:
     invariants: np.ndarray | None = None  # (N, invariants)
     observables: np.ndarray | None = None  # (N, observables)
     frames: np.ndarray | None = None  # (N, frames, 7), as the model computes them
+    #: ``frames`` as published (``MessageFactory.placed``), made once for the chunk's /tf
+    #: rows and columns (see :meth:`placed_frames`).
+    placed: np.ndarray | None = None
+    _time_rows: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def time_rows(self) -> np.ndarray:
+        """The Time fields of the chunk's stamps (``cdr.time_rows``), made once for all its
+        topics."""
+        if self._time_rows is None:
+            from mechsim.outputs.cdr import time_rows
+
+            self._time_rows = time_rows(self.ns)
+        return self._time_rows
+
+    def placed_frames(self, factory: MessageFactory) -> np.ndarray:
+        """The chunk's frames as ``factory`` publishes them (made at the first call)."""
+        assert self.frames is not None
+        if self.placed is None:
+            self.placed = factory.placed(self.frames)
+        return self.placed
 
 
 @dataclass
@@ -324,32 +347,40 @@ class ChunkEncoder:
         "observables", "tf", "clock") for the chunk ("pose" and "twist" only for a model
         with an attitude)."""
         j = self.factory.joints
+        # The Time fields made once for all the topics (one sample: packed with struct).
+        times = c.time_rows() if c.ns.shape[0] > 1 else None
         if topic == "state":
-            return self.state.encode(c.ns, [(self.q, c.q[:, j]), (self.v, c.v[:, j])])
+            return self.state.encode(c.ns, [(self.q, c.q[:, j]), (self.v, c.v[:, j])],
+                                     times)
         if topic == "pose":
             a = self.factory.attitude
             assert a is not None
-            return self.pose.encode(c.ns, [(self.orientation, a.orientation(c.q))])
+            return self.pose.encode(c.ns, [(self.orientation, a.orientation(c.q))],
+                                    times)
         if topic == "twist":
             a = self.factory.attitude
             assert a is not None
-            return self.twist.encode(c.ns, [(self.angular, a.angular_velocity(c.q, c.v))])
+            return self.twist.encode(c.ns, [(self.angular, a.angular_velocity(c.q, c.v))],
+                                     times)
         if topic == "energy":
             assert c.energy is not None
             e = EnergyColumns.of(c)
             terms = np.column_stack([e.kinetic, e.potential, e.total, e.energy_function,
                                      e.work_external, e.work_dissipated])
-            return self.energy.encode(c.ns, [(self.energy_terms, terms)])
+            return self.energy.encode(c.ns, [(self.energy_terms, terms)], times)
         if topic == "invariants":
             assert c.invariants is not None
-            return self.invariants.encode(c.ns, [(self.invariant_values, c.invariants)])
+            return self.invariants.encode(c.ns, [(self.invariant_values, c.invariants)],
+                                          times)
         if topic == "observables":
             assert c.observables is not None
-            return self.observables.encode(c.ns, [(self.observable_values, c.observables)])
+            return self.observables.encode(c.ns, [(self.observable_values, c.observables)],
+                                           times)
         if topic == "tf":
             assert c.frames is not None
-            placed = self.factory.placed(c.frames)[:, self.dynamic, :]
-            return self.tf.encode(c.ns, [(self.tf_values, placed.reshape(len(c.ns), -1))])
+            placed = c.placed_frames(self.factory)[:, self.dynamic, :]
+            return self.tf.encode(c.ns, [(self.tf_values, placed.reshape(len(c.ns), -1))],
+                                  times)
         if topic == "clock":
-            return self.clock.encode(c.ns)
+            return self.clock.encode(c.ns, (), times)
         raise KeyError(topic)

@@ -52,7 +52,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from std_msgs.msg import Header
 
-from mechsim.outputs.bag.typeinfo import encode_message
+from mechsim.outputs.bag.typeinfo import StatusRow, encode_diagnostic_array
 from mechsim.outputs.sink import Sink
 from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet
 from mechsim.systems.base import LEVEL_NAMES, Law
@@ -406,8 +406,50 @@ class DiagnosticsNode(Node):
 
     def _samples(self, st: SystemState, stream: str, stamps: np.ndarray, values: Any) -> None:
         """Samples of one stream, in the order they were sent (one message, or a chunk):
-        ``values`` as :meth:`feed_chunk` takes them (or an Energy message). A stamp not later
-        than the one before it starts a new epoch there."""
+        ``values`` as :meth:`feed_chunk` takes them (or an Energy message)."""
+        taken, matrix = self._law_values(st, stream, values, len(stamps))
+        self._track(st, stream, stamps, taken, matrix)
+
+    def law_rows(self, ns: str, stream: str, values: Any, n: int
+                 ) -> tuple[list[LawState], np.ndarray] | None:
+        """The values of the laws ``ns``'s ``stream`` carries, for ``n`` samples given as
+        :meth:`feed_chunk` takes them: (laws, laws × n matrix), for :meth:`feed_rows`; None
+        for a system or stream not followed. Valid until the system's laws change (a
+        system_info)."""
+        st = self.systems.get(ns)
+        if st is None or stream not in ("energy", "invariants"):
+            return None
+        return self._law_values(st, stream, values, n)
+
+    def feed_rows(self, ns: str, stream: str, stamps: np.ndarray, laws: list[LawState],
+                  matrix: np.ndarray) -> None:
+        """:meth:`feed_chunk` with the law values already taken (:meth:`law_rows`)."""
+        st = self.systems.get(ns)
+        if st is None or len(stamps) == 0:
+            return
+        self._seen(st, ns)
+        self._track(st, stream, np.asarray(stamps, dtype=np.int64), laws, matrix)
+
+    @staticmethod
+    def _law_values(st: SystemState, stream: str, values: Any, n: int
+                    ) -> tuple[list[LawState], np.ndarray]:
+        """The laws of ``stream`` that ``values`` has, and their values (laws × n)."""
+        taken: list[LawState] = []
+        rows = []
+        for law in st.streams.get(stream, []):
+            if stream == "energy":
+                rows.append(law.law.value(energy=values))
+            elif law.law.name in values:
+                rows.append(law.law.value(invariants=values))
+            else:
+                continue
+            taken.append(law)
+        return taken, np.array(rows, dtype=float).reshape(len(rows), n)
+
+    def _track(self, st: SystemState, stream: str, stamps: np.ndarray,
+               taken: list[LawState], matrix: np.ndarray) -> None:
+        """Track ``taken`` over samples stamped ``stamps`` (their values: ``matrix``). A
+        stamp not later than the one before it starts a new epoch there."""
         n = len(stamps)
         previous = st.stamps.get(stream)
         last = int(stamps[-1])
@@ -421,19 +463,12 @@ class DiagnosticsNode(Node):
                 starts = (np.flatnonzero(back) + 1).tolist()
         if previous is not None and int(stamps[0]) <= previous:
             starts.insert(0, 0)
+        if not starts:
+            if taken and n:
+                track(taken, matrix)
+            return
         laws = st.streams.get(stream, [])
-        taken: list[LawState] = []
-        rows = []
-        for law in laws:
-            if stream == "energy":
-                rows.append(law.law.value(energy=values))
-            elif law.law.name in values:
-                rows.append(law.law.value(invariants=values))
-            else:
-                continue
-            taken.append(law)
-        matrix = np.array(rows, dtype=float).reshape(len(rows), n)
-        edges = starts if starts and starts[0] == 0 else [0, *starts]
+        edges = starts if starts[0] == 0 else [0, *starts]
         for a, b in zip(edges, [*edges[1:], n], strict=True):
             if a in starts:
                 st.epoch += 1
@@ -474,48 +509,51 @@ class DiagnosticsNode(Node):
             return 2
         return law.law.level(law.max_drift, *(thresholds or self._thresholds()))
 
-    def status_fields(self) -> list[dict[str, Any]]:
-        """The report: one DiagnosticStatus per law per system, as nested dicts (the fields
-        of diagnostic_msgs/DiagnosticStatus; encoded without building rclpy messages)."""
-        out = []
+    def status_rows(self) -> list[StatusRow]:
+        """The report: one DiagnosticStatus per law per system, as plain values (level, name,
+        message, hardware_id, [(key, value), ...]), encoded without building rclpy messages
+        (``encode_diagnostic_array``)."""
+        out: list[StatusRow] = []
         timeout = self._param("stale_timeout")
         thresholds = self._thresholds()
         now = time.monotonic()
         for st in self.systems.values():
             stale = now - st.last_seen > timeout
+            info = st.info
+            epoch = str(st.epoch)
             for key, law in st.laws.items():
                 level = self.level(law, stale, thresholds)
+                drift, max_drift = law.drift, law.max_drift
                 if law.samples == 0:
                     text = "no samples yet"
                 elif stale:
                     text = f"stale: no data for {now - st.last_seen:.1f} s"
                 else:
-                    text = (f"{LEVEL_NAMES[level]}: relative drift {law.drift:.3g}, "
-                            f"max {law.max_drift:.3g}")
+                    text = (f"{LEVEL_NAMES[level]}: relative drift {drift:.3g}, "
+                            f"max {max_drift:.3g}")
                     if law.nonfinite:
                         text += f", {law.nonfinite} non-finite sample(s)"
-                info = st.info
-                out.append({
-                    "level": level, "name": f"mechsim/{st.name}/{key.replace(':', '/')}",
-                    "message": text, "hardware_id": st.name, "values": [
-                        {"key": "drift", "value": f"{law.drift:.6e}"},
-                        {"key": "max_drift", "value": f"{law.max_drift:.6e}"},
-                        {"key": "initial", "value": f"{law.initial!r}"},
-                        {"key": "current", "value": f"{law.current!r}"},
-                        {"key": "scale", "value": f"{law.scale!r}"},
-                        {"key": "samples", "value": str(law.samples)},
-                        {"key": "nonfinite", "value": str(law.nonfinite)},
-                        {"key": "epoch", "value": str(st.epoch)},
-                        {"key": "system", "value": info.system},
-                        {"key": "integrator", "value": info.integrator}]})
+                out.append((level, f"mechsim/{st.name}/{key.replace(':', '/')}", text, st.name,
+                            [("drift", f"{drift:.6e}"), ("max_drift", f"{max_drift:.6e}"),
+                             ("initial", f"{law.initial!r}"), ("current", f"{law.current!r}"),
+                             ("scale", f"{law.scale!r}"), ("samples", str(law.samples)),
+                             ("nonfinite", str(law.nonfinite)), ("epoch", epoch),
+                             ("system", info.system), ("integrator", info.integrator)]))
         return out
 
+    def status_fields(self) -> list[dict[str, Any]]:
+        """:meth:`status_rows` as nested dicts (the fields of
+        diagnostic_msgs/DiagnosticStatus)."""
+        return [{"level": level, "name": name, "message": message, "hardware_id": hardware_id,
+                 "values": [{"key": k, "value": v} for k, v in values]}
+                for level, name, message, hardware_id, values in self.status_rows()]
+
     def statuses(self) -> list[DiagnosticStatus]:
-        """:meth:`status_fields` as rclpy messages."""
-        return [DiagnosticStatus(level=bytes([f["level"]]), name=f["name"],
-                                 message=f["message"], hardware_id=f["hardware_id"],
-                                 values=[KeyValue(**kv) for kv in f["values"]])
-                for f in self.status_fields()]
+        """:meth:`status_rows` as rclpy messages."""
+        return [DiagnosticStatus(level=bytes([level]), name=name, message=message,
+                                 hardware_id=hardware_id,
+                                 values=[KeyValue(key=k, value=v) for k, v in values])
+                for level, name, message, hardware_id, values in self.status_rows()]
 
     def publish_now(self) -> None:
         if not self.systems:
@@ -523,9 +561,7 @@ class DiagnosticsNode(Node):
         ns = max((s.last_stamp for s in self.systems.values() if s.last_stamp is not None),
                  default=0)
         sec, nanosec = divmod(ns, 1_000_000_000)
-        fields = {"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": ""},
-                  "status": self.status_fields()}
-        data = encode_message(self.outlet.channels[self.t_diag].type_name, fields)
+        data = encode_diagnostic_array(sec, nanosec, "", self.status_rows())
         self.outlet.publish_serialized(
             self.t_diag, data, ns, lambda: deserialize_message(data, DiagnosticArray))
         self.published += 1

@@ -84,15 +84,23 @@ class _Stop(BaseException):
     """SIGTERM during a run: a stop, like KeyboardInterrupt, never taken for an error."""
 
 
+def _same(a: list[Any], b: list[Any]) -> bool:
+    """The same objects, in the same order."""
+    return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
+
+
 class DiagnosticsFeed:
     """In-process sink that hands system_info messages and the energy/invariant values of
     each chunk straight to the diagnostics node: lossless, whatever the executor's pace.
-    Values are held until :meth:`deliver` (the runner reports in between, at the stamps of
-    its diagnostics period, however long the chunks)."""
+    Each chunk's law values are taken when it arrives (``DiagnosticsNode.law_rows``: a
+    system_info delivers what is held first, so they are the laws that apply) and held
+    until :meth:`deliver` (the runner reports in between, at the stamps of its diagnostics
+    period, however long the chunks)."""
 
     def __init__(self, diag: Any) -> None:
         self.diag = diag
-        self.pending: list[tuple[str, str, Any, Any]] = []
+        #: (namespace, stream, stamps, laws, laws × samples values), in arrival order.
+        self.pending: list[tuple[str, str, Any, list[Any], Any]] = []
 
     def wants(self, topic: str) -> bool:
         return topic.rpartition("/")[2] in ("system_info", "energy", "invariants")
@@ -105,32 +113,32 @@ class DiagnosticsFeed:
     def write_columns(self, topic: str, ns: Any, values: Any) -> None:
         """A chunk's evaluated energy or invariants (no message objects: see the Outlet)."""
         base, _, leaf = topic.rpartition("/")
-        self.pending.append((base, leaf, ns, values))
+        rows = self.diag.law_rows(base, leaf, values, len(ns))
+        if rows is not None:
+            self.pending.append((base, leaf, ns, *rows))
 
     def deliver(self, until_ns: int | None = None) -> None:
         """Feed the held samples stamped ``until_ns`` or earlier (all without it). Pieces of
         a stream whose stamps go on increasing are joined first (a paced run hands them over
         a sample or two at a time); a new epoch (a stamp not later) starts a new piece."""
-        from mechsim.outputs.messages import column_rows, joined_columns
-
-        runs: list[tuple[str, str, list[Any], list[Any]]] = []
-        last: dict[tuple[str, str], tuple[str, str, list[Any], list[Any]]] = {}
-        for base, leaf, ns, values in self.pending:
+        runs: list[tuple[str, str, list[Any], list[Any], list[Any]]] = []
+        last: dict[tuple[str, str], tuple[str, str, list[Any], list[Any], list[Any]]] = {}
+        for base, leaf, ns, laws, matrix in self.pending:
             run = last.get((base, leaf))
-            if run is None or ns[0] <= run[2][-1][-1]:
-                run = last[base, leaf] = (base, leaf, [], [])
+            if run is None or ns[0] <= run[2][-1][-1] or not _same(laws, run[3]):
+                run = last[base, leaf] = (base, leaf, [], laws, [])
                 runs.append(run)
             run[2].append(ns)
-            run[3].append(values)
+            run[4].append(matrix)
         keep = []
-        for base, leaf, pieces, parts in runs:
+        for base, leaf, pieces, laws, parts in runs:
             ns = np.concatenate(pieces) if len(pieces) > 1 else pieces[0]
-            values = joined_columns(parts)
+            matrix = np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
             n = len(ns) if until_ns is None else int(np.searchsorted(ns, until_ns, "right"))
             if n:
-                self.diag.feed_chunk(base, leaf, ns[:n], column_rows(values, slice(0, n)))
+                self.diag.feed_rows(base, leaf, ns[:n], laws, matrix[:, :n])
             if n < len(ns):
-                keep.append((base, leaf, ns[n:], column_rows(values, slice(n, None))))
+                keep.append((base, leaf, ns[n:], laws, matrix[:, n:]))
         self.pending = keep
 
 

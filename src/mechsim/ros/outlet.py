@@ -116,6 +116,8 @@ class Outlet:
         #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
         self._live: list[tuple[_Channel, np.ndarray]] = []
         self._live_for: Any = None
+        self._immediate_for: tuple[int, int] | None = None
+        self._immediate_now = False
 
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         resolved = self.node.resolve_topic_name(topic)
@@ -140,6 +142,17 @@ class Outlet:
         values or messages, so a chunk nobody reads as bytes is not encoded."""
         return self.subscribers.get(topic, 0) > 0 or any(
             hasattr(sink, "write_chunk") for sink in self.sinks)
+
+    def needs_columns(self, topic: str) -> bool:
+        """Are the evaluated values of ``topic``'s samples needed (a sink that takes them,
+        ``write_columns``, wants the topic)? Otherwise a chunk's values are not gathered
+        into columns: the sinks get CDR rows or messages."""
+        for sink in self.sinks:
+            if hasattr(sink, "write_columns"):
+                wants = getattr(sink, "wants", None)
+                if wants is None or wants(topic):
+                    return True
+        return False
 
     def wanted(self, topic: str) -> bool:
         """Does anything consume ``topic`` (a sink, or a subscriber anywhere as counted at the
@@ -190,8 +203,18 @@ class Outlet:
         else:
             self.hand_over()
             self._held = [ns, topics, columns, a, b]
-        if any(getattr(sink, "immediate", False) for sink in self.sinks):
+        if self._immediate():
             self.hand_over()
+
+    def _immediate(self) -> bool:
+        """Does a sink take every sample as it is published (``immediate``)? Asked again only
+        when the list of sinks is replaced or grows or shrinks."""
+        key = (id(self.sinks), len(self.sinks))
+        if key != self._immediate_for:
+            self._immediate_for = key
+            self._immediate_now = any(getattr(sink, "immediate", False)
+                                      for sink in self.sinks)
+        return self._immediate_now
 
     def hand_over(self) -> None:
         """Hand the published samples held for the sinks over to them, in one call per sink

@@ -437,22 +437,25 @@ class SimulatorNode(Node):
 
         columns: dict[str, Any] = {}
         topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]] = []
+        # The values as columns only for a sink that takes them (``needs_columns``).
+        needs_columns = self.outlet.needs_columns
         if n:
-            if c.energy is not None:
+            if c.energy is not None and needs_columns(self.t_energy):
                 columns[self.t_energy] = messages.EnergyColumns.of(c)
-            if c.invariants is not None:
+            if c.invariants is not None and needs_columns(self.t_inv):
                 columns[self.t_inv] = {name: c.invariants[:, j]
                                        for j, name in enumerate(self._shape.invariants)}
-            if c.observables is not None:
+            if c.observables is not None and needs_columns(self.t_obs):
                 columns[self.t_obs] = {name: c.observables[:, j]
                                        for j, name in enumerate(f.observable_names)}
-            if c.frames is not None:
-                columns[self.t_tf] = f.transform_columns(c.frames)
+            if c.frames is not None and needs_columns(self.t_tf):
+                columns[self.t_tf] = f.transform_columns(c.frames, c.placed_frames(f))
             if self.publish_clock:
                 topics.append((self.t_clock, encode("clock", self.t_clock),
                                lambda i: messages.clock(int(ns[i]))))
-            if f.joints:
+            if f.joints and needs_columns(self.t_state):
                 columns[self.t_state] = {f.coordinate_names[j]: c.q[:, j] for j in f.joints}
+            if f.joints:
                 topics.append((self.t_state, encode("state", self.t_state),
                                _builder(f.state, sample, ns)))
             if f.attitude is not None:

@@ -293,24 +293,41 @@ class McapFile:
         """The chunk's Message Index records (one per channel, ascending; pairs in file
         order), to be written at file offset ``at``: (their bytes, the Chunk Index's map
         of (channel u16, offset u64), the number of channels)."""
-        if len(self._index) == 1 and len(self._index[0]) == 4:
-            # One batch (a fast run's chunk): C records of n pairs, as one (C, bytes) array.
-            batch, start, end, base = self._index[0]
-            n, channels = end - start, batch.channels
-            c = channels.shape[0]
-            head = np.empty(c, dtype=_MESSAGE_INDEX_DTYPE)
-            head["op"], head["length"], head["channel"], head["bytes"] = \
-                _OP_MESSAGE_INDEX, 6 + 16 * n, channels, 16 * n
-            records = np.empty((c, _MESSAGE_INDEX_HEAD.size + 16 * n), dtype=np.uint8)
-            records[:, :_MESSAGE_INDEX_HEAD.size] = head.view(np.uint8).reshape(c, -1)
-            pairs = records[:, _MESSAGE_INDEX_HEAD.size:].view("<u8").reshape(c, n, 2)
-            pairs[:, :, 0] = batch.ns[start:end]
-            pairs[:, :, 1] = batch.columns[:, None] + (
-                np.arange(n, dtype=np.int64) * batch.records.shape[1] + base)
-            index_map = np.empty(c, dtype=_INDEX_MAP_DTYPE)
-            index_map["channel"] = channels
-            index_map["offset"] = at + np.arange(c, dtype=np.int64) * records.shape[1]
-            return records.reshape(-1), index_map.tobytes(), c
+        batches = [e for e in self._index if len(e) == 4]
+        if len(batches) == 1:
+            # A fast run's chunk: one batch (C records of n pairs, one (C, bytes) array),
+            # and maybe a few single messages on other channels (/diagnostics).
+            batch, start, end, base = batches[0]
+            records = self._batch_indexes(batch, start, end, base)
+            channels = batch.channels
+            singles: dict[int, list[tuple[int, int]]] = {}
+            for e in self._index:
+                if len(e) == 3:
+                    singles.setdefault(e[0], []).append((e[1], e[2]))
+            if not singles:
+                c = channels.shape[0]
+                index_map = np.empty(c, dtype=_INDEX_MAP_DTYPE)
+                index_map["channel"] = channels
+                index_map["offset"] = at + np.arange(c, dtype=np.int64) * records.shape[1]
+                return records.reshape(-1), index_map.tobytes(), c
+            batch_channels = channels.tolist()
+            if not singles.keys() & set(batch_channels):
+                by_channel = dict(zip(batch_channels, records, strict=True))
+                pieces: list[Any] = []
+                offsets: list[int] = []
+                for channel in sorted((*batch_channels, *singles)):
+                    row = by_channel.get(channel)
+                    if row is None:
+                        pairs = singles[channel]
+                        body = 16 * len(pairs)
+                        row = _MESSAGE_INDEX_HEAD.pack(
+                            _OP_MESSAGE_INDEX, 2 + 4 + body, channel, body) + struct.pack(
+                            f"<{2 * len(pairs)}Q", *(v for pair in pairs for v in pair))
+                    pieces.append(row)
+                    offsets += (channel, at)
+                    at += len(row)
+                return (b"".join(pieces), struct.pack("<" + "HQ" * len(pieces), *offsets),
+                        len(pieces))
         entries: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         for e in self._index:
             if len(e) == 4:
@@ -341,6 +358,24 @@ class McapFile:
             at += _MESSAGE_INDEX_HEAD.size + body
         return (b"".join(pieces), struct.pack("<" + "HQ" * len(starts), *index_map),
                 len(starts))
+
+    @staticmethod
+    def _batch_indexes(batch: RecordBatch, start: int, end: int, base: int) -> np.ndarray:
+        """The Message Index records of rows ``start`` to ``end`` of ``batch`` (the first
+        at byte ``base`` of the chunk): a (C, bytes) array, one record per channel, in the
+        batch's (ascending) channel order."""
+        n, channels = end - start, batch.channels
+        c = channels.shape[0]
+        head = np.empty(c, dtype=_MESSAGE_INDEX_DTYPE)
+        head["op"], head["length"], head["channel"], head["bytes"] = \
+            _OP_MESSAGE_INDEX, 6 + 16 * n, channels, 16 * n
+        records = np.empty((c, _MESSAGE_INDEX_HEAD.size + 16 * n), dtype=np.uint8)
+        records[:, :_MESSAGE_INDEX_HEAD.size] = head.view(np.uint8).reshape(c, -1)
+        pairs = records[:, _MESSAGE_INDEX_HEAD.size:].view("<u8").reshape(c, n, 2)
+        pairs[:, :, 0] = batch.ns[start:end]
+        pairs[:, :, 1] = batch.columns[:, None] + (
+            np.arange(n, dtype=np.int64) * batch.records.shape[1] + base)
+        return records
 
     def flush_chunk(self) -> None:
         """Close the chunk in progress (if it holds a message): Chunk record, then one

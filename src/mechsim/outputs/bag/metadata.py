@@ -132,9 +132,13 @@ def dump_yaml(data: Any) -> str:
                      allow_unicode=True, width=1 << 20)
 
 
-def metadata_text(meta: dict[str, Any]) -> str:
-    """The text of ``metadata.yaml`` for BagMetadata ``meta``."""
-    return dump_yaml({ROOT_KEY: meta})
+def metadata_text(meta: dict[str, Any], dumped: str | None = None) -> str:
+    """The text of ``metadata.yaml`` for BagMetadata ``meta``; ``dumped``: ``dump_yaml(meta)``
+    if already made (the MCAP file holds it), then indented under the root key instead of
+    dumped again (block style, every scalar on one line: the same text)."""
+    if dumped is None:
+        return dump_yaml({ROOT_KEY: meta})
+    return f"{ROOT_KEY}:\n" + "".join(f"  {line}" for line in dumped.splitlines(True))
 
 
 # --- reading ------------------------------------------------------------------------------------

@@ -352,6 +352,57 @@ def encode_message(type_name: str, value: Any) -> bytes:
     return bytes(buf)
 
 
+#: A diagnostic_msgs/DiagnosticStatus as plain values: level, name, message, hardware_id and
+#: the (key, value) pairs.
+StatusRow = tuple[int, str, str, str, list[tuple[str, str]]]
+_TIME = struct.Struct("<iI")
+#: A string's NUL and the padding after it, by its CDR length (with the NUL) modulo 4.
+_STRING_TAILS = (b"\x00", b"\x00" * 4, b"\x00" * 3, b"\x00" * 2)
+#: Strings of reports as 4-aligned units (``_unit``): names, keys and most values recur.
+_UNITS: dict[str, bytes] = {}
+
+
+def _unit(text: str) -> bytes:
+    """A CDR string that starts 4-aligned, with the padding up to the next 4-aligned byte
+    (remembered in ``_UNITS``, up to ``_STRINGS_MAX`` of them)."""
+    unit = _UNITS.get(text)
+    if unit is None:
+        data = text.encode()
+        unit = U32.pack(len(data) + 1) + data + _STRING_TAILS[(len(data) + 1) & 3]
+        if len(_UNITS) >= _STRINGS_MAX:
+            _UNITS.clear()
+        _UNITS[text] = unit
+    return unit
+
+
+def encode_diagnostic_array(sec: int, nanosec: int, frame_id: str,
+                            statuses: list[StatusRow]) -> bytes:
+    """The CDR payload of a diagnostic_msgs/DiagnosticArray (stamp ``sec``, ``nanosec``),
+    equal to :func:`encode_message` of the same fields: the diagnostics node's report, made
+    every second of a run, a few µs per status. Every field after the stamp is a 4-aligned
+    string or count but a status's level byte, so each string is a unit with the padding
+    after it (``_unit``); a level that follows a string takes the first byte of that
+    padding, and the message ends at its last string's NUL."""
+    count = U32.pack
+    unit = _unit
+    parts = [HEADER, _TIME.pack(sec, nanosec), unit(frame_id), count(len(statuses))]
+    pad = 0  # padding at the end of parts[-1] (a string unit's)
+    for level, name, message, hardware_id, values in statuses:
+        if pad:  # the level right after the string's NUL, then padding to 4
+            parts[-1] = parts[-1][:-pad] + bytes((level,)) + bytes(pad - 1)
+        else:
+            parts.append(bytes((level, 0, 0, 0)))
+        parts += (unit(name), unit(message), unit(hardware_id), count(len(values)))
+        pad = 0
+        for key, value in values:
+            last = unit(value)
+            parts += (unit(key), last)
+        if values:
+            pad = len(last) - 4 - U32.unpack_from(last)[0]
+    data = b"".join(parts)
+    return data[:len(data) - pad] if pad else data
+
+
 def cdr_bytes(msg: Any) -> bytes:
     """The CDR payload of ``msg`` as DDS carries it, every padding byte zero: encoded from the
     type's definition (``mechsim.outputs.cdr``; rclpy's serializer leaves its padding bytes

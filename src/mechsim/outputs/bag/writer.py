@@ -61,6 +61,11 @@ CHUNK_SIZE = 512 * 1024
 #: Items (a message, or a chunk of samples on several topics) queued for the writer thread at
 #: most; a producer faster than the disk waits (memory stays bounded however long the run).
 QUEUE_ITEMS = 64
+#: Single messages (a /diagnostics report each second of a fast run) are handed over
+#: together, with whatever is queued next, when this many are held or the first of them was
+#: held this long [s] (one hand-off, one wake-up of the writer thread, instead of each).
+HELD_MESSAGES = 32
+HELD_WALL_S = 0.05
 _STOP = object()
 
 
@@ -124,6 +129,9 @@ class BagWriter:
         self.stats = BagStats(custom_data={k: str(v) for k, v in (custom_data or {}).items()})
         self._types: dict[str, str] = {}
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=QUEUE_ITEMS)
+        #: Single messages not yet queued (``write_bytes``) and when the first was held.
+        self._held: list[tuple[str, int, bytes]] = []
+        self._held_since = 0.0
         self.error: Exception | None = None
         self._closed = False
         self._finished = False
@@ -149,7 +157,7 @@ class BagWriter:
         same bytes, so each message is serialized once)."""
         if type_name == SYSTEM_INFO and self.error is None and not self._closed:
             for key, value in system_info_custom(msg).items():
-                self._queue.put(("custom", key, value))
+                self._put(("custom", key, value))
         self.write_bytes(topic, type_name, qos, ns, data)
 
     def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
@@ -161,8 +169,13 @@ class BagWriter:
             return
         if topic not in self._types:
             self._types[topic] = type_name
-            self._queue.put(("channel", topic, type_name, qos_dict(qos)))
-        self._queue.put((topic, ns, data))
+            self._put(("channel", topic, type_name, qos_dict(qos)))
+        held = self._held
+        if not held:
+            self._held_since = time.monotonic()
+        held.append((topic, ns, data))
+        if len(held) >= HELD_MESSAGES or time.monotonic() - self._held_since >= HELD_WALL_S:
+            self._put_held()
 
     def write_chunk(self, ns: np.ndarray, topics: list[tuple[str, str, Any, np.ndarray]]
                     ) -> None:
@@ -177,11 +190,22 @@ class BagWriter:
         for topic, type_name, qos, _ in topics:
             if topic not in self._types:
                 self._types[topic] = type_name
-                self._queue.put(("channel", topic, type_name, qos_dict(qos)))
-        self._queue.put(("chunk", ns, [(t, rows) for t, _, _, rows in topics]))
+                self._put(("channel", topic, type_name, qos_dict(qos)))
+        self._put(("chunk", ns, [(t, rows) for t, _, _, rows in topics]))
 
     def set_custom(self, key: str, value: Any) -> None:
-        self._queue.put(("custom", key, str(value)))
+        self._put(("custom", key, str(value)))
+
+    def _put(self, item: Any) -> None:
+        """Queue ``item`` for the writer thread after the single messages held before it
+        (everything reaches the writer in the order it was given)."""
+        if self._held:
+            self._put_held()
+        self._queue.put(item)
+
+    def _put_held(self) -> None:
+        held, self._held = self._held, []
+        self._queue.put(("messages", held))
 
     def close(self) -> BagStats:
         """Finish the file, write metadata.yaml, unlock (waits for the writer thread); raises
@@ -209,7 +233,7 @@ class BagWriter:
     def _finish(self, *, remove_empty: bool) -> None:
         if not self._closed:
             self._closed = True
-            self._queue.put(_STOP)
+            self._put(_STOP)
         self._thread.join()
         if self._finished:
             return
@@ -268,13 +292,14 @@ class BagWriter:
                 self._write_item(w, item)
                 self.write_seconds += time.perf_counter() - started
             meta = bag_metadata(self.stats, self.file_name)
-            w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
+            dumped = dump_yaml(meta)
+            w.add_metadata("rosbag2", {"serialized_metadata": dumped})
             w.finish()
         finally:
             w.chunk_indexes.close()
         self._file.flush()
         os.fsync(self._file.fileno())
-        write_atomic(self.path / METADATA_FILE, metadata_text(meta))
+        write_atomic(self.path / METADATA_FILE, metadata_text(meta, dumped))
 
     def _write_item(self, w: McapFile, item: Any) -> None:
         channels = self._channels
@@ -295,6 +320,10 @@ class BagWriter:
             return
         if item[0] == "custom":
             self.stats.custom_data[item[1]] = item[2]
+            return
+        if item[0] == "messages":  # single messages, each as if queued alone
+            for message in item[1]:
+                self._write_item(w, message)
             return
         if item[0] == "chunk":
             _, ns, rows = item

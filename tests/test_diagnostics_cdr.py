@@ -1,0 +1,69 @@
+"""The diagnostics report's own CDR encoder (``typeinfo.encode_diagnostic_array``): equal byte
+for byte to the generic encoder of the same fields, and decoded by rclpy into exactly the
+statuses given, for strings of every length modulo 4 (each padding), multi-byte text, no
+values, no statuses, repeated reports (strings remembered)."""
+
+from __future__ import annotations
+
+import itertools
+from typing import Any
+
+import pytest
+
+from mechsim.environment import import_rclpy
+
+import_rclpy()
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rclpy.serialization import deserialize_message  # noqa: E402
+
+from mechsim.outputs.bag.typeinfo import (  # noqa: E402
+    StatusRow,
+    encode_diagnostic_array,
+    encode_message,
+)
+
+TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+
+
+def _rows(seed: int) -> list[StatusRow]:
+    """Statuses whose strings take every length modulo 4, with ASCII and multi-byte text."""
+    texts = ["", "a", "ab", "abc", "abcd", "drift 1.5e-09", "Δ énergie", "максимум", "🙂x"]
+    k = seed % len(texts)
+    cycle = itertools.cycle(texts[k:] + texts[:k])
+    rows: list[StatusRow] = []
+    for i in range(7):
+        values = [(next(cycle), next(cycle)) for _ in range((i + seed) % 4)]
+        rows.append((i % 4, next(cycle), next(cycle), next(cycle), values))
+    return rows
+
+
+def _fields(sec: int, nanosec: int, frame_id: str, rows: list[StatusRow]) -> dict[str, Any]:
+    return {"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": frame_id},
+            "status": [{"level": level, "name": name, "message": message,
+                        "hardware_id": hardware_id,
+                        "values": [{"key": k, "value": v} for k, v in values]}
+                       for level, name, message, hardware_id, values in rows]}
+
+
+@pytest.mark.parametrize("seed", range(9))
+@pytest.mark.parametrize("frame_id", ["", "w", "world"])
+def test_report_equals_generic_encoder_and_rclpy_reads_it(seed: int, frame_id: str) -> None:
+    rows = _rows(seed)
+    sec, nanosec = 1_000_000 + seed, 999_999_999 - seed
+    for _ in range(2):  # the second time from remembered strings
+        data = encode_diagnostic_array(sec, nanosec, frame_id, rows)
+        assert data == encode_message(TYPE, _fields(sec, nanosec, frame_id, rows))
+        msg = deserialize_message(data, DiagnosticArray)
+        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (sec, nanosec)
+        assert msg.header.frame_id == frame_id
+        got = [(s.level[0] if isinstance(s.level, bytes) else int(s.level), s.name,
+                s.message, s.hardware_id, [(kv.key, kv.value) for kv in s.values])
+               for s in msg.status]
+        assert got == rows
+
+
+def test_empty_report() -> None:
+    data = encode_diagnostic_array(0, 0, "", [])
+    assert data == encode_message(TYPE, _fields(0, 0, "", []))
+    assert list(deserialize_message(data, DiagnosticArray).status) == []
