@@ -17,6 +17,10 @@ Methods:
 - ``dop853``: adaptive explicit Runge-Kutta 8(5,3), dense output, events, constraint
   projection after every step (keeps constraint residuals at round-off). Works for every
   model; its local tolerance is a thousandth of the tolerance (errors add up over a run).
+- ``dopri5``: adaptive explicit Runge–Kutta 5(4) of Dormand and Prince (FSAL, 6 evaluations
+  a step) with its 4th-order dense output, in DOP853's loop (events, projection, stiffness
+  test, local tolerance a thousandth of the tolerance): for loose tolerances (~1e-4), where
+  DOP853's order over-delivers. Works for every model; only by name (``auto`` never takes it).
 - ``radau15``: adaptive 15th-order Gauss–Radau predictor–corrector (the IAS15 scheme,
   generalised to velocity-dependent forces), events, projection: the end error stays at the
   round-off floor over long runs (energy error growing like √N). Works for every model. Its
@@ -38,26 +42,27 @@ Methods:
   scales, and where a probe shows DOP853's error outgrowing the tolerance (chaotic motion); with
   ``closed_form=True``, ``exact`` wherever the model has it.
 
-Stiffness (``dop853``): Hairer's stiffness test runs inside the loop (see ``kernels.py``); when
-it fires and the stability-limited step is also crawling — more than ``stiff_steps_per_output``
-(1000) steps per output interval — the stepper raises ``StiffnessError`` (an IntegrationError
-naming the system, with what to change) instead of crawling on. A stiff but cheap phase (a
-damped system settled at rest, big steps) goes on. The test only reads the state: it never
-changes a non-stiff run.
+Stiffness (``dop853``, ``dopri5``): Hairer's stiffness test runs inside the loop (see
+``kernels.py``); when it fires and the stability-limited step is also crawling — more than
+``stiff_steps_per_output`` (1000) steps per output interval — the stepper raises
+``StiffnessError`` (an IntegrationError naming the system, with what to change) instead of
+crawling on. A stiff but cheap phase (a damped system settled at rest, big steps) goes on. The
+test only reads the state: it never changes a non-stiff run.
 
-Events (``dop853``, ``radau15``). A model may declare state events (``Model.events``, each an
-``Event(name, direction)``), computed by the kernel function ``event(t, y, p, out)``, and
-discrete modes (``Model.modes``), extra state entries after the work terms that stay constant
-between events. The kernel checks the event functions after every accepted step, locates the
-earliest sign change (in the event's direction) on the dense output to 4 ulps of t,
-writes the outputs up to it and stops there with status ``Status.EVENT``. ``DOP853.advance``
-then calls ``model.handle_event(index, t, y) -> y_new`` (a velocity jump, a new mode, or y
-unchanged to record a time), restarts the integration at (t, y_new) (projection, new first
-stage and initial step; counters kept) and goes on, so ``advance(t_out)`` still returns every
-requested row (rows before an event come from the dense output of the step that crossed it,
-even when a later call asks for them; a row at exactly the event time holds the state after
-the handler). Events are handled when met, also past the last requested time. Each event is
-recorded in ``stepper.events`` as (t, name). Models without events skip the event code.
+Events (``dop853``, ``dopri5``, ``radau15``). A model may declare state events
+(``Model.events``, each an ``Event(name, direction)``), computed by the kernel function
+``event(t, y, p, out)``, and discrete modes (``Model.modes``), extra state entries after the
+work terms that stay constant between events. The kernel checks the event functions after every
+accepted step, locates the earliest sign change (in the event's direction) on the dense output
+to 4 ulps of t, writes the outputs up to it and stops there with status ``Status.EVENT``.
+``DOP853.advance`` then calls ``model.handle_event(index, t, y) -> y_new`` (a velocity jump, a
+new mode, or y unchanged to record a time), restarts the integration at (t, y_new) (projection,
+new first stage and initial step; counters kept) and goes on, so ``advance(t_out)`` still
+returns every requested row (rows before an event come from the dense output of the step that
+crossed it, even when a later call asks for them; a row at exactly the event time holds the
+state after the handler). Events are handled when met, also past the last requested time. Each
+event is recorded in ``stepper.events`` as (t, name). Models without events skip the event
+code.
 """
 
 from __future__ import annotations
