@@ -138,8 +138,8 @@ def precompile() -> None:
     signatures = {
         L.erk_initial_step: (KERNEL_SET, 0.0, v, v, v, 0.0, 0.0, 0.0),
         L.erk_restart: (KERNEL_SET, 0, dop, v, v, m2, 0.0, 0.0, v, False),
-        L.erk_advance: (KERNEL_SET, 0, dop, v, v, m2, m2, v, v, m2, 0.0, 0.0, 0.0, 0, v, iv,
-                        v),
+        **{loop: (KERNEL_SET, dop, v, v, m2, m2, v, v, m2, 0.0, 0.0, 0.0, 0, v, iv, v)
+           for loop in (L.dop853_advance, L.dopri5_advance)},
         L.composition_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, v, m2, v, v),
         L.gauss_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, m2, m2, v),
         L.evaluate_outputs: (KERNEL_SET, v, m2, v, True, True, True, True, m2, m2, m2, m3),
@@ -324,7 +324,7 @@ class ClosedForm(Stepper):
 
 
 class DOP853(Stepper):
-    """Hairer's DOP853 with dense output, events and projection (``kernels.erk_advance``).
+    """Hairer's DOP853 with dense output, events and projection (``kernels.dop853_advance``).
 
     Its controller bounds the local error of every step; over a run those errors add up. So the
     local tolerance (relative and absolute) is ``LOCAL_FACTOR`` × the tolerance, floored at
@@ -332,9 +332,9 @@ class DOP853(Stepper):
     then stays below the tolerance (relative to the state scale) for all but chaotic systems,
     where no method does better than its round-off amplified.
 
-    A subclass with another explicit pair of the shared loop sets ``method``, ``PAIR`` (the
-    loop's ``state.Pair``), ``N_STAGES`` (rows of K), ``STIFF_EDGE`` (for the message)
-    and its own ``LOCAL_FACTOR``: ``DOPRI5``."""
+    A subclass with another explicit pair of the shared loop sets ``method`` (its loop is
+    ``kernels.<method>_advance``), ``PAIR`` (``state.Pair``, for the restart), ``N_STAGES``
+    (rows of K), ``STIFF_EDGE`` (for the message) and its own ``LOCAL_FACTOR``: ``DOPRI5``."""
 
     method = "dop853"
     PAIR = Pair.DOP853
@@ -380,12 +380,12 @@ class DOP853(Stepper):
         t_out = np.ascontiguousarray(t_out, dtype=np.float64)
         Y = np.empty((t_out.size, self.y.size))
         gap = (t_out[-1] - self.t) / t_out.size if t_out.size else 0.0
-        advance = loops().erk_advance
+        advance = getattr(loops(), f"{self.method}_advance")
         s = self.state
         done = 0
         while True:
             status, written = advance(
-                self.ks, int(self.PAIR), s, self.y, self.y_old, self.K, self.F, self.p,
+                self.ks, s, self.y, self.y_old, self.K, self.F, self.p,
                 t_out[done:], Y[done:], self.rtol, self.atol, self.max_step,
                 self.max_steps, self.g_old, self.ev_dir, self.comp)
             done += written

@@ -166,11 +166,9 @@ def loop_source() -> str:
                          "Stages 14 … 16 (dense output only) into K[13 … 15].",
                          NODES, STAGES, range(N_STAGES + 1, N_STAGES_EXTENDED))
     out += ["@njit(cache=True, error_model=\"numpy\")", "def _dop853_increment(K, i):",
-            '    """Σ b_j k_j of component i."""',
-            f"    return {stage_sum(WEIGHTS, range(N_STAGES))}", "", "",
-            "@njit(cache=True, error_model=\"numpy\")", "def _dop853_error(K, i):",
-            '    """(Σ E5_j k_j, Σ E3_j k_j) of component i."""',
-            f"    return ({stage_sum(ERROR_5, range(N_STAGES + 1))}, "
+            '    """(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j) of component i."""',
+            f"    return ({stage_sum(WEIGHTS, range(N_STAGES))}, "
+            f"{stage_sum(ERROR_5, range(N_STAGES + 1))}, "
             f"{stage_sum(ERROR_3, range(N_STAGES + 1))})"]
     out += ["", "", "@njit(cache=True, error_model=\"numpy\")", "def _dop853_dense_sums(K, i):",
             '    """Σ_j D[r][j] k_j of component i, r = 0 … 3."""',

@@ -20,7 +20,8 @@ DOP853: Hairer's explicit Runge-Kutta 8(5,3) with the 7th-order dense output
 with its 4th-order dense output (``dopri5_tableau``), the error norm of ``dopri5.f`` and
 DOP853's step control with exponent 1/5 (as scipy's ``RK45``; ``dopri5.f``'s small PI term is
 left out), for loose tolerances: 6 evaluations a step instead of 12.
-Both run in one loop (``erk_advance``, ``pair`` selects the tableau): everything below holds
+Both run in one loop (``_erk_advance``, ``pair`` selects the tableau; entry points
+``dop853_advance``, ``dopri5_advance``): everything below holds
 for both.
 Events (models with events only): after each accepted step the event functions are evaluated;
 a sign change in an event's declared direction is bracketed in (t_old, t] and its time found
@@ -65,12 +66,7 @@ def _dop853_dense_stages(ks, t0, y0, h, K, ytmp, p):
 
 
 def _dop853_increment(K, i):
-    """Σ b_j k_j of component i."""
-    raise NotImplementedError
-
-
-def _dop853_error(K, i):
-    """(Σ E5_j k_j, Σ E3_j k_j) of component i."""
+    """(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j) of component i."""
     raise NotImplementedError
 
 
@@ -85,12 +81,12 @@ def _dopri5_stages(ks, t0, y0, h, K, ytmp, p):
 
 
 def _dopri5_increment(K, i):
-    """Σ b_j k_j of component i."""
+    """(Σ b_j k_j, Σ_{j<7} E_j k_j, 0) of component i."""
     raise NotImplementedError
 
 
-def _dopri5_error(K, i):
-    """(Σ E_j k_j, 0) of component i (E_7 weighs f at the new point)."""
+def _dopri5_error_fsal(K, i):
+    """E_7 k_7 of component i (k_7: f at the new point)."""
     raise NotImplementedError
 
 
@@ -101,7 +97,7 @@ def _dopri5_dense_sum(K, i):
 
 # <<< stubs
 
-#: The explicit Runge–Kutta pairs of ``erk_advance`` (its ``pair`` argument, ``state.Pair``):
+#: The explicit Runge–Kutta pairs of ``_erk_advance`` (its ``pair`` argument, ``state.Pair``):
 #: DOP853 and DOPRI5 share the loop, step control, dense-output evaluation, events,
 #: projection and stiffness test; they differ in their stages, FSAL row (``_fsal``),
 #: controller exponent (1/8, 1/5: one over the order of the error estimate plus one, as in
@@ -193,7 +189,7 @@ def _dense_eval(F, y_old, x, out):
         out[i] = acc + y_old[i]
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(inline="always")  # into each pair's loop: ``pair`` a constant there
 def _dense_prepare(ks, pair, s, y, y_old, K, F, p):
     """Interpolation coefficients for the last accepted step (t_old, t] (DOP853: with its
     three extra stages; DOPRI5 needs none and leaves F[4 … 6] at zero, where ``_dense_eval``
@@ -220,7 +216,7 @@ def _dense_prepare(ks, pair, s, y, y_old, K, F, p):
     s.dense_ready = 1
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(inline="always")  # into each pair's loop: ``pair`` a constant there
 def _dense_output(ks, pair, s, y, y_old, K, F, p, t, out):
     """The state at t in the last accepted step (t_old, t_new] from its dense output,
     projected onto the constraints."""
@@ -325,17 +321,38 @@ def _locate_event(ks, mode, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, i, a, 
 
 
 @njit(cache=True, inline="always")
-def _take_increment(i, hb, y, comp, y_new, inc):
-    """y_new[i] = y[i] + h Σ b_j k_j with the compensation carried from the last step; the
-    increment taken is kept in ``inc`` (the new compensation is what of it y_new lost)."""
-    d = hb + comp[i]
+def _take_increment(i, h, sums, y, comp, y_new, inc, err5, err3):
+    """From a pair's ``(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j)`` of component i: y_new[i] =
+    y[i] + h Σ b_j k_j with the compensation carried from the last step, the increment taken
+    kept in ``inc`` (the new compensation is what of it y_new lost), the error sums."""
+    b, a5, a3 = sums
+    d = h * b + comp[i]
     y_new[i] = y[i] + d
     inc[i] = d
+    err5[i] = a5
+    err3[i] = a3
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max,
-                max_steps, g_old, ev_dir, comp):
+def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
+                   g_old, ev_dir, comp):
+    """``_erk_advance`` with DOP853."""
+    return _erk_advance(ks, PAIR_DOP853, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,
+                        h_max, max_steps, g_old, ev_dir, comp)
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def dopri5_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
+                   g_old, ev_dir, comp):
+    """``_erk_advance`` with DOPRI5."""
+    return _erk_advance(ks, PAIR_DOPRI5, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,
+                        h_max, max_steps, g_old, ev_dir, comp)
+
+
+@njit(inline="always")  # into each pair's entry point: its ``pair`` a constant there, the
+# other pair's branches drop out of the compiled loop (a run-time ``pair`` cost DOP853 3–6 %)
+def _erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max,
+                 max_steps, g_old, ev_dir, comp):
     """Advance with the explicit pair ``pair`` (``PAIR_DOP853``, ``PAIR_DOPRI5``) until every
     time in ``t_out`` (increasing, >= the start of the last step) is written to ``Y_out``.
     ``state``: a ``DOP853_STATE`` record; ``y`` the current state with its compensation
@@ -391,21 +408,21 @@ def erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_
         if dopri5:
             _dopri5_stages(ks, t, y, h, K, ytmp, p)
             for i in range(n):
-                _take_increment(i, h * _dopri5_increment(K, i), y, comp, y_new, inc)
+                _take_increment(i, h, _dopri5_increment(K, i), y, comp, y_new, inc, err5,
+                                err3)
         else:
             _dop853_stages(ks, t, y, h, K, ytmp, p)
             for i in range(n):
-                _take_increment(i, h * _dop853_increment(K, i), y, comp, y_new, inc)
+                _take_increment(i, h, _dop853_increment(K, i), y, comp, y_new, inc, err5,
+                                err3)
         rhs(t + h, y_new.ctypes, pp, K[last].ctypes)
         s.n_evaluations += n_new
         for i in range(n):
             if dopri5:
-                a5, a3 = _dopri5_error(K, i)
-            else:
-                a5, a3 = _dop853_error(K, i)
+                err5[i] += _dopri5_error_fsal(K, i)
             scale[i] = atol + max(abs(y[i]), abs(y_new[i])) * rtol
-            err5[i] = a5 / scale[i]
-            err3[i] = a3 / scale[i]
+            err5[i] /= scale[i]
+            err3[i] /= scale[i]
         e5 = 0.0
         e3 = 0.0
         for i in range(n):
