@@ -19,10 +19,9 @@ DOP853: Hairer's explicit Runge-Kutta 8(5,3) with the 7th-order dense output
 ``DOP853``, so tolerances mean the same thing in both). DOPRI5: Dormand and Prince's 5(4) pair
 with its 4th-order dense output (``dopri5_tableau``), the error norm of ``dopri5.f`` and
 DOP853's step control with exponent 1/5 (as scipy's ``RK45``; ``dopri5.f``'s small PI term is
-left out), for loose tolerances: 6 evaluations a step instead of 12.
-Both run in one loop (``_erk_advance``, ``pair`` selects the tableau; entry points
-``dop853_advance``, ``dopri5_advance``): everything below holds
-for both.
+left out), for loose tolerances: 6 evaluations a step instead of 12. Both run in one loop
+(``_erk_advance``, ``pair`` selects the tableau; entry points ``dop853_advance``,
+``dopri5_advance``): everything below holds for both.
 Events (models with events only): after each accepted step the event functions are evaluated;
 a sign change in an event's declared direction is bracketed in (t_old, t] and its time found
 on the dense output (Illinois false position with bisection fallback, to 4 ulps of t: a
@@ -35,9 +34,8 @@ later call asks for still come from it after the caller has restarted at the eve
 Stiffness (Hairer's test from dop853.f and dopri5.f, read-only): every 1000th accepted step,
 and every step while a test is positive, h·‖f(y_new) − f(last stage)‖ / ‖y_new − last stage‖
 (both at t + h: stage 12, stage 6) estimates h|λ|; above 6.1 (DOPRI5: 3.25; the edge of the
-stability region) the step is limited by
-stability, not accuracy. 15 positive tests before 6 negative ones in a row: the loop stops
-after the accepted step with status STIFF.
+stability region) the step is limited by stability, not accuracy. 15 positive tests before 6
+negative ones in a row: the loop stops after the accepted step with status STIFF.
 Composition: a symmetric composition of velocity Verlet (kick-drift-kick) with given weights.
 Gauss: three-stage Gauss–Legendre collocation on Hamilton's equations.
 """
@@ -151,9 +149,8 @@ def erk_initial_step(ks, t, y, p, f0, rtol, atol, order):
 def erk_restart(ks, pair, state, y, p, K, rtol, atol, g_old, keep_dense):
     """Start (or restart after an event) at the state's time and y: project y, f(t, y) into
     K[_fsal(pair)] (the next step's first stage), the first step, the event functions into
-    g_old; the
-    step, rejection, evaluation and event counters are kept. ``keep_dense``: the last step's
-    dense output still serves outputs before t."""
+    g_old; the step, rejection, evaluation and event counters are kept. ``keep_dense``: the
+    last step's dense output still serves outputs before t."""
     s = state[0]
     t = s.t
     if ks.n_c > 0:
