@@ -133,38 +133,45 @@ ERROR_3 = _vector(E3, N_STAGES + 1)
 DENSE = _matrix(list(D), N_STAGES_EXTENDED)
 
 
-def _sum(coefficients: np.ndarray, stages: range, row: str = "K[{j}, i]") -> str:
+def stage_sum(coefficients: np.ndarray, stages: range, row: str = "K[{j}, i]") -> str:
     """Σ_j c_j K[j, i] over the nonzero coefficients, as Python source with literal values."""
     return " + ".join(f"{float(coefficients[j])!r} * {row.format(j=j)}" for j in stages
                       if coefficients[j] != 0.0)
+
+
+def stages_source(name: str, doc: str, nodes: np.ndarray, stages: np.ndarray,
+                  rows: range) -> list[str]:
+    """Source lines of a compiled function ``name(ks, t0, y0, h, K, ytmp, p)`` that evaluates
+    the stages ``rows`` (zero-based) of an explicit Runge–Kutta tableau from (t0, y0) into
+    K[row], each from the stages before it; ytmp ends as the last stage's y. Shared by the
+    explicit pairs (DOP853, DOPRI5)."""
+    out = ["@njit(cache=True, error_model=\"numpy\")",
+           f"def {name}(ks, t0, y0, h, K, ytmp, p):", f'    """{doc}"""',
+           "    n = y0.size", "    rhs = ks.rhs", "    pp = p.ctypes", "    yp = ytmp.ctypes"]
+    for s in rows:
+        out += ["    for i in range(n):",
+                f"        ytmp[i] = y0[i] + h * ({stage_sum(stages[s], range(s))})",
+                f"    rhs(t0 + {float(nodes[s])!r} * h, yp, pp, K[{s}].ctypes)"]
+    return out + ["", ""]
 
 
 def loop_source() -> str:
     """The step's stage sums as straight-line numba source (coefficients as literals, zero
     entries left out): about 15 % faster than loops over the dense tableau. The shared loops
     module (``kernels.py``) is built with this text in place of its stubs."""
-    out = ["@njit(cache=True, error_model=\"numpy\")",
-           "def _dop853_stages(ks, t0, y0, h, K, ytmp, p):",
-           '    """Stages 2 … 12 from (t0, y0) into K[1 … 11]; ytmp ends as stage 12\'s y."""',
-           "    n = y0.size", "    rhs = ks.rhs", "    pp = p.ctypes", "    yp = ytmp.ctypes"]
-    for s in range(1, N_STAGES):
-        out += ["    for i in range(n):",
-                f"        ytmp[i] = y0[i] + h * ({_sum(STAGES[s], range(s))})",
-                f"    rhs(t0 + {float(NODES[s])!r} * h, yp, pp, K[{s}].ctypes)"]
-    out += ["", "", "@njit(cache=True, error_model=\"numpy\")",
-            "def _dop853_dense_stages(ks, t0, y0, h, K, ytmp, p):",
-            '    """Stages 14 … 16 (dense output only) into K[13 … 15]."""',
-            "    n = y0.size", "    rhs = ks.rhs", "    pp = p.ctypes", "    yp = ytmp.ctypes"]
-    for s in range(N_STAGES + 1, N_STAGES_EXTENDED):
-        out += ["    for i in range(n):",
-                f"        ytmp[i] = y0[i] + h * ({_sum(STAGES[s], range(s))})",
-                f"    rhs(t0 + {float(NODES[s])!r} * h, yp, pp, K[{s}].ctypes)"]
-    out += ["", "", "@njit(cache=True, error_model=\"numpy\")", "def _dop853_increment(K, i):",
+    out = stages_source("_dop853_stages",
+                        "Stages 2 … 12 from (t0, y0) into K[1 … 11]; ytmp ends as stage 12's y.",
+                        NODES, STAGES, range(1, N_STAGES))
+    out += stages_source("_dop853_dense_stages",
+                         "Stages 14 … 16 (dense output only) into K[13 … 15].",
+                         NODES, STAGES, range(N_STAGES + 1, N_STAGES_EXTENDED))
+    out += ["@njit(cache=True, error_model=\"numpy\")", "def _dop853_increment(K, i):",
             '    """(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j) of component i."""',
-            f"    return ({_sum(WEIGHTS, range(N_STAGES))}, "
-            f"{_sum(ERROR_5, range(N_STAGES + 1))}, {_sum(ERROR_3, range(N_STAGES + 1))})"]
+            f"    return ({stage_sum(WEIGHTS, range(N_STAGES))}, "
+            f"{stage_sum(ERROR_5, range(N_STAGES + 1))}, "
+            f"{stage_sum(ERROR_3, range(N_STAGES + 1))})"]
     out += ["", "", "@njit(cache=True, error_model=\"numpy\")", "def _dop853_dense_sums(K, i):",
             '    """Σ_j D[r][j] k_j of component i, r = 0 … 3."""',
-            "    return (" + ", ".join(_sum(DENSE[r], range(N_STAGES_EXTENDED))
+            "    return (" + ", ".join(stage_sum(DENSE[r], range(N_STAGES_EXTENDED))
                                      for r in range(4)) + ")"]
     return "\n".join(out) + "\n"

@@ -16,7 +16,12 @@ does not accumulate in long runs.
 
 DOP853: Hairer's explicit Runge-Kutta 8(5,3) with the 7th-order dense output
 (``dop853_tableau``), the error norm and step control of ``dop853.f`` (and of scipy's
-``DOP853``, so tolerances mean the same thing in both).
+``DOP853``, so tolerances mean the same thing in both). DOPRI5: Dormand and Prince's 5(4) pair
+with its 4th-order dense output (``dopri5_tableau``), the error norm of ``dopri5.f`` and
+DOP853's step control with exponent 1/5 (as scipy's ``RK45``; ``dopri5.f``'s small PI term is
+left out), for loose tolerances: 6 evaluations a step instead of 12. Both run in one loop
+(``_erk_advance``, ``pair`` selects the tableau; entry points ``dop853_advance``,
+``dopri5_advance``): everything below holds for both.
 Events (models with events only): after each accepted step the event functions are evaluated;
 a sign change in an event's declared direction is bracketed in (t_old, t] and its time found
 on the dense output (Illinois false position with bisection fallback, to 4 ulps of t: a
@@ -26,11 +31,11 @@ step wins: outputs before it are written, the state is left at the event time (o
 of the sign change the event reached) and the loop returns EVENT.
 The step's dense output stays valid for (t_old, t_event], so outputs before the event that a
 later call asks for still come from it after the caller has restarted at the event.
-Stiffness (Hairer's test from dop853.f, read-only): every 1000th accepted step, and every step
-while a test is positive, h·‖f(y_new) − f(stage 12)‖ / ‖y_new − stage 12‖ (both at t + h)
-estimates h|λ|; above 6.1 (the edge of the stability region) the step is limited by
-stability, not accuracy. 15 positive tests before 6 negative ones in a row: the loop stops
-after the accepted step with status STIFF.
+Stiffness (Hairer's test from dop853.f and dopri5.f, read-only): every 1000th accepted step,
+and every step while a test is positive, h·‖f(y_new) − f(last stage)‖ / ‖y_new − last stage‖
+(both at t + h: stage 12, stage 6) estimates h|λ|; above 6.1 (DOPRI5: 3.25; the edge of the
+stability region) the step is limited by stability, not accuracy. 15 positive tests before 6
+negative ones in a row: the loop stops after the accepted step with status STIFF.
 Composition: a symmetric composition of velocity Verlet (kick-drift-kick) with given weights.
 Gauss: three-stage Gauss–Legendre collocation on Hamilton's equations.
 """
@@ -42,10 +47,10 @@ import math
 import numpy as np
 from numba import njit
 
-from mechsim.integrators.state import Status
+from mechsim.integrators.state import Pair, Status
 
-# >>> stubs: ``mechsim.integrators.loops`` replaces this block with ``dop853_tableau``'s
-# ``loop_source()``, the DOP853 stage sums written out from the tableau.
+# >>> stubs: ``mechsim.integrators.loops`` replaces this block with the ``loop_source()`` of
+# ``dop853_tableau`` and ``dopri5_tableau``, the stage sums written out from the tableaus.
 
 
 def _dop853_stages(ks, t0, y0, h, K, ytmp, p):
@@ -68,7 +73,42 @@ def _dop853_dense_sums(K, i):
     raise NotImplementedError
 
 
+def _dopri5_stages(ks, t0, y0, h, K, ytmp, p):
+    """Stages 2 … 6 from (t0, y0) into K[1 … 5]; ytmp ends as stage 6's y."""
+    raise NotImplementedError
+
+
+def _dopri5_increment(K, i):
+    """(Σ b_j k_j, Σ_{j<7} E_j k_j, 0) of component i."""
+    raise NotImplementedError
+
+
+def _dopri5_error_fsal(K, i):
+    """E_7 k_7 of component i (k_7: f at the new point)."""
+    raise NotImplementedError
+
+
+def _dopri5_dense_sum(K, i):
+    """Σ_j D_j k_j of component i."""
+    raise NotImplementedError
+
+
 # <<< stubs
+
+#: The explicit Runge–Kutta pairs of ``_erk_advance`` (its ``pair`` argument, ``state.Pair``):
+#: DOP853 and DOPRI5 share the loop, step control, dense-output evaluation, events,
+#: projection and stiffness test; they differ in their stages, FSAL row (``_fsal``),
+#: controller exponent (1/8, 1/5: one over the order of the error estimate plus one, as in
+#: ``dop853.f`` and ``dopri5.f``) and the edge of their stability region on the negative real
+#: axis (6.1, 3.25) for Hairer's stiffness test.
+PAIR_DOP853 = int(Pair.DOP853)
+PAIR_DOPRI5 = int(Pair.DOPRI5)
+
+
+@njit(cache=True)
+def _fsal(pair):
+    """Row of K holding f at the end of the step (the next step's first stage)."""
+    return 6 if pair == PAIR_DOPRI5 else 12
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
@@ -81,8 +121,9 @@ def _rms_norm(x, scale):
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def dop853_initial_step(ks, t, y, p, f0, rtol, atol):
-    """First step size (Hairer's starting-step algorithm, as in ``dop853.f``)."""
+def erk_initial_step(ks, t, y, p, f0, rtol, atol, order):
+    """First step size (Hairer's starting-step algorithm, as in ``dop853.f`` (``order`` 8) and
+    ``dopri5.f`` (5))."""
     n = y.size
     scale = np.empty(n)
     for i in range(n):
@@ -100,22 +141,24 @@ def dop853_initial_step(ks, t, y, p, f0, rtol, atol):
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / order)
     return min(100.0 * h0, h1)
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def dop853_restart(ks, state, y, p, K, rtol, atol, g_old, keep_dense):
+def erk_restart(ks, pair, state, y, p, K, rtol, atol, g_old, keep_dense):
     """Start (or restart after an event) at the state's time and y: project y, f(t, y) into
-    K[12] (the next step's first stage), the first step, the event functions into g_old; the
-    step, rejection, evaluation and event counters are kept. ``keep_dense``: the last step's
-    dense output still serves outputs before t."""
+    K[_fsal(pair)] (the next step's first stage), the first step, the event functions into
+    g_old; the step, rejection, evaluation and event counters are kept. ``keep_dense``: the
+    last step's dense output still serves outputs before t."""
     s = state[0]
     t = s.t
     if ks.n_c > 0:
         ks.project(t, y, p)
-    ks.rhs(t, y.ctypes, p.ctypes, K[12].ctypes)
-    s.h = dop853_initial_step(ks, t, y, p, K[12].copy(), rtol, atol)
+    last = _fsal(pair)
+    ks.rhs(t, y.ctypes, p.ctypes, K[last].ctypes)
+    s.h = erk_initial_step(ks, t, y, p, K[last].copy(), rtol, atol,
+                           5.0 if pair == PAIR_DOPRI5 else 8.0)
     if not keep_dense:
         s.t_old = t
         s.h_old = 0.0
@@ -143,32 +186,39 @@ def _dense_eval(F, y_old, x, out):
         out[i] = acc + y_old[i]
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def _dense_prepare(ks, s, y, y_old, K, F, p):
-    """Extra stages and interpolation coefficients for the last accepted step (t_old, t]."""
+@njit(inline="always")  # into each pair's loop: ``pair`` a constant there
+def _dense_prepare(ks, pair, s, y, y_old, K, F, p):
+    """Interpolation coefficients for the last accepted step (t_old, t] (DOP853: with its
+    three extra stages; DOPRI5 needs none and leaves F[4 … 6] at zero, where ``_dense_eval``
+    reads its 4th-order interpolant)."""
     n = y.size
     h = s.h_old
-    _dop853_dense_stages(ks, s.t_old, y_old, h, K, np.empty(n), p)
-    s.n_evaluations += 3
+    last = _fsal(pair)
+    if pair == PAIR_DOP853:
+        _dop853_dense_stages(ks, s.t_old, y_old, h, K, np.empty(n), p)
+        s.n_evaluations += 3
     for i in range(n):
         dlt = y[i] - y_old[i]
         F[0, i] = dlt
         F[1, i] = h * K[0, i] - dlt
-        F[2, i] = 2.0 * dlt - h * (K[12, i] + K[0, i])
-        d0, d1, d2, d3 = _dop853_dense_sums(K, i)
-        F[3, i] = h * d0
-        F[4, i] = h * d1
-        F[5, i] = h * d2
-        F[6, i] = h * d3
+        F[2, i] = 2.0 * dlt - h * (K[last, i] + K[0, i])
+        if pair == PAIR_DOP853:
+            d0, d1, d2, d3 = _dop853_dense_sums(K, i)
+            F[3, i] = h * d0
+            F[4, i] = h * d1
+            F[5, i] = h * d2
+            F[6, i] = h * d3
+        else:
+            F[3, i] = h * _dopri5_dense_sum(K, i)
     s.dense_ready = 1
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def _dense_output(ks, s, y, y_old, K, F, p, t, out):
+@njit(inline="always")  # into each pair's loop: ``pair`` a constant there
+def _dense_output(ks, pair, s, y, y_old, K, F, p, t, out):
     """The state at t in the last accepted step (t_old, t_new] from its dense output,
     projected onto the constraints."""
     if s.dense_ready == 0:
-        _dense_prepare(ks, s, y, y_old, K, F, p)
+        _dense_prepare(ks, pair, s, y, y_old, K, F, p)
     _dense_eval(F, y_old, (t - s.t_old) / s.h_old, out)
     if ks.n_c > 0:
         ks.project(t, out, p)
@@ -182,11 +232,12 @@ def _crossed(g0, g1, direction):
     return direction <= 0 and g0 > 0.0 >= g1
 
 
-#: How a step's interior is evaluated for event location: DOP853's dense output (F = its
-#: coefficients), the Gauss–Radau expansion of radau15 (F = b, with F0 and the compensation),
-#: or, where that expansion's error bound is not good enough, a Gauss–Radau step of its own
-#: from the start of the step (``_radau_side_step``: what landing there would give).
-DENSE_DOP853 = 0
+#: How a step's interior is evaluated for event location: the explicit pairs' dense output
+#: (DOP853, DOPRI5; F = its coefficients), the Gauss–Radau expansion of radau15 (F = b, with
+#: F0 and the compensation), or, where that expansion's error bound is not good enough, a
+#: Gauss–Radau step of its own from the start of the step (``_radau_side_step``: what
+#: landing there would give).
+DENSE_ERK = 0
 DENSE_RADAU = 1
 DENSE_RADAU_STEP = 2
 
@@ -199,7 +250,7 @@ def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, ou
     ``cost`` counts the evaluations and iterations of a side step. False: a side step's
     iteration did not converge."""
     frac = ((t - t0) - tc) / h
-    if mode == DENSE_DOP853:
+    if mode == DENSE_ERK:
         _dense_eval(F, y0, frac, out)
         return True
     if mode == DENSE_RADAU:
@@ -266,13 +317,44 @@ def _locate_event(ks, mode, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, i, a, 
     return b
 
 
+@njit(cache=True, inline="always")
+def _take_increment(i, h, sums, y, comp, y_new, inc, err5, err3):
+    """From a pair's ``(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j)`` of component i: y_new[i] =
+    y[i] + h Σ b_j k_j with the compensation carried from the last step, the increment taken
+    kept in ``inc`` (the new compensation is what of it y_new lost), the error sums."""
+    b, a5, a3 = sums
+    d = h * b + comp[i]
+    y_new[i] = y[i] + d
+    inc[i] = d
+    err5[i] = a5
+    err3[i] = a3
+
+
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
                    g_old, ev_dir, comp):
-    """Advance until every time in ``t_out`` (increasing, >= the start of the last step) is
-    written to ``Y_out``. ``state``: a ``DOP853_STATE`` record; ``y`` the current state with
-    its compensation ``comp``; ``y_old``/``K``/``F`` the last step's data, with K[12] =
-    f(t, y) on entry; ``g_old`` the event functions at (t, y), ``ev_dir`` their directions.
+    """``_erk_advance`` with DOP853."""
+    return _erk_advance(ks, PAIR_DOP853, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,
+                        h_max, max_steps, g_old, ev_dir, comp)
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def dopri5_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
+                   g_old, ev_dir, comp):
+    """``_erk_advance`` with DOPRI5."""
+    return _erk_advance(ks, PAIR_DOPRI5, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,
+                        h_max, max_steps, g_old, ev_dir, comp)
+
+
+@njit(inline="always")  # into each pair's entry point: its ``pair`` a constant there, the
+# other pair's branches drop out of the compiled loop (a run-time ``pair`` cost DOP853 3–6 %)
+def _erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max,
+                 max_steps, g_old, ev_dir, comp):
+    """Advance with the explicit pair ``pair`` (``PAIR_DOP853``, ``PAIR_DOPRI5``) until every
+    time in ``t_out`` (increasing, >= the start of the last step) is written to ``Y_out``.
+    ``state``: a ``DOP853_STATE`` record; ``y`` the current state with its compensation
+    ``comp``; ``y_old``/``K``/``F`` the last step's data, with K[_fsal(pair)] = f(t, y) on
+    entry; ``g_old`` the event functions at (t, y), ``ev_dir`` their directions.
     Returns (status, number of outputs written); on EVENT the state is at the event time
     (outputs before it written) and ``last_event`` is its index; on STIFF the state is at the
     end of the last accepted step (outputs up to it written)."""
@@ -289,6 +371,11 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
     err5 = np.empty(n)
     err3 = np.empty(n)
     no_cost = np.zeros(3, dtype=np.int64)  # the event search on the dense output is free
+    dopri5 = pair == PAIR_DOPRI5
+    last = _fsal(pair)  # f(t + h, y_new); the stage before it is at t + h too
+    n_new = last  # evaluations of a step
+    exponent = 0.2 if dopri5 else 0.125
+    stiff_edge = 3.25 if dopri5 else 6.1
     n_out = t_out.size
     k = 0
     steps = 0
@@ -297,7 +384,7 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
         if t_out[k] == s.t:
             Y_out[k, :] = y
         else:
-            _dense_output(ks, s, y, y_old, K, F, p, t_out[k], Y_out[k])
+            _dense_output(ks, pair, s, y, y_old, K, F, p, t_out[k], Y_out[k])
         k += 1
     while k < n_out and t_out[k] == s.t:
         Y_out[k, :] = y
@@ -314,18 +401,22 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
         if not rejected:
             # FSAL: f(t, y) of the last accepted step end becomes this step's first stage.
             for i in range(n):
-                K[0, i] = K[12, i]
-        _dop853_stages(ks, t, y, h, K, ytmp, p)
+                K[0, i] = K[last, i]
+        if dopri5:
+            _dopri5_stages(ks, t, y, h, K, ytmp, p)
+            for i in range(n):
+                _take_increment(i, h, _dopri5_increment(K, i), y, comp, y_new, inc, err5,
+                                err3)
+        else:
+            _dop853_stages(ks, t, y, h, K, ytmp, p)
+            for i in range(n):
+                _take_increment(i, h, _dop853_increment(K, i), y, comp, y_new, inc, err5,
+                                err3)
+        rhs(t + h, y_new.ctypes, pp, K[last].ctypes)
+        s.n_evaluations += n_new
         for i in range(n):
-            b, a5, a3 = _dop853_increment(K, i)
-            d = h * b + comp[i]
-            y_new[i] = y[i] + d
-            inc[i] = d
-            err5[i] = a5
-            err3[i] = a3
-        rhs(t + h, y_new.ctypes, pp, K[12].ctypes)
-        s.n_evaluations += 12
-        for i in range(n):
+            if dopri5:
+                err5[i] += _dopri5_error_fsal(K, i)
             scale[i] = atol + max(abs(y[i]), abs(y_new[i])) * rtol
             err5[i] /= scale[i]
             err3[i] /= scale[i]
@@ -336,22 +427,22 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
             e3 += err3[i] * err3[i]
         if e5 == 0.0 and e3 == 0.0:
             err = 0.0
-        else:
+        else:  # DOPRI5 (e3 = 0): h √(e5 / n), the plain RMS norm
             err = h * e5 / math.sqrt((e5 + 0.01 * e3) * n)
         if not math.isfinite(err):
             err = 1e10
         if err < 1.0:
             stiff = False
             if s.n_steps % 1000 == 0 or s.stiff_positive > 0:
-                # Stage 12 (ytmp, K[11]) and y_new (K[12]) are both at t + h.
+                # The last stage (ytmp, K[last - 1]) and y_new (K[last]) are both at t + h.
                 stnum = 0.0
                 stden = 0.0
                 for i in range(n):
-                    stnum += (K[12, i] - K[11, i]) ** 2
+                    stnum += (K[last, i] - K[last - 1, i]) ** 2
                     stden += (y_new[i] - ytmp[i]) ** 2
                 if stden > 0.0:
                     s.h_lambda = h * math.sqrt(stnum / stden)
-                    if s.h_lambda > 6.1:
+                    if s.h_lambda > stiff_edge:
                         s.stiff_negative = 0
                         s.stiff_positive += 1
                         stiff = s.stiff_positive >= 15
@@ -362,7 +453,7 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
             if err == 0.0:
                 factor = 10.0
             else:
-                factor = min(10.0, 0.9 * err ** (-1.0 / 8.0))
+                factor = min(10.0, 0.9 * err ** -exponent)
             if rejected:
                 factor = min(1.0, factor)
             rejected = False
@@ -375,7 +466,7 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
                 comp[i] = inc[i] - (y_new[i] - y[i])
             if n_c > 0:
                 ks.project(t_new, y_new, p)
-                rhs(t_new, y_new.ctypes, pp, K[12].ctypes)
+                rhs(t_new, y_new.ctypes, pp, K[last].ctypes)
                 s.n_evaluations += 1
                 comp[:] = 0.0  # the projection moved the state: nothing left to carry
             y[:] = y_new
@@ -395,18 +486,18 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
                 for i in range(n_ev):
                     if _crossed(g_old[i], g_new[i], ev_dir[i]):
                         if s.dense_ready == 0:
-                            _dense_prepare(ks, s, y, y_old, K, F, p)
-                        ti = _locate_event(ks, DENSE_DOP853, F, inc, y_old, inc, t, 0.0, h, p,
+                            _dense_prepare(ks, pair, s, y, y_old, K, F, p)
+                        ti = _locate_event(ks, DENSE_ERK, F, inc, y_old, inc, t, 0.0, h, p,
                                            0.0, no_cost, i, t, g_old[i], t_new, g_new[i])
                         if first < 0 or ti < t_ev:
                             first = i
                             t_ev = ti
                 if first >= 0:
                     while k < n_out and t_out[k] < t_ev:
-                        _dense_output(ks, s, y, y_old, K, F, p, t_out[k], Y_out[k])
+                        _dense_output(ks, pair, s, y, y_old, K, F, p, t_out[k], Y_out[k])
                         k += 1
                     if t_ev < t_new:
-                        _dense_output(ks, s, y, y_old, K, F, p, t_ev, y)
+                        _dense_output(ks, pair, s, y, y_old, K, F, p, t_ev, y)
                     comp[:] = 0.0
                     s.t = t_ev
                     s.last_event = first
@@ -417,12 +508,12 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
                 if t_out[k] == t_new:
                     Y_out[k, :] = y
                 else:
-                    _dense_output(ks, s, y, y_old, K, F, p, t_out[k], Y_out[k])
+                    _dense_output(ks, pair, s, y, y_old, K, F, p, t_out[k], Y_out[k])
                 k += 1
             if stiff:
                 return Status.STIFF, k
         else:
-            s.h = h * max(0.2, 0.9 * err ** (-1.0 / 8.0))
+            s.h = h * max(0.2, 0.9 * err ** -exponent)
             s.n_rejected += 1
             rejected = True
     return Status.OK, k

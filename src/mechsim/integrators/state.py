@@ -30,6 +30,13 @@ class Status(IntEnum):
         return _REASONS[self]
 
 
+class Pair(IntEnum):
+    """The explicit Runge–Kutta pair the shared loop (``kernels._erk_advance``) steps with."""
+
+    DOP853 = 0
+    DOPRI5 = 1
+
+
 _REASONS = {
     Status.OK: "ok", Status.MAX_STEPS: "too many steps",
     Status.STEP_UNDERFLOW: "step size underflow", Status.NOT_FINITE: "non-finite state",
@@ -45,9 +52,9 @@ _I = np.int64
 _COMMON = [("t", _F), ("n_steps", _I), ("n_evaluations", _I), ("n_rejected", _I),
            ("error_estimate", _F)]
 
-#: DOP853: next step h, the last accepted step (t_old, h_old) whose dense output is ready when
-#: ``dense_ready``; event bookkeeping; Hairer's stiffness test (positive and negative tests in
-#: a row, last h·|λ|).
+#: DOP853 and DOPRI5 (the explicit pairs): next step h, the last accepted step (t_old, h_old)
+#: whose dense output is ready when ``dense_ready``; event bookkeeping; Hairer's stiffness
+#: test (positive and negative tests in a row, last h·|λ|).
 DOP853_STATE = np.dtype(_COMMON + [
     ("h", _F), ("t_old", _F), ("h_old", _F), ("dense_ready", _I), ("last_event", _I),
     ("n_events", _I), ("stiff_positive", _I), ("stiff_negative", _I), ("h_lambda", _F)])
