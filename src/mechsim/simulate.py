@@ -195,8 +195,8 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
              step: float | None = None, closed_form: bool = False) -> SimulationResult:
     """Integrate ``model`` from its initial state to ``t_end``, sampling every ``output_dt``.
 
-    ``method``: "auto", "dop853", "radau15", "gauss6", "exact", "yoshida8", "yoshida6" or
-    "verlet" (see mechsim.integrators; ``auto`` knows the horizon ``t_end``);
+    ``method``: "auto", "dop853", "dopri5", "radau15", "gauss6", "exact", "yoshida8",
+    "yoshida6" or "verlet" (see mechsim.integrators; ``auto`` knows the horizon ``t_end``);
     ``closed_form=True`` lets "auto" use the exact propagator.
     ``outputs``: which of energy, invariants, observables, frames to evaluate (energy always
     when asked by the balance). Wall time covers integration and output evaluation.

@@ -784,7 +784,7 @@ class SimulatorNode(Node):
                          "effort (its kernels are not derived from a Lagrangian)")
         elif self.stepper.method not in Stepper.TAKES_INPUTS:
             self._reject("method", f"method {self.stepper.method} integrates without the "
-                         "effort: use dop853, radau15 or auto")
+                         "effort: use dop853, dopri5, radau15 or auto")
         elif u.size != len(names):
             self._reject("length", f"{u.size} values, expected {len(names)} (one per "
                          f"coordinate: {', '.join(names)})")
