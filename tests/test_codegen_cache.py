@@ -9,6 +9,7 @@ import json
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -92,3 +93,41 @@ def test_cache_info_and_clear(cache: Path, capsys: pytest.CaptureFixture[str]) -
     assert foreign.read_text() == "not ours"
     assert main(["cache", "info"]) == 0
     assert "modules: 0" in capsys.readouterr().out
+
+
+def _lock_waiters(lock: Path) -> int:
+    """Waiters for the flock on ``lock``: the ``->`` rows of /proc/locks for its inode."""
+    inode = str(lock.stat().st_ino)
+    rows = Path("/proc/locks").read_text().splitlines()
+    return sum(1 for row in rows if "->" in row
+               and any(f.count(":") == 2 and f.rsplit(":", 1)[1] == inode for f in row.split()))
+
+
+def test_a_model_being_derived_elsewhere_is_waited_for(cache: Path) -> None:
+    """Two builders of one uncached module (a scene's node processes, test workers): the second
+    waits for the first's build lock, then loads the module the first wrote instead of
+    deriving it again."""
+    import threading
+    import time
+
+    name, key = "shared", "inputs"
+    path = codegen._module_dir() / f"{codegen._PREFIX}{name}_" \
+        f"{codegen.fingerprint(key, codegen.RUNTIME)}.py"
+    path.parent.mkdir(parents=True)
+    derived: list[int] = []
+    loaded: dict[str, Any] = {}
+
+    def second() -> None:
+        loaded["module"] = codegen.load_module(
+            name, key, lambda: derived.append(1) or "VALUE = 2\n")
+
+    with codegen._exclusive(path):  # the first builder, deriving
+        waiter = threading.Thread(target=second)
+        waiter.start()
+        end = time.monotonic() + 120
+        while _lock_waiters(path.with_suffix(".lock")) == 0:
+            assert time.monotonic() < end and waiter.is_alive(), "the second did not wait"
+            time.sleep(0.01)
+        codegen.write_atomic(path, "VALUE = 1\n")
+    waiter.join(120)
+    assert not derived and loaded["module"].VALUE == 1

@@ -10,9 +10,10 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
 4. project   pip install -e . --no-deps --no-build-isolation;
 5. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/);
-6. loops     compile mechsim's shared integrator loops (numba, once per machine, ~25 s of
+6. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
              CPU) so that the first run of a system only compiles that system's kernels; this
-             runs in the background from after step 4, beside the interface builds;
+             runs in the background from after step 4, in two processes, beside the interface
+             builds;
 7. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
              with (skipped, with a note, where node or npm is missing; that test then skips).
 
@@ -110,35 +111,39 @@ def run_logged(step: str, cmd: list[str], *, append: bool = False) -> None:
 
 
 class Pending:
-    """A step's command running in the background: :meth:`wait` raises StepFailed as
-    ``run_logged`` would."""
+    """A step's commands running in the background, each with its own log: :meth:`wait`
+    raises StepFailed as ``run_logged`` would."""
 
-    def __init__(self, step: str, cmd: list[str], log: Path) -> None:
-        self.step, self.cmd, self.log = step, cmd, log
-        self._out = log.open("w")
-        self._out.write(f"$ {' '.join(cmd)}\n")
-        self._out.flush()
-        self.proc = subprocess.Popen(cmd, stdout=self._out, stderr=subprocess.STDOUT, cwd=ROOT,
-                                     env=clean_env())
+    def __init__(self, cmds: list[tuple[list[str], Path]]) -> None:
+        self.runs = []
+        for cmd, log in cmds:
+            out = log.open("w")
+            out.write(f"$ {' '.join(cmd)}\n")
+            out.flush()
+            proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
+                                    env=clean_env())
+            self.runs.append((cmd, log, out, proc))
 
     def wait(self) -> None:
-        rc = self.proc.wait()
-        self._out.close()
-        if rc != 0:
-            what = " ".join([Path(self.cmd[0]).name, *self.cmd[1:4]])
-            raise StepFailed(f"`{what}` exited {rc}: {last_error_line(self.log)}", self.log)
+        for cmd, log, out, proc in self.runs:
+            rc = proc.wait()
+            out.close()
+            if rc != 0:
+                what = " ".join([Path(cmd[0]).name, *cmd[1:4]])
+                raise StepFailed(f"`{what}` exited {rc}: {last_error_line(log)}", log)
 
     def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
-        self._out.close()
+        for _, _, out, proc in self.runs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            out.close()
 
 
-def start_logged(step: str, cmd: list[str]) -> Pending:
-    """Start cmd in the background with output to the step's log."""
+def start_logged(step: str, *cmds: list[str]) -> Pending:
+    """Start the commands in the background, with output to the step's logs."""
     LOG_DIR.mkdir(parents=True, exist_ok=True)
-    return Pending(step, cmd, LOG_DIR / f"{step}.log")
+    return Pending([(cmd, LOG_DIR / f"{step}-{i}.log") for i, cmd in enumerate(cmds, 1)])
 
 
 def last_error_line(log: Path) -> str:
@@ -240,9 +245,10 @@ def step_project() -> None:
 
 
 def step_loops() -> Pending:
-    say("compiling the shared integrator loops (numba, ~25 s of CPU, alongside the next steps)")
-    return start_logged("loops", [str(VENV_PY), "-c",
-                                  "import mechsim.integrators as i; i.precompile()"])
+    say("compiling the shared integrator loops (numba, ~40 s of CPU in two processes, "
+        "alongside the next steps)")
+    return start_logged("loops", *([str(VENV_PY), "-c", "import mechsim.integrators as i; "
+                                    f"i.precompile({part})"] for part in (0, 1)))
 
 
 #: What the compiled loops are made from (their cache key inside mechsim covers the same).

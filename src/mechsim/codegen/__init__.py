@@ -30,7 +30,7 @@ import importlib.util
 import os
 import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -190,13 +190,17 @@ class Kernels:
         from mechsim.codegen.contract import POINTER_SIGNATURE, SIGNATURES
 
         if name not in self._compiled:
-            if name in HOT:
-                wrapper = self.module.POINTER_KERNELS[name]
-                self._compiled[name] = cfunc(POINTER_SIGNATURE, cache=True)(wrapper)
-            else:
-                f = self._functions[name]
-                f.compile(SIGNATURES[name].args)
-                self._compiled[name] = f
+            # numba reads its disk cache when it compiles: a process that waited for the
+            # lock loads what the one before it compiled
+            source = self.module.__file__
+            with _exclusive(Path(source) if source else None):
+                if name in HOT:
+                    wrapper = self.module.POINTER_KERNELS[name]
+                    self._compiled[name] = cfunc(POINTER_SIGNATURE, cache=True)(wrapper)
+                else:
+                    f = self._functions[name]
+                    f.compile(SIGNATURES[name].args)
+                    self._compiled[name] = f
         return self._compiled[name]
 
     def kernel_set(self, *needed: str) -> KernelSet:
@@ -256,6 +260,30 @@ def _import(modname: str, path: Path) -> ModuleType:
     return module
 
 
+@contextlib.contextmanager
+def _exclusive(path: Path | None) -> Iterator[None]:
+    """Hold the build lock of generated module ``path`` (``<module>.lock`` beside it), so
+    that processes needing the same model at once (the nodes of a scene, test workers) derive
+    and compile it once: the others wait, then find it in the cache. Without a lock (a cache
+    that cannot take one), build anyway."""
+    import fcntl
+
+    if path is None:
+        yield
+        return
+    try:
+        fd = os.open(path.with_suffix(".lock"),
+                     os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except OSError:
+        yield
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # and with it the lock
+
+
 def _touch(path: Path) -> None:
     """Record a use of a generated module (its .used marker; the module file itself keeps its
     time stamp, which numba's cache index is keyed on)."""
@@ -276,8 +304,11 @@ def load_module(name: str, key: str, make_text: Callable[[], str]) -> ModuleType
     folder = _module_dir()
     path = folder / f"{modname}.py"
     if not path.exists():
-        write_atomic(path, make_text())
-        _evict(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        with _exclusive(path):
+            if not path.exists():  # another process may have derived it meanwhile
+                write_atomic(path, make_text())
+                _evict(folder)
     _touch(path)
     module = _import(modname, path)
     _loaded[modname] = module
@@ -315,7 +346,7 @@ def _remove_module(path: Path) -> int:
     """Delete a generated module, its use marker and its compiled caches; bytes freed."""
     freed = 0
     stem = path.stem
-    victims = [path, path.with_suffix(".used")]
+    victims = [path, path.with_suffix(".used"), path.with_suffix(".lock")]
     pycache = path.parent / "__pycache__"
     if pycache.is_dir():
         victims += [p for p in pycache.iterdir() if p.name.startswith(stem + ".")]
