@@ -4,7 +4,7 @@
 Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-bootstrap.json):
 
 1. venv      create ./.venv with a Python 3.11 interpreter;
-2. pip       pip install --no-compile -r requirements.txt;
+2. pip       pip install -r requirements.txt;
 3. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
              .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
 4. project   pip install -e . --no-deps --no-build-isolation;
@@ -197,10 +197,10 @@ def step_venv() -> None:
 
 def step_pip() -> None:
     say("pip install -r requirements.txt (about a minute in a new venv)")
-    # --no-compile: byte-compiling every installed module took half of this step's CPU; Python
-    # compiles what is imported, once, on first import.
-    run_logged("pip", [str(VENV_PY), "-m", "pip", "install", "--no-compile", "-r",
-                       str(REQUIREMENTS)])
+    # Byte-compiled at install (half of this step's CPU): with PYTHONDONTWRITEBYTECODE set, as
+    # on some machines, nothing else would write the .pyc files and every process would
+    # compile sympy, scipy and numba from source (a cold test run took twice the CPU).
+    run_logged("pip", [str(VENV_PY), "-m", "pip", "install", "-r", str(REQUIREMENTS)])
 
 
 def venv_paths() -> dict[str, str]:
