@@ -16,11 +16,11 @@ from functools import cache
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
 
 import mechsim
 from mechsim.integrators import StiffnessError, make_stepper
 from mechsim.integrators import dopri5_tableau as tab
+from test_dop853_tableau import _exact, _f  # Kepler's problem and its closed form
 
 # --- the tableau -----------------------------------------------------------------------------
 
@@ -39,22 +39,6 @@ def test_order_conditions() -> None:
     # Two conditions that involve A (trees of order 3 and 5).
     assert b @ A @ c == pytest.approx(1 / 6, abs=1e-15)
     assert b @ A @ (A @ (A @ c)) == pytest.approx(1 / 120, abs=1e-15)
-
-
-_E = 0.3  # eccentricity of the test orbit
-
-
-def _f(t: float, y: np.ndarray) -> np.ndarray:
-    """Kepler's problem (GM = 1)."""
-    r3 = np.hypot(y[0], y[1]) ** 3
-    return np.array([y[2], y[3], -y[0] / r3, -y[1] / r3])
-
-
-def _exact(t: float) -> np.ndarray:
-    """The orbit of semi-major axis 1 through pericentre at t = 0, from Kepler's equation."""
-    E = brentq(lambda E: E - _E * np.sin(E) - t, t - 1, t + 1, xtol=1e-16, rtol=1e-15)
-    b, rate = np.sqrt(1 - _E * _E), 1 / (1 - _E * np.cos(E))
-    return np.array([np.cos(E) - _E, b * np.sin(E), -np.sin(E) * rate, b * np.cos(E) * rate])
 
 
 def _step(t: float, y: np.ndarray, h: float
