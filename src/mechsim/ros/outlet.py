@@ -116,7 +116,7 @@ class Outlet:
         #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
         self._live: list[tuple[_Channel, np.ndarray]] = []
         self._live_for: Any = None
-        self._immediate_for: tuple[int, int] | None = None
+        self._immediate_for: tuple[int, ...] | None = None
         self._immediate_now = False
 
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
@@ -208,8 +208,8 @@ class Outlet:
 
     def _immediate(self) -> bool:
         """Does a sink take every sample as it is published (``immediate``)? Asked again only
-        when the list of sinks is replaced or grows or shrinks."""
-        key = (id(self.sinks), len(self.sinks))
+        when the sinks change (a sink's ``immediate`` is fixed when it is made)."""
+        key = tuple(map(id, self.sinks))  # the sinks themselves, not the list holding them
         if key != self._immediate_for:
             self._immediate_for = key
             self._immediate_now = any(getattr(sink, "immediate", False)
