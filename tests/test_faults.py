@@ -434,18 +434,20 @@ def _parameter(node: str, name: str) -> Any:
 def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Path) -> None:
     """``run --processes`` passes --rate and --fast to its nodes (their parameters say so),
     stops at --duration by itself (exit 0) or on Ctrl-C (130), and exits with its children's
-    status: a system that fails gives 1, a refused start (duplicate name) gives 2."""
+    status: a system that fails gives 1, a refused start (duplicate name) gives 2. Its own
+    instance name: a pendulum another test left in this worker's graph must not answer."""
     first = subprocess.Popen([PY, "-m", "mechsim.cli", "run", "pendulum", "--processes",
-                              "--fast", "--rate", "40"], env=ros_env, cwd=tmp_path,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                              "--name", "rated", "--fast", "--rate", "40"], env=ros_env,
+                             cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                             text=True)
     try:
-        assert _parameter("/pendulum/simulator", "publish_rate") == 40.0
-        assert _parameter("/pendulum/simulator", "real_time_factor") == 0.0
+        assert _parameter("/rated/simulator", "publish_rate") == 40.0
+        assert _parameter("/rated/simulator", "real_time_factor") == 0.0
         dup = subprocess.run([PY, "-m", "mechsim.cli", "run", "pendulum", "--processes",
-                              "--fast", "--duration", "1"], env=ros_env, cwd=tmp_path,
-                             capture_output=True, text=True, timeout=300)
+                              "--name", "rated", "--fast", "--duration", "1"], env=ros_env,
+                             cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert dup.returncode == 2, dup.stderr
-        assert "/pendulum/simulator is already running" in dup.stderr
+        assert "/rated/simulator is already running" in dup.stderr
     finally:
         first.send_signal(signal.SIGINT)
         _, err = first.communicate(timeout=120)
