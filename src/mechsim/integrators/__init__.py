@@ -229,6 +229,7 @@ class Stepper(ABC):
         self.t = float(t0)
         self.events: list[tuple[float, str]] = []  # (time, event name), in order
         self._stalled = 0  # events in a row at the same time
+        self._last_event_t = -math.inf
 
     @abstractmethod
     def advance(self, t_out: np.ndarray) -> np.ndarray: ...
@@ -267,17 +268,19 @@ class Stepper(ABC):
         """Apply the model's event handler at the event time and restart there (adaptive
         methods with events: ``_restart_after_event``)."""
         t = self.t
-        y_new = np.array(self.model.handle_event(index, t, self.y.copy()), dtype=np.float64)
-        if y_new.shape != self.y.shape or not np.all(np.isfinite(y_new)):
+        # (the handler gets a copy of its own: what it returns is not shared)
+        y_new = np.asarray(self.model.handle_event(index, t, self.y.copy()), dtype=np.float64)
+        if y_new.shape != self.y.shape or not np.isfinite(y_new).all():
             raise IntegrationError(f"{self.model.id}: handler of event "
                                    f"{self.model.events[index].name} returned a bad state")
-        if self.events and t - self.events[-1][0] <= 1e-12 * max(1.0, abs(t)):
+        if t - self._last_event_t <= 1e-12 * max(1.0, abs(t)):
             self._stalled += 1
             if self._stalled > 100:
                 raise IntegrationError(f"{self.model.id}: events accumulate at t = {t:.6g} "
                                        "(Zeno behaviour); the model must change mode there")
         else:
             self._stalled = 0
+        self._last_event_t = t
         self.events.append((t, self.model.events[index].name))
         self._restart_after_event(t, y_new)
 

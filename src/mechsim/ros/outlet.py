@@ -7,7 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from rclpy.node import Node
@@ -92,6 +92,15 @@ def type_name(msg_type: type) -> str:
     return f"{module[0]}/msg/{msg_type.__name__}"
 
 
+class _SinkKinds(NamedTuple):
+    """What the sinks of an outlet take (``Outlet._sink_kinds``)."""
+
+    immediate: bool  # a sink takes every sample as it is published
+    rows: bool  # a sink records CDR bytes (``write_chunk``)
+    column_wants: list[Any]  # the ``wants`` (or None: every topic) of the column sinks
+    columns: dict[str, bool]  # per topic: does a column sink want it (filled as asked)
+
+
 class Outlet:
     """Publishers of one node plus the process's sinks (shared list, attached by the runner)."""
 
@@ -116,8 +125,8 @@ class Outlet:
         #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
         self._live: list[tuple[_Channel, np.ndarray]] = []
         self._live_for: Any = None
-        self._immediate_for: tuple[int, ...] | None = None
-        self._immediate_now = False
+        self._kinds_for: tuple[int, ...] | None = None
+        self._kinds = _SinkKinds(False, False, [], {})
 
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         resolved = self.node.resolve_topic_name(topic)
@@ -140,19 +149,18 @@ class Outlet:
         """Are the CDR bytes of ``topic``'s samples needed (a subscriber as counted at the
         last ``refresh``, or a sink that records bytes: ``write_chunk``)? Other sinks take
         values or messages, so a chunk nobody reads as bytes is not encoded."""
-        return self.subscribers.get(topic, 0) > 0 or any(
-            hasattr(sink, "write_chunk") for sink in self.sinks)
+        return self.subscribers.get(topic, 0) > 0 or self._sink_kinds().rows
 
     def needs_columns(self, topic: str) -> bool:
         """Are the evaluated values of ``topic``'s samples needed (a sink that takes them,
         ``write_columns``, wants the topic)? Otherwise a chunk's values are not gathered
         into columns: the sinks get CDR rows or messages."""
-        for sink in self.sinks:
-            if hasattr(sink, "write_columns"):
-                wants = getattr(sink, "wants", None)
-                if wants is None or wants(topic):
-                    return True
-        return False
+        kinds = self._sink_kinds()
+        known = kinds.columns.get(topic)
+        if known is None:
+            known = kinds.columns[topic] = any(wants is None or wants(topic)
+                                               for wants in kinds.column_wants)
+        return known
 
     def wanted(self, topic: str) -> bool:
         """Does anything consume ``topic`` (a sink, or a subscriber anywhere as counted at the
@@ -206,15 +214,22 @@ class Outlet:
         if self._immediate():
             self.hand_over()
 
-    def _immediate(self) -> bool:
-        """Does a sink take every sample as it is published (``immediate``)? Asked again only
-        when the sinks change (a sink's ``immediate`` is fixed when it is made)."""
+    def _sink_kinds(self) -> _SinkKinds:
+        """What the sinks take, asked again only when the sinks change (what a sink takes is
+        fixed when it is made)."""
         key = tuple(map(id, self.sinks))  # the sinks themselves, not the list holding them
-        if key != self._immediate_for:
-            self._immediate_for = key
-            self._immediate_now = any(getattr(sink, "immediate", False)
-                                      for sink in self.sinks)
-        return self._immediate_now
+        if key != self._kinds_for:
+            self._kinds_for = key
+            self._kinds = _SinkKinds(
+                any(getattr(sink, "immediate", False) for sink in self.sinks),
+                any(hasattr(sink, "write_chunk") for sink in self.sinks),
+                [getattr(sink, "wants", None) for sink in self.sinks
+                 if hasattr(sink, "write_columns")], {})
+        return self._kinds
+
+    def _immediate(self) -> bool:
+        """Does a sink take every sample as it is published (``immediate``)?"""
+        return self._sink_kinds().immediate
 
     def hand_over(self) -> None:
         """Hand the published samples held for the sinks over to them, in one call per sink

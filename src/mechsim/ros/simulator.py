@@ -545,6 +545,9 @@ class SimulatorNode(Node):
             try:
                 t0 = time.perf_counter()
                 Y = self.stepper.advance(times)
+                # (the events' record is simulate()'s result; a node, running for ever,
+                # keeps none: memory stays flat however many bounces)
+                self.stepper.events.clear()
                 self.costs["integrate"] += time.perf_counter() - t0
             except Exception as e:  # noqa: BLE001 - e.g. numba errors from extreme values:
                 raise_if_stop(e)

@@ -31,6 +31,7 @@ edges along x, y, z; particle i at frame ``particle_<i>`` (child of ``box``). Co
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -126,6 +127,12 @@ class GasInBox(LagrangianModel):
             vel *= v_rms * math.sqrt(n / float(np.sum(vel**2)))
         return pos.reshape(-1), vel.reshape(-1)
 
+    @functools.cached_property
+    def _walls(self) -> tuple[tuple[float, float, float], float]:
+        """(ℓₐ/2 for each axis, m): what a wall event reads (a model's values never change)."""
+        half = 0.5 * self.lengths()
+        return (float(half[0]), float(half[1]), float(half[2])), self.value("mass")
+
     def handle_event(self, index: int, t: float, y: np.ndarray) -> np.ndarray:
         """Elastic wall: reverse the outward velocity component of the particle at the wall
         and book the impulse 2m|vₐ| to that wall. Every component of that particle that is at
@@ -133,16 +140,20 @@ class GasInBox(LagrangianModel):
         location's tolerance), the one whose event fired in any case."""
         n = 3 * self.count
         i, rest = divmod(index, 6)
-        fired = (rest // 2, rest % 2)  # (axis, side) of the event
-        half = 0.5 * self.lengths()
-        m = self.value("mass")
+        fired = divmod(rest, 2)  # (axis, side) of the event
+        half, m = self._walls
         for k in range(3):
             j = 3 * i + k
-            x, v = y[j], y[n + j]
-            for side, outward, at_wall in ((0, v < 0, x <= -half[k]), (1, v > 0, x >= half[k])):
-                if outward and (at_wall or fired == (k, side)):
-                    y[2 * n + 2 + 2 * k + side] += 2.0 * m * abs(v)
-                    y[n + j] = -v
+            x, v = float(y[j]), float(y[n + j])
+            if v < 0.0:
+                side, at_wall = 0, x <= -half[k]
+            elif v > 0.0:
+                side, at_wall = 1, x >= half[k]
+            else:
+                continue  # not moving outward: no wall acts
+            if at_wall or fired == (k, side):
+                y[2 * n + 2 + 2 * k + side] += 2.0 * m * abs(v)
+                y[n + j] = -v
         return y
 
     def visuals(self) -> tuple[Visual, ...]:
