@@ -355,10 +355,11 @@ def test_disk_full_keeps_what_was_recorded(tmp_path: Path,
 
     real_open = writer_module.open_exclusive
     monkeypatch.setattr(writer_module, "open_exclusive",
-                        lambda path: _FullDisk(real_open(path), 60_000))
+                        lambda path: _FullDisk(real_open(path), 600_000))
     target = tmp_path / "full"
     with pytest.raises(MechsimError) as e:
-        record.run_with_outputs(single_system_scene("pendulum"), fast=True, duration=60.0,
+        # (chunks of 512 KB, ~175 KB compressed: a few reach the disk before it is full)
+        record.run_with_outputs(single_system_scene("pendulum"), fast=True, duration=300.0,
                                 bag=str(target))
     msg = str(e.value)
     assert str(target) in msg and "No space left on device" in msg and "\n" not in msg

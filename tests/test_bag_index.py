@@ -139,9 +139,9 @@ def test_chunk_index_memory_is_bounded(tmp_path: Path) -> None:
 @pytest.mark.parametrize("tmpfile", [True, False], ids=["O_TMPFILE", "named-then-unlinked"])
 def test_long_recording_lists_every_chunk(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                           tmpfile: bool) -> None:
-    """A recording of 3000 chunks (one per simulated second) through the bag writer, its
-    chunk indexes spilled to an anonymous file (O_TMPFILE, or the exclusive named file
-    unlinked at once where O_TMPFILE is not available): the summary lists every chunk,
+    """A recording of 3000 chunks (one per hand-off: a 1-byte chunk size) through the bag
+    writer, its chunk indexes spilled to an anonymous file (O_TMPFILE, or the exclusive named
+    file unlinked at once where O_TMPFILE is not available): the summary lists every chunk,
     ``rosbags`` reads every message with its stamp, and the bag directory holds only the
     bag's two files, during the recording and after."""
     from rclpy.qos import QoSProfile
@@ -164,11 +164,11 @@ def test_long_recording_lists_every_chunk(tmp_path: Path, monkeypatch: pytest.Mo
     monkeypatch.setattr(mcapfile, "anonymous_file", anonymous_file)
     path = tmp_path / "bag"
     qos = QoSProfile(depth=10)
-    items, n = 60, 50
-    with BagWriter(path) as bag:
+    items, n = 3000, 1
+    with BagWriter(path, chunk_size=1) as bag:
         for k in range(items):
             ns = np.arange(k * n, (k + 1) * n, dtype=np.int64) * SECOND
-            a = np.full((n, 8), k, dtype=np.uint8)
+            a = np.full((n, 8), k % 256, dtype=np.uint8)
             b = np.repeat(np.arange(n, dtype=np.uint8)[:, None], 12, 1)
             bag.write_chunk(ns, [("/a", "std_msgs/msg/UInt64", qos, a),
                                  ("/b", "std_msgs/msg/String", qos, b)])

@@ -58,7 +58,6 @@ from mechsim.outputs.bag.typeinfo import (
 )
 from mechsim.outputs.bag.writer import (
     CHUNK_SIZE,
-    FLUSH_SIM_NS,
     FLUSH_WALL_S,
     PROFILE,
     SCHEMA_ENCODING,
@@ -68,7 +67,7 @@ from mechsim.outputs.bag.writer import (
 )
 
 __all__ = [
-    "CHUNK_SIZE", "FLUSH_SIM_NS", "FLUSH_WALL_S", "INFINITE", "LOCK_FILE", "METADATA_FILE",
+    "CHUNK_SIZE", "FLUSH_WALL_S", "INFINITE", "LOCK_FILE", "METADATA_FILE",
     "PROFILE", "ROSBAG2_VERSION", "ROS_DISTRO", "SCHEMA_ENCODING", "SEPARATOR", "SERIALIZATION",
     "STORAGE_ID", "SYSTEM_INFO", "BagLock", "BagMessage", "BagStats", "BagWriter",
     "RepairResult", "TopicInfo", "bag_files", "bag_metadata", "cdr_bytes", "check_bag",

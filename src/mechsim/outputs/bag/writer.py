@@ -9,8 +9,8 @@ exclusive temporary renamed into place; then the lock is removed.
 Robustness. Records are written by a writer thread (Python runs signal handlers in the main
 thread only, so Ctrl-C / SIGTERM can never interrupt a half-written record); the sink only
 serializes and queues (a chunk of samples, already encoded by the nodes, is one item: see
-``mcapfile``). A chunk is closed and flushed to the file at least every second of simulation
-time and every second of wall time (``McapFile.flush``), so after a hard kill every chunk but
+``mcapfile``). A chunk is closed and flushed to the file when it passes ``CHUNK_SIZE`` and at
+least every second of wall time (``McapFile.flush``), so after a hard kill every chunk but
 the last is in the file and ``mechsim bag repair`` completes the bag. Memory stays flat however
 long the recording: the queue is bounded, and the chunk indexes the summary needs wait in an
 anonymous file inside the bag directory (``mcapfile.Spill``).
@@ -54,8 +54,10 @@ from mechsim.outputs.bag.typeinfo import cdr_bytes, message_definition, type_des
 
 PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"
-#: A chunk is closed at least this often (simulation time of the stamps, and wall time).
-FLUSH_SIM_NS = 1_000_000_000
+#: A chunk is closed at least this often [s of wall time], and when it passes ``CHUNK_SIZE``
+#: bytes. (Not by simulation time: a fast run would close a small chunk for every second it
+#: simulates, a thousand a second, and the writer, compressing and indexing each, would
+#: hold the simulation back.)
 FLUSH_WALL_S = 1.0
 CHUNK_SIZE = 512 * 1024
 #: Items (a message, or a chunk of samples on several topics) queued for the writer thread at
@@ -281,7 +283,6 @@ class BagWriter:
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._qos_yaml: dict[str, str] = {}
-        self._last_flush_ns: int | None = None
         self._last_flush_wall = time.monotonic()
         try:
             while True:
@@ -327,32 +328,15 @@ class BagWriter:
             return
         if item[0] == "chunk":
             _, ns, rows = item
-            batch = w.layout(ns, [(channels[topic], r) for topic, r in rows])
-            start = 0
-            while start < len(ns):
-                # Up to the next flush in simulation time (a chunk spans a second at most).
-                if self._last_flush_ns is None:
-                    self._last_flush_ns = int(ns[start])
-                end = int(np.searchsorted(ns, self._last_flush_ns + FLUSH_SIM_NS, "left"))
-                end = max(end, start + 1)
-                w.add_rows(batch, start, end)
-                first, last = int(ns[start]), int(ns[end - 1])
-                for topic, _ in rows:
-                    self.stats.add(topic, first, end - start, last)
-                start = end
-                if start < len(ns):
-                    w.flush()
-                    self._last_flush_ns, self._last_flush_wall = int(ns[start]), \
-                        time.monotonic()
+            w.add_batch(ns, [(channels[topic], r) for topic, r in rows])
+            first, last = int(ns[0]), int(ns[-1])
+            for topic, _ in rows:
+                self.stats.add(topic, first, len(ns), last)
         else:
             topic, first, data = item
-            last = first
             w.add_message(channels[topic], first, data)
             self.stats.add(topic, first)
-            if self._last_flush_ns is None:
-                self._last_flush_ns = first
         now = time.monotonic()
-        if last - self._last_flush_ns >= FLUSH_SIM_NS or \
-                now - self._last_flush_wall >= FLUSH_WALL_S:
+        if now - self._last_flush_wall >= FLUSH_WALL_S:
             w.flush()  # closes the chunk in progress and flushes the stream
-            self._last_flush_ns, self._last_flush_wall = last, now
+            self._last_flush_wall = now
