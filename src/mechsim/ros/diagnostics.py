@@ -34,6 +34,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -122,7 +123,6 @@ def track(laws: list[LawState], values: np.ndarray) -> None:
     m = values.shape[1]
     finite = np.isfinite(values)
     all_finite = bool(finite.all())
-    drifts = np.empty_like(values)
     if any(law.initial is None for law in laws):
         if all_finite:
             first = values[:, 0].tolist()
@@ -133,26 +133,7 @@ def track(laws: list[LawState], values: np.ndarray) -> None:
         for i, law in enumerate(laws):
             if law.initial is None and present[i]:
                 law.initial = first[i]
-    # Law.drift depends on the law only through is_constraint (a residual has no initial
-    # value): one call per such group, on its rows, initial values and scales as columns.
-    groups: dict[bool, list[int]] = {}
-    for i, law in enumerate(laws):
-        if law.initial is None:
-            drifts[i] = -math.inf  # no finite value yet: no drift to take
-        else:
-            groups.setdefault(law.law.is_constraint, []).append(i)
-    for rows in groups.values():
-        law = laws[rows[0]].law
-        if len(rows) == 1:
-            i = rows[0]
-            drifts[i] = law.drift(values[i], laws[i].initial, laws[i].scale)
-            continue
-        initial = np.array([[laws[i].initial] for i in rows])
-        scale = np.array([[laws[i].scale] for i in rows])
-        if len(rows) == len(laws):
-            drifts[:] = law.drift(values, initial, scale)
-        else:
-            drifts[rows] = law.drift(values[rows], initial, scale)
+    drifts = _drifts(laws, values)
     if all_finite:
         worst = drifts.max(axis=1).tolist()
         last_finite = [True] * len(laws)
@@ -171,6 +152,69 @@ def track(laws: list[LawState], values: np.ndarray) -> None:
         law.drift = last[i] if last_finite[i] else math.inf
         if worst[i] > -math.inf:  # some sample was finite
             law.max_drift = max(law.max_drift, worst[i])
+
+
+def _drifts(laws: list[LawState], values: np.ndarray) -> np.ndarray:
+    """The drift of every sample (laws × samples) from its law's initial value; -inf for a
+    law without one yet. Law.drift depends on the law only through is_constraint (a residual
+    has no initial value): one call per such group, on its rows, initial values and scales
+    as columns."""
+    drifts = np.empty_like(values)
+    groups: dict[bool, list[int]] = {}
+    for i, law in enumerate(laws):
+        if law.initial is None:
+            drifts[i] = -math.inf  # no finite value yet: no drift to take
+        else:
+            groups.setdefault(law.law.is_constraint, []).append(i)
+    for rows in groups.values():
+        law = laws[rows[0]].law
+        if len(rows) == 1:
+            i = rows[0]
+            drifts[i] = law.drift(values[i], laws[i].initial, laws[i].scale)
+            continue
+        initial = np.array([[laws[i].initial] for i in rows])
+        scale = np.array([[laws[i].scale] for i in rows])
+        if len(rows) == len(laws):
+            drifts[:] = law.drift(values, initial, scale)
+        else:
+            drifts[rows] = law.drift(values[rows], initial, scale)
+    return drifts
+
+
+def track_prefixes(laws: list[LawState], values: np.ndarray, ends: list[int]
+                   ) -> Iterator[None] | None:
+    """:func:`track` of the pieces ``values[:, a:b]`` for consecutive ends b in ``ends``
+    (increasing, the last at most the number of samples), each piece taken when the iterator
+    is advanced (a report in between sees the laws as after that piece), computed once for
+    all of them: the drifts of every sample, and their running maximum. The same values as
+    piece by piece. None where that shortcut does not apply (a non-finite sample, a law
+    without an initial value yet): then take the pieces with :func:`track`."""
+    if not laws or any(law.initial is None for law in laws) \
+            or not bool(np.isfinite(values).all()):
+        return None
+    drifts = _drifts(laws, values)
+    worst = np.maximum.accumulate(drifts, axis=1)
+    at = np.maximum(np.asarray(ends, dtype=np.int64) - 1, 0)  # (a first piece may be empty)
+    return _prefixes(laws, ends, values[:, at].T.tolist(), drifts[:, at].T.tolist(),
+                     worst[:, at].T.tolist())
+
+
+def _prefixes(laws: list[LawState], ends: list[int], current: list[list[float]],
+              drift: list[list[float]], worst: list[list[float]]) -> Iterator[None]:
+    done = 0
+    max0 = [law.max_drift for law in laws]
+    for k, end in enumerate(ends):
+        m, done = end - done, end
+        if m == 0:
+            yield
+            continue
+        for i, law in enumerate(laws):
+            law.samples += m
+            law.current = current[k][i]
+            law.finite_now = True
+            law.drift = drift[k][i]
+            law.max_drift = max(max0[i], worst[k][i])
+        yield
 
 
 @dataclass
@@ -429,6 +473,38 @@ class DiagnosticsNode(Node):
             return
         self._seen(st, ns)
         self._track(st, stream, np.asarray(stamps, dtype=np.int64), laws, matrix)
+
+    def feed_prefixes(self, ns: str, stream: str, stamps: np.ndarray, laws: list[LawState],
+                      matrix: np.ndarray, ends: list[int]) -> Iterator[None] | None:
+        """:meth:`feed_rows` of the samples up to each end in ``ends`` in turn, each taken when
+        the iterator is advanced, computed once for all (``track_prefixes``). None where that
+        does not apply (a system not followed, a new epoch among the samples, a non-finite
+        sample, a law without an initial value): then feed the pieces with :meth:`feed_rows`."""
+        st = self.systems.get(ns)
+        if st is None or len(stamps) == 0:
+            return None
+        stamps = np.asarray(stamps, dtype=np.int64)
+        previous = st.stamps.get(stream)
+        if (previous is not None and int(stamps[0]) <= previous) or (
+                len(stamps) > 1 and bool((stamps[1:] <= stamps[:-1]).any())):
+            return None  # a new epoch starts among them
+        pieces = track_prefixes(laws, matrix, ends)
+        if pieces is None:
+            return None
+        return self._fed_prefixes(st, ns, stream, stamps, ends, pieces)
+
+    def _fed_prefixes(self, st: SystemState, ns: str, stream: str, stamps: np.ndarray,
+                      ends: list[int], pieces: Iterator[None]) -> Iterator[None]:
+        last = stamps[np.maximum(np.asarray(ends, dtype=np.int64) - 1, 0)].tolist()
+        done = 0
+        for k, _ in enumerate(pieces):
+            if ends[k] > done:
+                done = ends[k]
+                self._seen(st, ns)
+                st.stamps[stream] = last[k]
+                if stream == "energy":
+                    st.last_stamp = last[k]
+            yield
 
     @staticmethod
     def _law_values(st: SystemState, stream: str, values: Any, n: int

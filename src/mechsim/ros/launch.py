@@ -29,7 +29,8 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections import Counter
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -117,10 +118,10 @@ class DiagnosticsFeed:
         if rows is not None:
             self.pending.append((base, leaf, ns, *rows))
 
-    def deliver(self, until_ns: int | None = None) -> None:
-        """Feed the held samples stamped ``until_ns`` or earlier (all without it). Pieces of
-        a stream whose stamps go on increasing are joined first (a paced run hands them over
-        a sample or two at a time); a new epoch (a stamp not later) starts a new piece."""
+    def _runs(self) -> list[tuple[str, str, Any, list[Any], Any]]:
+        """The held samples as runs (namespace, stream, stamps, laws, values): pieces of a
+        stream whose stamps go on increasing joined (a paced run hands them over a sample or
+        two at a time); a new epoch (a stamp not later) starts a new run."""
         runs: list[tuple[str, str, list[Any], list[Any], list[Any]]] = []
         last: dict[tuple[str, str], tuple[str, str, list[Any], list[Any], list[Any]]] = {}
         for base, leaf, ns, laws, matrix in self.pending:
@@ -130,16 +131,53 @@ class DiagnosticsFeed:
                 runs.append(run)
             run[2].append(ns)
             run[4].append(matrix)
+        return [(base, leaf, np.concatenate(pieces) if len(pieces) > 1 else pieces[0], laws,
+                 np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0])
+                for base, leaf, pieces, laws, parts in runs]
+
+    def deliver(self, until_ns: int | None = None) -> None:
+        """Feed the held samples stamped ``until_ns`` or earlier (all without it)."""
         keep = []
-        for base, leaf, pieces, laws, parts in runs:
-            ns = np.concatenate(pieces) if len(pieces) > 1 else pieces[0]
-            matrix = np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
+        for base, leaf, ns, laws, matrix in self._runs():
             n = len(ns) if until_ns is None else int(np.searchsorted(ns, until_ns, "right"))
             if n:
                 self.diag.feed_rows(base, leaf, ns[:n], laws, matrix[:, :n])
             if n < len(ns):
                 keep.append((base, leaf, ns[n:], laws, matrix[:, n:]))
         self.pending = keep
+
+    def reports(self, stamps: list[int]) -> Iterator[None]:
+        """:meth:`deliver` up to each of ``stamps`` (increasing) in turn, one step per report:
+        the laws are tracked once for all of them where they can be
+        (``DiagnosticsNode.feed_prefixes``), piece by piece where not."""
+        runs = self._runs()
+        # A stream held in several runs (a new epoch among them) is fed piece by piece: the
+        # runs take turns at each report, as with deliver().
+        turns = Counter((base, leaf) for base, leaf, *_ in runs)
+        steps: list[Iterator[None]] = []
+        keep = []
+        for base, leaf, ns, laws, matrix in runs:
+            ends = ns.searchsorted(np.asarray(stamps, dtype=np.int64), "right").tolist()
+            step = self.diag.feed_prefixes(base, leaf, ns, laws, matrix, ends) \
+                if ends[-1] and turns[base, leaf] == 1 else None
+            steps.append(step if step is not None else
+                         self._pieces(base, leaf, ns, laws, matrix, ends))
+            if ends[-1] < len(ns):
+                keep.append((base, leaf, ns[ends[-1]:], laws, matrix[:, ends[-1]:]))
+        self.pending = keep
+        for _ in stamps:
+            for step in steps:
+                next(step)
+            yield
+
+    def _pieces(self, base: str, leaf: str, ns: Any, laws: list[Any], matrix: Any,
+                ends: list[int]) -> Iterator[None]:
+        done = 0
+        for end in ends:
+            if end > done:
+                self.diag.feed_rows(base, leaf, ns[done:end], laws, matrix[:, done:end])
+                done = end
+            yield
 
 
 # --- graph hygiene ------------------------------------------------------------------------
@@ -362,10 +400,12 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
                     with held_signals():
                         for n in nodes:
                             n.outlet.hand_over()  # the samples published up to now
+                stamps = []
                 while t >= next_diag - 1e-12:
-                    feed.deliver(stamp_ns(next_diag, offset))
-                    diag.publish_now()
+                    stamps.append(stamp_ns(next_diag, offset))
                     next_diag += diagnostics_period
+                for _ in feed.reports(stamps) if stamps else ():
+                    diag.publish_now()
                 diag_cost += time.perf_counter() - t0
                 if progress is not None and duration is not None:
                     progress(t, duration)
