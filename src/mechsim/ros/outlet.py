@@ -318,10 +318,13 @@ class Outlet:
                            message: Callable[[], Any]) -> None:
         """Publish a message already encoded (``data``: CDR bytes, padding zero). A sink that
         records bytes (``write_bytes``) gets them; any other gets ``message()``, made only if
-        it wants the topic."""
+        it wants the topic. A volatile topic without a subscriber is not written to DDS (a
+        fast run reports a thousand times a second; nobody could receive it later)."""
         self.hand_over()
         ch = self.channels[topic]
-        ch.publisher.publish(data)
+        if ch.qos.durability != DurabilityPolicy.VOLATILE \
+                or ch.publisher.get_subscription_count():
+            ch.publisher.publish(data)
         self.counts[topic] += 1
         msg = None
         for sink in self.sinks:
