@@ -5,6 +5,7 @@ Standard library only (and the project's atomic files)."""
 
 from __future__ import annotations
 
+import _signal
 import ctypes
 import json
 import os
@@ -60,6 +61,7 @@ def raise_if_stop(error: BaseException) -> None:
 
 
 _held = threading.local()
+_HELD = (int(signal.SIGINT), int(signal.SIGTERM))
 
 
 class held_signals:  # noqa: N801 - used like the function it was: ``with held_signals():``
@@ -77,8 +79,10 @@ class held_signals:  # noqa: N801 - used like the function it was: ``with held_s
             return
         got: list[int] = []
         self._got = got
-        self._previous = {s: signal.signal(s, lambda n, f: got.append(n))
-                          for s in (signal.SIGINT, signal.SIGTERM)}
+        # (_signal's own function: signal.signal's enum conversions cost more than the
+        # system calls, and a fast run enters this block several times per chunk)
+        self._previous = {s: _signal.signal(s, lambda n, f: got.append(n))
+                          for s in _HELD}
         _held.depth = 1
 
     def __exit__(self, exc_type: object, *exc: object) -> None:
@@ -86,7 +90,7 @@ class held_signals:  # noqa: N801 - used like the function it was: ``with held_s
             return
         _held.depth = 0
         for s, handler in self._previous.items():
-            signal.signal(s, handler)
+            _signal.signal(s, handler)
         if self._got and exc_type is None:
             raise KeyboardInterrupt
 
