@@ -246,12 +246,11 @@ def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: 
 
 
 @njit(cache=True)
-def _half_angle(y: float, x: float) -> tuple[float, float]:
-    """cos and sin of ½ atan2(y, x) without trigonometry: for x ≥ 0 the cosine √((r + x)/2r)
-    first, else the sine ±√((r − x)/2r) (the sign of y, −0 included), the other from
-    sin α = 2 sin(α/2) cos(α/2) = y/r, so that neither difference cancels; atan2 itself at the
-    origin."""
-    r = math.sqrt(x * x + y * y)
+def _half_angle(y: float, x: float, r: float) -> tuple[float, float]:
+    """cos and sin of ½ atan2(y, x), r = √(x² + y²), without trigonometry: for x ≥ 0 the cosine
+    √((r + x)/2r) first, else the sine ±√((r − x)/2r) (the sign of y, −0 included), the other
+    from sin α = 2 sin(α/2) cos(α/2) = y/r, so that neither difference cancels; atan2 itself at
+    the origin."""
     if r == 0.0:
         half = 0.5 * math.atan2(y, x)
         return math.cos(half), math.sin(half)
@@ -263,60 +262,137 @@ def _half_angle(y: float, x: float) -> tuple[float, float]:
 
 
 @njit(cache=True)
-def _euler_frame(w: np.ndarray, phi: float, axes: np.ndarray, Iw: np.ndarray, flip: float
+def _euler_frame(na: float, ni: float, nj: float, cf: float, sf: float, flip: float
                  ) -> tuple[float, float, float, float]:
-    """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from ω (``free_rotation``): (sin θ/2 cos(φ−ψ)/2,
-    sin θ/2 sin(φ−ψ)/2, cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2), with θ = atan2(|L_⊥|, L_a)
-    and ψ = atan2(flip L_i, flip L_j) (+ π when flipped); the half angles of θ and ψ
-    algebraically (``_half_angle``), those of φ ± ψ by the addition theorems."""
-    a, i, j = axes[0], axes[3], axes[4]
-    na, ni, nj = Iw[a] * w[a], Iw[i] * w[i], Iw[j] * w[j]
-    ch, sh = _half_angle(math.sqrt(ni * ni + nj * nj), na)
-    cp, sp = _half_angle(flip * ni, flip * nj)
+    """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from L/|L| = (n_i, n_j, n_a) in body axes (i, j, a)
+    (``free_rotation``), cf, sf = cos, sin φ/2: (sin θ/2 cos(φ−ψ)/2, sin θ/2 sin(φ−ψ)/2,
+    cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2), with θ = atan2(|L_⊥|, L_a) and
+    ψ = atan2(flip L_i, flip L_j) (+ π when flipped); the half angles of θ and ψ algebraically
+    (``_half_angle``), those of φ ± ψ by the addition theorems."""
+    perp = math.sqrt(ni * ni + nj * nj)
+    ch, sh = _half_angle(perp, na, math.sqrt(na * na + perp * perp))
+    cp, sp = _half_angle(flip * ni, flip * nj, perp)
     if flip < 0.0:  # ψ/2 + π/2
         cp, sp = -sp, cp
-    cf, sf = math.cos(0.5 * phi), math.sin(0.5 * phi)
     cd, sd = cf * cp + sf * sp, sf * cp - cf * sp  # (φ − ψ)/2
     cs, ss = cf * cp - sf * sp, sf * cp + cf * sp  # (φ + ψ)/2
     return sh * cd, sh * sd, ch * ss, ch * cs
 
 
 @njit(cache=True)
-def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: np.ndarray,
-                        Iw: np.ndarray, w0: np.ndarray, q0: np.ndarray, p: np.ndarray,
-                        rates: np.ndarray, coefs: np.ndarray, rows: np.ndarray,
+def _matrix_times(F: np.ndarray, e: tuple[float, float, float, float]
+                  ) -> tuple[float, float, float, float]:
+    """F e for a 4 × 4 matrix F, as a tuple."""
+    return (F[0, 0] * e[0] + F[0, 1] * e[1] + F[0, 2] * e[2] + F[0, 3] * e[3],
+            F[1, 0] * e[0] + F[1, 1] * e[1] + F[1, 2] * e[2] + F[1, 3] * e[3],
+            F[2, 0] * e[0] + F[2, 1] * e[1] + F[2, 2] * e[2] + F[2, 3] * e[3],
+            F[3, 0] * e[0] + F[3, 1] * e[1] + F[3, 2] * e[2] + F[3, 3] * e[3])
+
+
+#: Samples evaluated together by ``_torque_free_motion`` (its scratch rows stay in cache).
+_BLOCK = 256
+
+
+@njit(cache=True, fastmath={"contract"})  # fused multiply-adds: one rounding less per step
+def _clenshaw(coef: np.ndarray, n: int, x: np.ndarray, b1: np.ndarray, b2: np.ndarray
+              ) -> None:
+    """b1 = b₀, b2 = b₁ of Clenshaw's recurrence b_k = (c_k − b_{k+2}) + x b_{k+1} over the
+    first n coefficients c_k, at every x (= 2 cos θ; the sums Σ c_k cos (k+1)θ = b₀ cos θ − b₁
+    and Σ c_k sin (k+1)θ = b₀ sin θ): the samples in the inner loop, independent of each other
+    so that it vectorizes, two steps per pass so that neither needs a swap."""
+    m = x.size
+    for j in range(m):
+        b1[j] = 0.0
+        b2[j] = 0.0
+    k = n - 1
+    while k >= 1:  # b1 holds b_{k+1}, b2 b_{k+2}
+        ck, ck1 = coef[k], coef[k - 1]
+        for j in range(m):
+            b2[j] = (ck - b2[j]) + x[j] * b1[j]
+            b1[j] = (ck1 - b1[j]) + x[j] * b2[j]
+        k -= 2
+    if k == 0:
+        c0 = coef[0]
+        for j in range(m):
+            b = (c0 - b2[j]) + x[j] * b1[j]
+            b2[j] = b1[j]
+            b1[j] = b
+
+
+@njit(cache=True, fastmath={"contract"})
+def _series_sums(rates: np.ndarray, coefs: np.ndarray, terms: np.ndarray, u: np.ndarray,
+                 dn: np.ndarray, am: np.ndarray, turn: np.ndarray) -> None:
+    """dn u, am u and Π(−N; am u) at each u from ``_period_series`` (``_clenshaw`` for each
+    sum, over its own number of terms)."""
+    m = u.size
+    work = np.empty((5, m))
+    c, s, x, b1, b2 = work[0], work[1], work[2], work[3], work[4]
+    for k in range(m):
+        theta = rates[0] * u[k]
+        c[k], s[k] = math.cos(theta), math.sin(theta)
+        x[k] = 2.0 * c[k]
+    _clenshaw(coefs[0], terms[0], x, b1, b2)
+    for k in range(m):
+        dn[k] = rates[1] + (b1[k] * c[k] - b2[k])
+    _clenshaw(coefs[1], terms[1], x, b1, b2)
+    for k in range(m):
+        am[k] = rates[1] * u[k] + b1[k] * s[k]
+    _clenshaw(coefs[2], terms[2], x, b1, b2)
+    for k in range(m):
+        turn[k] = rates[2] * u[k] + b1[k] * s[k]
+
+
+@njit(cache=True)
+def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndarray,
+                        axes: np.ndarray, Iw: np.ndarray, frame: np.ndarray, rates: np.ndarray,
+                        coefs: np.ndarray, terms: np.ndarray, y0: np.ndarray, rows: np.ndarray,
                         W: np.ndarray) -> None:
-    """Rows [q, q̇ = ½ q ⊗ (ω, 0)] and ω of ``free_rotation`` at each time t (see there).
-    ``c`` = (ν, u₀, 2^N a_N, m1, N, Π(−N | m), Π(−N; am u₀), λ/I_a, λ(I_c − I_a)/(I_a I_c ν),
-    A_a, ±A_b, ±A_c, flip), ``axes`` = (a, b, c, i, j), ``Iw`` = I/|L|; φ = (λ/I_a) t −
-    λ(I_c − I_a)/(I_a I_c ν) (Π(−N; am u) − Π(−N; am u₀)); q = g ⊗ e ⊗ p*, e the Euler frame,
-    g = q0 ⊗ p ⊗ e(0)*. am u, dn u and Π(−N; am u) from the Fourier series ``rates``,
-    ``coefs`` (``_period_series``) where it has terms, else by ``am_dn`` and ``third_kind``."""
+    """Rows [q, q̇ = ½ q ⊗ (ω, 0), y0[8:]] (as many columns as ``rows`` has) and ω (unless W
+    has no rows) of ``free_rotation`` at each time t − t₀ (see there), the arguments between
+    t₀ and y0 those of ``EllipticMotion``: φ = (λ/I_a) t − λ(I_c − I_a)/(I_a I_c ν)
+    (Π(−N; am u) − Π(−N; am u₀)), q = F e (``frame``), e the Euler frame. am u, dn u and
+    Π(−N; am u) from the Fourier series ``rates``, ``coefs`` (``_period_series``) where it has
+    terms, else by ``am_dn`` and ``third_kind``; block by block of samples, each sum over a
+    whole block at once."""
     nu, u0, scale, m1, N, whole, turn0 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
     precession, wobble, flip = c[7], c[8], c[12]
     a, b, cc = axes[0], axes[1], axes[2]
-    e0 = _euler_frame(w0, 0.0, axes, Iw, flip)
-    g = _qmul(*_qmul(q0[0], q0[1], q0[2], q0[3], p[0], p[1], p[2], p[3]),
-              -e0[0], -e0[1], -e0[2], e0[3])
-    w = np.empty(3)
+    i_is_b = axes[3] == b
+    Ia, Ib, Ic = Iw[a], Iw[b], Iw[cc]
     series = coefs.shape[1] > 0
-    for k in range(t.size):
-        u = nu * t[k] + u0
+    n = t.size
+    size = min(n, _BLOCK)
+    work = np.empty((4, size))
+    tau, u, am, dn = work[0], work[1], work[2], work[3]
+    turn = np.empty(size)
+    w = np.empty(3)
+    for start in range(0, n, _BLOCK):
+        m = min(n - start, _BLOCK)
+        for k in range(m):
+            tau[k] = t[start + k] - t0
+            u[k] = nu * tau[k] + u0
         if series:
-            dn, am, turn = _series_sums(rates, coefs, u)
+            _series_sums(rates, coefs, terms, u[:m], dn, am, turn)
         else:
-            am, dn = am_dn(u, ratios, scale, m1)
-            turn = third_kind(-N, am, m1, whole)
-        w[a], w[b], w[cc] = c[9] * math.cos(am), c[10] * math.sin(am), c[11] * dn
-        phi = precession * t[k] - wobble * (turn - turn0)
-        e = _euler_frame(w, phi, axes, Iw, flip)
-        q = _qmul(*_qmul(g[0], g[1], g[2], g[3], e[0], e[1], e[2], e[3]),
-                  -p[0], -p[1], -p[2], p[3])
-        qd = _qmul(q[0], q[1], q[2], q[3], w[0], w[1], w[2], 0.0)
-        for r in range(4):
-            rows[k, r] = q[r]
-            rows[k, 4 + r] = 0.5 * qd[r]
-        W[k, 0], W[k, 1], W[k, 2] = w[0], w[1], w[2]
+            for k in range(m):
+                am[k], dn[k] = am_dn(u[k], ratios, scale, m1)
+                turn[k] = third_kind(-N, am[k], m1, whole)
+        for k in range(m):
+            w[a], w[b], w[cc] = c[9] * math.cos(am[k]), c[10] * math.sin(am[k]), c[11] * dn[k]
+            na, nb, nc = Ia * w[a], Ib * w[b], Ic * w[cc]
+            half = 0.5 * (precession * tau[k] - wobble * (turn[k] - turn0))
+            e = _euler_frame(na, nb if i_is_b else nc, nc if i_is_b else nb, math.cos(half),
+                             math.sin(half), flip)
+            q = _matrix_times(frame, e)
+            qd = _qmul(q[0], q[1], q[2], q[3], w[0], w[1], w[2], 0.0)
+            row = start + k
+            for r in range(4):
+                rows[row, r] = q[r]
+                rows[row, 4 + r] = 0.5 * qd[r]
+            for r in range(8, rows.shape[1]):
+                rows[row, r] = y0[r]
+            if W.shape[0]:
+                W[row, 0], W[row, 1], W[row, 2] = w[0], w[1], w[2]
 
 
 def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,
@@ -350,6 +426,10 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     return free_rotation_at(free_motion(moments, q0, w0), t)
 
 
+#: Passed to ``_torque_free_motion`` for "no ω rows".
+_NONE = np.empty((0, 3))
+
+
 def free_rotation_at(motion: FreeMotion, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``free_rotation`` from its constants ``motion`` (``free_motion``) at the times t."""
     t = np.ascontiguousarray(t, dtype=float)
@@ -363,7 +443,7 @@ def free_rotation_at(motion: FreeMotion, t: np.ndarray) -> tuple[np.ndarray, np.
         return (np.stack([*Q, *(0.5 * x for x in Qd)], axis=1),
                 np.repeat(w0[None, :], t.size, axis=0))
     rows, W = np.empty((t.size, 8)), np.empty((t.size, 3))
-    _torque_free_motion(t, *motion, rows, W)
+    _torque_free_motion(t, 0.0, *motion, np.empty(0), rows, W)
     return rows, W
 
 
@@ -377,9 +457,31 @@ class UniformSpin(NamedTuple):
     axis: np.ndarray
 
 
-#: The arguments of ``_torque_free_motion`` between the times and the outputs (c, ratios,
-#: axes, Iw, w0, q0, p, rates, coefs), or a uniform spin.
-FreeMotion = tuple[np.ndarray, ...] | UniformSpin
+class EllipticMotion(NamedTuple):
+    """``free_motion`` off the principal axes: the arguments of ``_torque_free_motion``
+    between t₀ and y0 (see ``free_motion`` for their meaning)."""
+
+    #: (ν, u₀, 2^N a_N, m1, N, Π(−N | m), Π(−N; am u₀), λ/I_a, λ(I_c − I_a)/(I_a I_c ν), A_a,
+    #: ±A_b, ±A_c, flip)
+    consts: np.ndarray
+    #: ``agm_ratios`` (for ``am_dn``)
+    ratios: np.ndarray
+    #: body axes (a, b, c, i, j), i, j, a cyclic
+    axes: np.ndarray
+    #: I/|L|
+    Iw: np.ndarray
+    #: 4 × 4: the Euler frame e ↦ q = g ⊗ e ⊗ p*
+    frame: np.ndarray
+    #: ``_period_series``: π/K, π/2K, Π(−N | m)/K
+    rates: np.ndarray
+    #: ``_period_series``: (3, n) coefficients of dn, am, Π(−N; am)
+    coefs: np.ndarray
+    #: the number of coefficients each of the three series uses (none: term by term)
+    terms: np.ndarray
+
+
+#: What ``free_motion`` returns.
+FreeMotion = EllipticMotion | UniformSpin
 
 
 def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray
@@ -440,13 +542,21 @@ def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndar
     perm[0, i] = perm[1, j] = perm[2, a] = 1.0  # v_(i, j, a) = P v
     p = np.empty(4)
     quat_from_rows(perm, p)  # the quaternion of Pᵀ
+    # q = g ⊗ e ⊗ p*, e the Euler frame, g = q0 ⊗ p ⊗ e(0)*: the matrix of e ↦ q
+    e0 = _euler_frame(Lb[a] / lam, Lb[i] / lam, Lb[j] / lam, 1.0, 0.0, flip)
+    g = quat_product(quat_product(q0, p), (-e0[0], -e0[1], -e0[2], e0[3]))
+    p_conj = (-p[0], -p[1], -p[2], p[3])
+    frame = np.stack([quat_product(quat_product(g, e), p_conj) for e in np.eye(4)], axis=1)
     consts = np.array([nu, u0, scale, m1, N, whole, turn0, lam / Ia,
                        lam * (Ic - Ia) / (Ia * Ic * nu), amp_a, s_b * amp_b, s_c * amp_c,
                        flip])
-    rates, coefs = _period_series(ratios, scale, m1, N, whole)
-    if coefs.size:
-        consts[6] = _series_sums(rates, coefs, u0)[2]  # Π(−N; am u₀) from the same series
-    return (consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p, rates, coefs)
+    rates, coefs, terms = _period_series(ratios, scale, m1, N, whole)
+    if coefs.shape[1]:  # Π(−N; am u₀) from the same series
+        sums = np.empty((3, 1))
+        _series_sums(rates, coefs, terms, np.array([u0]), sums[0], sums[1], sums[2])
+        consts[6] = sums[2, 0]
+    return EllipticMotion(consts, ratios, np.array([a, b, c, i, j]), I / lam, frame, rates,
+                          coefs, terms)
 
 
 #: Fourier series of one period of dn u and 1/(1 + N sn²u) are kept up to the last
@@ -460,7 +570,7 @@ SERIES_MAX_SAMPLES = 2048
 
 
 def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole: float
-                   ) -> tuple[np.ndarray, np.ndarray]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """dn u and Π(−N; am u) as Fourier series over the period 2K of u, for ``_torque_free_motion``
     to evaluate in a few operations per sample instead of the descending recursion and
     Carlson's R_F, R_J: with θ = πu/K, dn u = π/2K + Σ dₙ cos nθ, so am u = ∫dn =
@@ -468,10 +578,12 @@ def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole:
     Π(−N; am u) = (Π(−N | m)/K) u + Σ fₙ (K/nπ) sin nθ. The coefficients come from samples
     of one period (FFT), doubled until the upper half of the spectrum is below round-off
     (both functions are analytic, so the coefficients fall geometrically). Returns ``rates``
-    (π/K, π/2K, Π(−N | m)/K) and ``coefs`` (3, n): dₙ, then the sine coefficients of am and
-    Π; no coefficients (shape (3, 0)) where the series would need more than
-    ``SERIES_MAX_SAMPLES`` samples or the motion is on the separatrix."""
-    none = np.empty(3), np.empty((3, 0))
+    (π/K, π/2K, Π(−N | m)/K), ``coefs`` (3, n): dₙ, then the sine coefficients of am and
+    Π, and ``terms``, how many of them each sum takes (up to its first coefficient at
+    round-off: the series of Π often falls more slowly than that of dn); no terms where the
+    series would need more than ``SERIES_MAX_SAMPLES`` samples or the motion is on the
+    separatrix."""
+    none = np.empty(3), np.empty((3, 0)), np.zeros(3, dtype=np.int64)
     if m1 == 0.0 or not math.isfinite(whole):
         return none
     K = float(carlson_rf(0.0, m1, 1.0))
@@ -490,29 +602,12 @@ def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole:
         return none
     # up to the first coefficient at round-off (they fall geometrically; later ones are noise)
     low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * np.abs(0.5 * spec[:, :1])
-    n = int(max(np.argmax(row) if row.any() else row.size for row in low))
+    n_dn, n_turn = (int(np.argmax(row)) if row.any() else row.size for row in low)
+    n = max(n_dn, n_turn)
     k = np.arange(1, n + 1)
     d, fn = spec[0, 1:n + 1], spec[1, 1:n + 1]
-    return rates, np.stack([d, d * K / (k * math.pi), fn * K / (k * math.pi)])
-
-
-@njit(cache=True, fastmath={"contract"})  # fused multiply-adds: one rounding less per step
-def _series_sums(rates: np.ndarray, coefs: np.ndarray, u: float
-                 ) -> tuple[float, float, float]:
-    """dn u, am u and Π(−N; am u) from ``_period_series`` (Clenshaw's recurrence for the three
-    sums at once)."""
-    theta = rates[0] * u
-    c, s = math.cos(theta), math.sin(theta)
-    two_c = 2.0 * c
-    d1 = d2 = a1 = a2 = p1 = p2 = 0.0
-    for k in range(coefs.shape[1] - 1, -1, -1):
-        # (cₖ − b₊₂) + 2 cos θ b₊₁: only the last product and sum wait on the previous step
-        d1, d2 = (coefs[0, k] - d2) + two_c * d1, d1
-        a1, a2 = (coefs[1, k] - a2) + two_c * a1, a1
-        p1, p2 = (coefs[2, k] - p2) + two_c * p1, p1
-    return rates[1] + (d1 * c - d2), rates[1] * u + a1 * s, rates[2] * u + p1 * s
-
-
+    return (rates, np.stack([d, d * K / (k * math.pi), fn * K / (k * math.pi)]),
+            np.array([n_dn, n_dn, n_turn]))
 
 
 @dataclass(frozen=True)
@@ -607,11 +702,15 @@ class QuaternionRigidBody(DirectModel):
         work terms of y0]; None when a torque acts."""
         if not self.torque_free():
             return None
-        t = np.asarray(t, dtype=float)
-        y0 = np.asarray(y0, dtype=float)
-        rows = np.empty((t.size, len(y0)))
-        rows[:, :8], _ = free_rotation_at(self._free_motion(y0), t - t0)
-        rows[:, 8:] = y0[8:]
+        t = np.ascontiguousarray(t, dtype=float)
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        motion = self._free_motion(y0)
+        rows = np.empty((t.size, y0.size))
+        if isinstance(motion, UniformSpin):
+            rows[:, :8], _ = free_rotation_at(motion, t - t0)
+            rows[:, 8:] = y0[8:]
+        else:  # the work terms too, in the same pass
+            _torque_free_motion(t, float(t0), *motion, y0, rows, _NONE)
         return rows
 
     #: Initial states whose ``free_motion`` is kept (``propagate``), per model.
