@@ -247,18 +247,18 @@ def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: 
 
 @njit(cache=True)
 def _half_angle(y: float, x: float, r: float) -> tuple[float, float]:
-    """cos and sin of ½ atan2(y, x), r = √(x² + y²), without trigonometry: for x ≥ 0 the cosine
-    √((r + x)/2r) first, else the sine ±√((r − x)/2r) (the sign of y, −0 included), the other
-    from sin α = 2 sin(α/2) cos(α/2) = y/r, so that neither difference cancels; atan2 itself at
-    the origin."""
+    """cos and sin of ½ atan2(y, x), r = √(x² + y²), without trigonometry: with
+    h = √(2r(r + |x|)), for x ≥ 0 the cosine (r + x)/h and the sine y/h, else the sine
+    ±(r − x)/h (the sign of y, −0 included) and the cosine |y|/h (so that no difference
+    cancels); atan2 itself at the origin."""
     if r == 0.0:
         half = 0.5 * math.atan2(y, x)
         return math.cos(half), math.sin(half)
+    big = r + abs(x)
+    h = math.sqrt(2.0 * r * big)
     if x >= 0.0:
-        c = math.sqrt((r + x) / (2.0 * r))
-        return c, y / (2.0 * r * c)
-    sn = math.copysign(math.sqrt((r - x) / (2.0 * r)), y)
-    return y / (2.0 * r * sn), sn
+        return big / h, y / h
+    return abs(y) / h, math.copysign(big / h, y)
 
 
 @njit(cache=True)
@@ -287,6 +287,47 @@ def _matrix_times(F: np.ndarray, e: tuple[float, float, float, float]
             F[1, 0] * e[0] + F[1, 1] * e[1] + F[1, 2] * e[2] + F[1, 3] * e[3],
             F[2, 0] * e[0] + F[2, 1] * e[1] + F[2, 2] * e[2] + F[2, 3] * e[3],
             F[3, 0] * e[0] + F[3, 1] * e[1] + F[3, 2] * e[2] + F[3, 3] * e[3])
+
+
+#: Cody and Waite's reduction by π/2 = P1 + P2 + P3 (+ 8.5e-32), P1 and P2 short enough
+#: (31, 32 significant bits) that n P1 and n P2 are exact for |n| < 2²¹, and the minimax
+#: polynomials of sin and cos on [−π/4, π/4] (fdlibm's e_rem_pio2.c, k_sin.c, k_cos.c).
+_TWO_OVER_PI = 6.36619772367581382433e-01
+_PIO2 = (1.57079632673412561417e+00, 6.07710050630396597660e-11, 2.02226624871116645580e-21)
+_SIN = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
+        2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+_COS = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
+        -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
+#: Adding and subtracting 1.5 · 2⁵² rounds a double below 2⁵¹ to the nearest integer.
+_ROUND = 6755399441055744.0
+#: ``_cos_sin`` reduces arguments up to this (|n| ≤ 2¹⁹) itself, larger ones by ``math``.
+_REDUCED = 2.0 ** 19
+
+
+@njit(cache=True, fastmath={"contract"})
+def _cos_sin(x: np.ndarray, c: np.ndarray, s: np.ndarray) -> None:
+    """c = cos x, s = sin x, elementwise, within an ulp of ``math.cos``, ``math.sin`` (which
+    they call for |x| > ``_REDUCED`` and non-finite x): x = nπ/2 + r, |r| ≤ π/4, then sin r
+    and cos r by polynomials and the quadrant n mod 4 by selections, so that the loop has no
+    calls and vectorizes (``math.sin`` and ``math.cos`` in a loop cost 15 ns a pair)."""
+    for k in range(x.size):
+        v = x[k]
+        n = (v * _TWO_OVER_PI + _ROUND) - _ROUND
+        r = ((v - n * _PIO2[0]) - n * _PIO2[1]) - n * _PIO2[2]
+        z = r * r
+        sr = r + (r * z) * (_SIN[0] + z * (_SIN[1] + z * (_SIN[2] + z * (
+            _SIN[3] + z * (_SIN[4] + z * _SIN[5])))))
+        hz = 0.5 * z
+        w = 1.0 - hz  # 1 − z/2 + the polynomial, its rounding error carried (k_cos.c)
+        cr = w + (((1.0 - w) - hz) + z * z * (_COS[0] + z * (_COS[1] + z * (_COS[2] + z * (
+            _COS[3] + z * (_COS[4] + z * _COS[5]))))))
+        q = np.int64(n) & 3
+        sa, ca = (cr, sr) if q & 1 else (sr, cr)
+        s[k] = -sa if q & 2 else sa
+        c[k] = -ca if (q + 1) & 2 else ca
+    for k in range(x.size):
+        if not abs(x[k]) <= _REDUCED:
+            c[k], s[k] = math.cos(x[k]), math.sin(x[k])
 
 
 #: Samples evaluated together by ``_torque_free_motion`` (its scratch rows stay in cache).
@@ -328,8 +369,9 @@ def _series_sums(rates: np.ndarray, coefs: np.ndarray, terms: np.ndarray, u: np.
     work = np.empty((5, m))
     c, s, x, b1, b2 = work[0], work[1], work[2], work[3], work[4]
     for k in range(m):
-        theta = rates[0] * u[k]
-        c[k], s[k] = math.cos(theta), math.sin(theta)
+        x[k] = rates[0] * u[k]  # θ
+    _cos_sin(x, c, s)
+    for k in range(m):
         x[k] = 2.0 * c[k]
     _clenshaw(coefs[0], terms[0], x, b1, b2)
     for k in range(m):
@@ -362,9 +404,9 @@ def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndar
     series = coefs.shape[1] > 0
     n = t.size
     size = min(n, _BLOCK)
-    work = np.empty((4, size))
-    tau, u, am, dn = work[0], work[1], work[2], work[3]
-    turn = np.empty(size)
+    work = np.empty((10, size))
+    tau, u, am, dn, turn, half = work[0], work[1], work[2], work[3], work[4], work[5]
+    cos_am, sin_am, cos_half, sin_half = work[6], work[7], work[8], work[9]
     w = np.empty(3)
     for start in range(0, n, _BLOCK):
         m = min(n - start, _BLOCK)
@@ -378,11 +420,14 @@ def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndar
                 am[k], dn[k] = am_dn(u[k], ratios, scale, m1)
                 turn[k] = third_kind(-N, am[k], m1, whole)
         for k in range(m):
-            w[a], w[b], w[cc] = c[9] * math.cos(am[k]), c[10] * math.sin(am[k]), c[11] * dn[k]
+            half[k] = 0.5 * (precession * tau[k] - wobble * (turn[k] - turn0))  # φ/2
+        _cos_sin(am[:m], cos_am, sin_am)
+        _cos_sin(half[:m], cos_half, sin_half)
+        for k in range(m):
+            w[a], w[b], w[cc] = c[9] * cos_am[k], c[10] * sin_am[k], c[11] * dn[k]
             na, nb, nc = Ia * w[a], Ib * w[b], Ic * w[cc]
-            half = 0.5 * (precession * tau[k] - wobble * (turn[k] - turn0))
-            e = _euler_frame(na, nb if i_is_b else nc, nc if i_is_b else nb, math.cos(half),
-                             math.sin(half), flip)
+            e = _euler_frame(na, nb if i_is_b else nc, nc if i_is_b else nb, cos_half[k],
+                             sin_half[k], flip)
             q = _matrix_times(frame, e)
             qd = _qmul(q[0], q[1], q[2], q[3], w[0], w[1], w[2], 0.0)
             row = start + k
