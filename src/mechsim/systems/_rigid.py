@@ -245,15 +245,15 @@ def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: 
             aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _half_angle(y: float, x: float, r: float) -> tuple[float, float]:
     """cos and sin of ½ atan2(y, x), r = √(x² + y²), without trigonometry: with
     h = √(2r(r + |x|)), for x ≥ 0 the cosine (r + x)/h and the sine y/h, else the sine
     ±(r − x)/h (the sign of y, −0 included) and the cosine |y|/h (so that no difference
-    cancels); atan2 itself at the origin."""
+    cancels); at the origin atan2's 0 (x = +0) or ±π (x = −0), as at (±1, ±0). Selections
+    only, no calls: it vectorizes in ``_attitude_rows``."""
     if r == 0.0:
-        half = 0.5 * math.atan2(y, x)
-        return math.cos(half), math.sin(half)
+        x, r = math.copysign(1.0, x), 1.0
     big = r + abs(x)
     h = math.sqrt(2.0 * r * big)
     if x >= 0.0:
@@ -261,7 +261,7 @@ def _half_angle(y: float, x: float, r: float) -> tuple[float, float]:
     return abs(y) / h, math.copysign(big / h, y)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _euler_frame(na: float, ni: float, nj: float, cf: float, sf: float, flip: float
                  ) -> tuple[float, float, float, float]:
     """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from L/|L| = (n_i, n_j, n_a) in body axes (i, j, a)
@@ -280,13 +280,9 @@ def _euler_frame(na: float, ni: float, nj: float, cf: float, sf: float, flip: fl
 
 
 @njit(cache=True)
-def _matrix_times(F: np.ndarray, e: tuple[float, float, float, float]
-                  ) -> tuple[float, float, float, float]:
-    """F e for a 4 × 4 matrix F, as a tuple."""
-    return (F[0, 0] * e[0] + F[0, 1] * e[1] + F[0, 2] * e[2] + F[0, 3] * e[3],
-            F[1, 0] * e[0] + F[1, 1] * e[1] + F[1, 2] * e[2] + F[1, 3] * e[3],
-            F[2, 0] * e[0] + F[2, 1] * e[1] + F[2, 2] * e[2] + F[2, 3] * e[3],
-            F[3, 0] * e[0] + F[3, 1] * e[1] + F[3, 2] * e[2] + F[3, 3] * e[3])
+def _dot4(f: tuple[float, float, float, float], e: tuple[float, float, float, float]) -> float:
+    """f · e of two 4-tuples."""
+    return f[0] * e[0] + f[1] * e[1] + f[2] * e[2] + f[3] * e[3]
 
 
 #: Cody and Waite's reduction by π/2 = P1 + P2 + P3 (+ 8.5e-32), P1 and P2 short enough
@@ -332,6 +328,11 @@ def _cos_sin(x: np.ndarray, c: np.ndarray, s: np.ndarray) -> None:
 
 #: Samples evaluated together by ``_torque_free_motion`` (its scratch rows stay in cache).
 _BLOCK = 256
+#: The rows of ``_torque_free_motion``'s scratch: times after t₀, u, dn u, am u, Π(−N; am u),
+#: φ/2, their cosines and sines, then q, q̇ and ω (``_attitude_rows``).
+_TAU, _U, _DN, _AM, _TURN, _HALF, _COS_AM, _SIN_AM, _COS_HALF, _SIN_HALF = range(10)
+_Q, _QDOT, _OMEGA = 10, 14, 18
+_ROWS = 21
 
 
 @njit(cache=True, fastmath={"contract"})  # fused multiply-adds: one rounding less per step
@@ -384,7 +385,44 @@ def _series_sums(rates: np.ndarray, coefs: np.ndarray, terms: np.ndarray, u: np.
         turn[k] = rates[2] * u[k] + b1[k] * s[k]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _pick(axis: int, a: int, b: int, va: float, vb: float, vc: float) -> float:
+    """The component along body axis ``axis`` of a vector given along a, b and the third."""
+    return va if axis == a else (vb if axis == b else vc)
+
+
+@njit(cache=True, error_model="numpy")
+def _attitude_rows(work: np.ndarray, m: int, c: np.ndarray, axes: np.ndarray, Iw: np.ndarray,
+                   frame: np.ndarray) -> None:
+    """ω, q = F e (F = ``frame``, e the Euler frame) and q̇ = ½ q ⊗ (ω, 0) into the rows
+    _OMEGA, _Q, _QDOT of ``work`` from cos am, sin am, dn and cos, sin φ/2 in its rows
+    (``_torque_free_motion``), for its first m samples. Selections only, no calls, no
+    branches on the samples and no exceptions (numpy's error model): the loop vectorizes."""
+    # read once: ``work`` could alias them for all the compiler knows
+    amp_a, amp_b, amp_c, flip = c[9], c[10], c[11], c[12]
+    a, b, cc = axes[0], axes[1], axes[2]
+    i_is_b = axes[3] == b
+    Ia, Ib, Ic = Iw[a], Iw[b], Iw[cc]
+    F = [(frame[r, 0], frame[r, 1], frame[r, 2], frame[r, 3]) for r in range(4)]
+    F0, F1, F2, F3 = F[0], F[1], F[2], F[3]
+    for k in range(m):
+        wa = amp_a * work[_COS_AM, k]
+        wb = amp_b * work[_SIN_AM, k]
+        wc = amp_c * work[_DN, k]
+        na, nb, nc = Ia * wa, Ib * wb, Ic * wc
+        e = _euler_frame(na, nb if i_is_b else nc, nc if i_is_b else nb, work[_COS_HALF, k],
+                         work[_SIN_HALF, k], flip)
+        q = (_dot4(F0, e), _dot4(F1, e), _dot4(F2, e), _dot4(F3, e))
+        w = (_pick(0, a, b, wa, wb, wc), _pick(1, a, b, wa, wb, wc), _pick(2, a, b, wa, wb, wc))
+        qd = _qmul(q[0], q[1], q[2], q[3], w[0], w[1], w[2], 0.0)
+        for r in range(4):
+            work[_Q + r, k] = q[r]
+            work[_QDOT + r, k] = 0.5 * qd[r]
+        for r in range(3):
+            work[_OMEGA + r, k] = w[r]
+
+
+@njit(cache=True, error_model="numpy")
 def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndarray,
                         axes: np.ndarray, Iw: np.ndarray, frame: np.ndarray, rates: np.ndarray,
                         coefs: np.ndarray, terms: np.ndarray, y0: np.ndarray, rows: np.ndarray,
@@ -394,20 +432,15 @@ def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndar
     t₀ and y0 those of ``EllipticMotion``: φ = (λ/I_a) t − λ(I_c − I_a)/(I_a I_c ν)
     (Π(−N; am u) − Π(−N; am u₀)), q = F e (``frame``), e the Euler frame. am u, dn u and
     Π(−N; am u) from the Fourier series ``rates``, ``coefs`` (``_period_series``) where it has
-    terms, else by ``am_dn`` and ``third_kind``; block by block of samples, each sum over a
-    whole block at once."""
+    terms, else by ``am_dn`` and ``third_kind``. Block by block of samples, each step over a
+    whole block at once (the loops vectorize; only the rows are written sample by sample)."""
     nu, u0, scale, m1, N, whole, turn0 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
-    precession, wobble, flip = c[7], c[8], c[12]
-    a, b, cc = axes[0], axes[1], axes[2]
-    i_is_b = axes[3] == b
-    Ia, Ib, Ic = Iw[a], Iw[b], Iw[cc]
+    precession, wobble = c[7], c[8]
     series = coefs.shape[1] > 0
     n = t.size
-    size = min(n, _BLOCK)
-    work = np.empty((10, size))
-    tau, u, am, dn, turn, half = work[0], work[1], work[2], work[3], work[4], work[5]
-    cos_am, sin_am, cos_half, sin_half = work[6], work[7], work[8], work[9]
-    w = np.empty(3)
+    work = np.empty((_ROWS, min(n, _BLOCK)))
+    tau, u, am, dn, turn, half = (work[_TAU], work[_U], work[_AM], work[_DN], work[_TURN],
+                                  work[_HALF])
     for start in range(0, n, _BLOCK):
         m = min(n - start, _BLOCK)
         for k in range(m):
@@ -421,23 +454,18 @@ def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndar
                 turn[k] = third_kind(-N, am[k], m1, whole)
         for k in range(m):
             half[k] = 0.5 * (precession * tau[k] - wobble * (turn[k] - turn0))  # φ/2
-        _cos_sin(am[:m], cos_am, sin_am)
-        _cos_sin(half[:m], cos_half, sin_half)
+        _cos_sin(am[:m], work[_COS_AM], work[_SIN_AM])
+        _cos_sin(half[:m], work[_COS_HALF], work[_SIN_HALF])
+        _attitude_rows(work, m, c, axes, Iw, frame)
         for k in range(m):
-            w[a], w[b], w[cc] = c[9] * cos_am[k], c[10] * sin_am[k], c[11] * dn[k]
-            na, nb, nc = Ia * w[a], Ib * w[b], Ic * w[cc]
-            e = _euler_frame(na, nb if i_is_b else nc, nc if i_is_b else nb, cos_half[k],
-                             sin_half[k], flip)
-            q = _matrix_times(frame, e)
-            qd = _qmul(q[0], q[1], q[2], q[3], w[0], w[1], w[2], 0.0)
             row = start + k
-            for r in range(4):
-                rows[row, r] = q[r]
-                rows[row, 4 + r] = 0.5 * qd[r]
+            for r in range(8):
+                rows[row, r] = work[_Q + r, k]
             for r in range(8, rows.shape[1]):
                 rows[row, r] = y0[r]
             if W.shape[0]:
-                W[row, 0], W[row, 1], W[row, 2] = w[0], w[1], w[2]
+                for r in range(3):
+                    W[row, r] = work[_OMEGA + r, k]
 
 
 def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,
