@@ -237,7 +237,7 @@ RIGID_KERNELS = (*ROTATION_KERNELS, rb_omega, rb_unit, rb_torque, rhs, project, 
 # --- the torque-free motion in closed form ----------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: float,
           bw: float) -> tuple[float, float, float, float]:
     """a ⊗ b on components (``quat_product`` unrolled for the loop below)."""
@@ -245,7 +245,7 @@ def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: 
             aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _half_angle(y: float, x: float, r: float) -> tuple[float, float]:
     """cos and sin of ½ atan2(y, x), r = √(x² + y²), without trigonometry: with
     h = √(2r(r + |x|)), for x ≥ 0 the cosine (r + x)/h and the sine y/h, else the sine
@@ -261,7 +261,7 @@ def _half_angle(y: float, x: float, r: float) -> tuple[float, float]:
     return abs(y) / h, math.copysign(big / h, y)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _euler_frame(na: float, ni: float, nj: float, cf: float, sf: float, flip: float
                  ) -> tuple[float, float, float, float]:
     """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from L/|L| = (n_i, n_j, n_a) in body axes (i, j, a)
@@ -279,7 +279,7 @@ def _euler_frame(na: float, ni: float, nj: float, cf: float, sf: float, flip: fl
     return sh * cd, sh * sd, ch * ss, ch * cs
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dot4(f: tuple[float, float, float, float], e: tuple[float, float, float, float]) -> float:
     """f · e of two 4-tuples."""
     return f[0] * e[0] + f[1] * e[1] + f[2] * e[2] + f[3] * e[3]
@@ -374,18 +374,18 @@ def _series_sums(rates: np.ndarray, coefs: np.ndarray, terms: np.ndarray, u: np.
     _cos_sin(x, c, s)
     for k in range(m):
         x[k] = 2.0 * c[k]
-    _clenshaw(coefs[0], terms[0], x, b1, b2)
-    for k in range(m):
-        dn[k] = rates[1] + (b1[k] * c[k] - b2[k])
-    _clenshaw(coefs[1], terms[1], x, b1, b2)
-    for k in range(m):
-        am[k] = rates[1] * u[k] + b1[k] * s[k]
-    _clenshaw(coefs[2], terms[2], x, b1, b2)
-    for k in range(m):
-        turn[k] = rates[2] * u[k] + b1[k] * s[k]
+    for r in range(3):  # one call of ``_clenshaw``: compiled once
+        _clenshaw(coefs[r], terms[r], x, b1, b2)
+        if r == 0:
+            for k in range(m):
+                dn[k] = rates[1] + (b1[k] * c[k] - b2[k])
+        else:
+            out, rate = (am, rates[1]) if r == 1 else (turn, rates[2])
+            for k in range(m):
+                out[k] = rate * u[k] + b1[k] * s[k]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _pick(axis: int, a: int, b: int, va: float, vb: float, vc: float) -> float:
     """The component along body axis ``axis`` of a vector given along a, b and the third."""
     return va if axis == a else (vb if axis == b else vc)
@@ -454,8 +454,9 @@ def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndar
                 turn[k] = third_kind(-N, am[k], m1, whole)
         for k in range(m):
             half[k] = 0.5 * (precession * tau[k] - wobble * (turn[k] - turn0))  # φ/2
-        _cos_sin(am[:m], work[_COS_AM], work[_SIN_AM])
-        _cos_sin(half[:m], work[_COS_HALF], work[_SIN_HALF])
+        for r in range(2):  # one call of ``_cos_sin``: compiled once
+            angle = am if r == 0 else half
+            _cos_sin(angle[:m], work[_COS_AM + 2 * r], work[_SIN_AM + 2 * r])
         _attitude_rows(work, m, c, axes, Iw, frame)
         for k in range(m):
             row = start + k
@@ -615,11 +616,6 @@ def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndar
     perm[0, i] = perm[1, j] = perm[2, a] = 1.0  # v_(i, j, a) = P v
     p = np.empty(4)
     quat_from_rows(perm, p)  # the quaternion of Pᵀ
-    # q = g ⊗ e ⊗ p*, e the Euler frame, g = q0 ⊗ p ⊗ e(0)*: the matrix of e ↦ q
-    e0 = _euler_frame(Lb[a] / lam, Lb[i] / lam, Lb[j] / lam, 1.0, 0.0, flip)
-    g = quat_product(quat_product(q0, p), (-e0[0], -e0[1], -e0[2], e0[3]))
-    p_conj = (-p[0], -p[1], -p[2], p[3])
-    frame = np.stack([quat_product(quat_product(g, e), p_conj) for e in np.eye(4)], axis=1)
     consts = np.array([nu, u0, scale, m1, N, whole, turn0, lam / Ia,
                        lam * (Ic - Ia) / (Ia * Ic * nu), amp_a, s_b * amp_b, s_c * amp_c,
                        flip])
@@ -628,8 +624,15 @@ def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndar
         sums = np.empty((3, 1))
         _series_sums(rates, coefs, terms, np.array([u0]), sums[0], sums[1], sums[2])
         consts[6] = sums[2, 0]
-    return EllipticMotion(consts, ratios, np.array([a, b, c, i, j]), I / lam, frame, rates,
-                          coefs, terms)
+    motion = EllipticMotion(consts, ratios, np.array([a, b, c, i, j]), I / lam, np.eye(4),
+                            rates, coefs, terms)
+    # q = g ⊗ e ⊗ p*, e the Euler frame, g = q0 ⊗ p ⊗ e(0)*: ``frame`` the matrix of e ↦ q;
+    # e(0) as every other sample's e (the identity frame gives it), so that q(0) = q0
+    e0 = free_rotation_at(motion, np.zeros(1))[0][0]
+    g = quat_product(quat_product(q0, p), (-e0[0], -e0[1], -e0[2], e0[3]))
+    p_conj = (-p[0], -p[1], -p[2], p[3])
+    frame = np.stack([quat_product(quat_product(g, e), p_conj) for e in np.eye(4)], axis=1)
+    return motion._replace(frame=frame)
 
 
 #: Fourier series of one period of dn u and 1/(1 + N sn²u) are kept up to the last
