@@ -385,7 +385,7 @@ def _series_sums(rates: np.ndarray, coefs: np.ndarray, terms: np.ndarray, u: np.
                 out[k] = rate * u[k] + b1[k] * s[k]
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always")
 def _pick(axis: int, a: int, b: int, va: float, vb: float, vc: float) -> float:
     """The component along body axis ``axis`` of a vector given along a, b and the third."""
     return va if axis == a else (vb if axis == b else vc)
@@ -403,8 +403,10 @@ def _attitude_rows(work: np.ndarray, m: int, c: np.ndarray, axes: np.ndarray, Iw
     a, b, cc = axes[0], axes[1], axes[2]
     i_is_b = axes[3] == b
     Ia, Ib, Ic = Iw[a], Iw[b], Iw[cc]
-    F = [(frame[r, 0], frame[r, 1], frame[r, 2], frame[r, 3]) for r in range(4)]
-    F0, F1, F2, F3 = F[0], F[1], F[2], F[3]
+    F0 = (frame[0, 0], frame[0, 1], frame[0, 2], frame[0, 3])
+    F1 = (frame[1, 0], frame[1, 1], frame[1, 2], frame[1, 3])
+    F2 = (frame[2, 0], frame[2, 1], frame[2, 2], frame[2, 3])
+    F3 = (frame[3, 0], frame[3, 1], frame[3, 2], frame[3, 3])
     for k in range(m):
         wa = amp_a * work[_COS_AM, k]
         wb = amp_b * work[_SIN_AM, k]
@@ -473,8 +475,8 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
                   t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows [q, q̇] of the attitude q(t) ((x, y, z, w), world_R_body) and its rate
     q̇ = ½ q ⊗ (ω, 0), and rows of the body ω(t), of a torque-free rigid body with principal
-    moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; one compiled pass,
-    ``_torque_free_motion``): ``free_rotation_at(free_motion(moments, q0, w0), t)``.
+    moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; compiled, block by block of
+    samples, ``_torque_free_motion``): ``free_rotation_at(free_motion(moments, q0, w0), t)``.
 
     ω(t) (Landau & Lifshitz, Mechanics §37; catalog 003 §7.7 [SUPPLEMENT]): with the moments
     relabelled so that the polhode circles axis c (the largest moment if |L|² > 2E I_mid, else
