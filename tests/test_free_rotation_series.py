@@ -19,11 +19,11 @@ BODIES = [((1.0, 2.0, 3.0), (3.0, 1.0, 2.0)),
           ((1.0, 1.5, 1.6), (1.7, 0.75, -0.77))]
 
 
-def _term_by_term(motion: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
-    c = motion[0].copy()
-    am0, _ = am_dn(c[1], motion[1], c[2], c[3])
+def _term_by_term(motion: _rigid.EllipticMotion) -> _rigid.EllipticMotion:
+    c = motion.consts.copy()
+    am0, _ = am_dn(c[1], motion.ratios, c[2], c[3])
     c[6] = third_kind(-c[4], am0, c[3], c[5])
-    return (c, *motion[1:-1], np.empty((3, 0)))
+    return motion._replace(consts=c, coefs=np.empty((3, 0)), terms=np.zeros(3, dtype=np.int64))
 
 
 @pytest.mark.parametrize("moments, omega", BODIES)
@@ -32,8 +32,8 @@ def test_series_agree_with_term_by_term(moments: tuple, omega: tuple) -> None:
     q0 = rng.normal(size=4)
     q0 /= np.linalg.norm(q0)
     motion = _rigid.free_motion(moments, q0, np.array(omega))
-    assert not isinstance(motion, _rigid.UniformSpin)
-    assert motion[-1].shape[1] > 0  # the series are used
+    assert isinstance(motion, _rigid.EllipticMotion)
+    assert motion.coefs.shape[1] > 0  # the series are used
     t = np.sort(rng.uniform(0.0, 100.0, 300))
     rows, W = _rigid.free_rotation_at(motion, t)
     rows2, W2 = _rigid.free_rotation_at(_term_by_term(motion), t)
@@ -46,5 +46,5 @@ def test_near_the_separatrix_term_by_term() -> None:
     """Where a period needs more than SERIES_MAX_SAMPLES samples, no series are made."""
     motion = _rigid.free_motion((1.0, 2.0, 3.0), np.array([0.0, 0.0, 0.0, 1.0]),
                                 np.array([1e-9, 1.0, 1e-9]))
-    assert not isinstance(motion, _rigid.UniformSpin)
-    assert motion[-1].shape[1] == 0
+    assert isinstance(motion, _rigid.EllipticMotion)
+    assert motion.coefs.shape[1] == 0

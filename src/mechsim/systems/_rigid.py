@@ -237,7 +237,7 @@ RIGID_KERNELS = (*ROTATION_KERNELS, rb_omega, rb_unit, rb_torque, rhs, project, 
 # --- the torque-free motion in closed form ----------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: float,
           bw: float) -> tuple[float, float, float, float]:
     """a ⊗ b on components (``quat_product`` unrolled for the loop below)."""
@@ -245,86 +245,238 @@ def _qmul(ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: 
             aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
 
 
-@njit(cache=True)
-def _half_angle(y: float, x: float) -> tuple[float, float]:
-    """cos and sin of ½ atan2(y, x) without trigonometry: for x ≥ 0 the cosine √((r + x)/2r)
-    first, else the sine ±√((r − x)/2r) (the sign of y, −0 included), the other from
-    sin α = 2 sin(α/2) cos(α/2) = y/r, so that neither difference cancels; atan2 itself at the
-    origin."""
-    r = math.sqrt(x * x + y * y)
+@njit(cache=True, inline="always", error_model="numpy")
+def _half_angle(y: float, x: float, r: float) -> tuple[float, float]:
+    """cos and sin of ½ atan2(y, x), r = √(x² + y²), without trigonometry: with
+    h = √(2r(r + |x|)), for x ≥ 0 the cosine (r + x)/h and the sine y/h, else the sine
+    ±(r − x)/h (the sign of y, −0 included) and the cosine |y|/h (so that no difference
+    cancels); at the origin atan2's 0 (x = +0) or ±π (x = −0), as at (±1, ±0). Selections
+    only, no calls: it vectorizes in ``_attitude_rows``."""
     if r == 0.0:
-        half = 0.5 * math.atan2(y, x)
-        return math.cos(half), math.sin(half)
+        x, r = math.copysign(1.0, x), 1.0
+    big = r + abs(x)
+    h = math.sqrt(2.0 * r * big)
     if x >= 0.0:
-        c = math.sqrt((r + x) / (2.0 * r))
-        return c, y / (2.0 * r * c)
-    sn = math.copysign(math.sqrt((r - x) / (2.0 * r)), y)
-    return y / (2.0 * r * sn), sn
+        return big / h, y / h
+    return abs(y) / h, math.copysign(big / h, y)
 
 
-@njit(cache=True)
-def _euler_frame(w: np.ndarray, phi: float, axes: np.ndarray, Iw: np.ndarray, flip: float
+@njit(cache=True, inline="always", error_model="numpy")
+def _euler_frame(na: float, ni: float, nj: float, cf: float, sf: float, flip: float
                  ) -> tuple[float, float, float, float]:
-    """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from ω (``free_rotation``): (sin θ/2 cos(φ−ψ)/2,
-    sin θ/2 sin(φ−ψ)/2, cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2), with θ = atan2(|L_⊥|, L_a)
-    and ψ = atan2(flip L_i, flip L_j) (+ π when flipped); the half angles of θ and ψ
-    algebraically (``_half_angle``), those of φ ± ψ by the addition theorems."""
-    a, i, j = axes[0], axes[3], axes[4]
-    na, ni, nj = Iw[a] * w[a], Iw[i] * w[i], Iw[j] * w[j]
-    ch, sh = _half_angle(math.sqrt(ni * ni + nj * nj), na)
-    cp, sp = _half_angle(flip * ni, flip * nj)
+    """q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ), θ and ψ from L/|L| = (n_i, n_j, n_a) in body axes (i, j, a)
+    (``free_rotation``), cf, sf = cos, sin φ/2: (sin θ/2 cos(φ−ψ)/2, sin θ/2 sin(φ−ψ)/2,
+    cos θ/2 sin(φ+ψ)/2, cos θ/2 cos(φ+ψ)/2), with θ = atan2(|L_⊥|, L_a) and
+    ψ = atan2(flip L_i, flip L_j) (+ π when flipped); the half angles of θ and ψ algebraically
+    (``_half_angle``), those of φ ± ψ by the addition theorems."""
+    perp = math.sqrt(ni * ni + nj * nj)
+    ch, sh = _half_angle(perp, na, math.sqrt(na * na + perp * perp))
+    cp, sp = _half_angle(flip * ni, flip * nj, perp)
     if flip < 0.0:  # ψ/2 + π/2
         cp, sp = -sp, cp
-    cf, sf = math.cos(0.5 * phi), math.sin(0.5 * phi)
     cd, sd = cf * cp + sf * sp, sf * cp - cf * sp  # (φ − ψ)/2
     cs, ss = cf * cp - sf * sp, sf * cp + cf * sp  # (φ + ψ)/2
     return sh * cd, sh * sd, ch * ss, ch * cs
 
 
-@njit(cache=True)
-def _torque_free_motion(t: np.ndarray, c: np.ndarray, ratios: np.ndarray, axes: np.ndarray,
-                        Iw: np.ndarray, w0: np.ndarray, q0: np.ndarray, p: np.ndarray,
-                        rates: np.ndarray, coefs: np.ndarray, rows: np.ndarray,
-                        W: np.ndarray) -> None:
-    """Rows [q, q̇ = ½ q ⊗ (ω, 0)] and ω of ``free_rotation`` at each time t (see there).
-    ``c`` = (ν, u₀, 2^N a_N, m1, N, Π(−N | m), Π(−N; am u₀), λ/I_a, λ(I_c − I_a)/(I_a I_c ν),
-    A_a, ±A_b, ±A_c, flip), ``axes`` = (a, b, c, i, j), ``Iw`` = I/|L|; φ = (λ/I_a) t −
-    λ(I_c − I_a)/(I_a I_c ν) (Π(−N; am u) − Π(−N; am u₀)); q = g ⊗ e ⊗ p*, e the Euler frame,
-    g = q0 ⊗ p ⊗ e(0)*. am u, dn u and Π(−N; am u) from the Fourier series ``rates``,
-    ``coefs`` (``_period_series``) where it has terms, else by ``am_dn`` and ``third_kind``."""
-    nu, u0, scale, m1, N, whole, turn0 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
-    precession, wobble, flip = c[7], c[8], c[12]
-    a, b, cc = axes[0], axes[1], axes[2]
-    e0 = _euler_frame(w0, 0.0, axes, Iw, flip)
-    g = _qmul(*_qmul(q0[0], q0[1], q0[2], q0[3], p[0], p[1], p[2], p[3]),
-              -e0[0], -e0[1], -e0[2], e0[3])
-    w = np.empty(3)
-    series = coefs.shape[1] > 0
-    for k in range(t.size):
-        u = nu * t[k] + u0
-        if series:
-            dn, am, turn = _series_sums(rates, coefs, u)
+@njit(cache=True, inline="always")
+def _dot4(f: tuple[float, float, float, float], e: tuple[float, float, float, float]) -> float:
+    """f · e of two 4-tuples."""
+    return f[0] * e[0] + f[1] * e[1] + f[2] * e[2] + f[3] * e[3]
+
+
+#: Cody and Waite's reduction by π/2 = P1 + P2 + P3 (+ 8.5e-32), P1 and P2 short enough
+#: (31, 32 significant bits) that n P1 and n P2 are exact for |n| < 2²¹, and the minimax
+#: polynomials of sin and cos on [−π/4, π/4] (fdlibm's e_rem_pio2.c, k_sin.c, k_cos.c).
+_TWO_OVER_PI = 6.36619772367581382433e-01
+_PIO2 = (1.57079632673412561417e+00, 6.07710050630396597660e-11, 2.02226624871116645580e-21)
+_SIN = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
+        2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+_COS = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
+        -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
+#: Adding and subtracting 1.5 · 2⁵² rounds a double below 2⁵¹ to the nearest integer.
+_ROUND = 6755399441055744.0
+#: ``_cos_sin`` reduces arguments up to this (|n| ≤ 2¹⁹) itself, larger ones by ``math``.
+_REDUCED = 2.0 ** 19
+
+
+@njit(cache=True, fastmath={"contract"})
+def _cos_sin(x: np.ndarray, c: np.ndarray, s: np.ndarray) -> None:
+    """c = cos x, s = sin x, elementwise, within an ulp of ``math.cos``, ``math.sin`` (which
+    they call for |x| > ``_REDUCED`` and non-finite x): x = nπ/2 + r, |r| ≤ π/4, then sin r
+    and cos r by polynomials and the quadrant n mod 4 by selections, so that the loop has no
+    calls and vectorizes (``math.sin`` and ``math.cos`` in a loop cost 15 ns a pair)."""
+    for k in range(x.size):
+        v = x[k]
+        n = (v * _TWO_OVER_PI + _ROUND) - _ROUND
+        r = ((v - n * _PIO2[0]) - n * _PIO2[1]) - n * _PIO2[2]
+        z = r * r
+        sr = r + (r * z) * (_SIN[0] + z * (_SIN[1] + z * (_SIN[2] + z * (
+            _SIN[3] + z * (_SIN[4] + z * _SIN[5])))))
+        hz = 0.5 * z
+        w = 1.0 - hz  # 1 − z/2 + the polynomial, its rounding error carried (k_cos.c)
+        cr = w + (((1.0 - w) - hz) + z * z * (_COS[0] + z * (_COS[1] + z * (_COS[2] + z * (
+            _COS[3] + z * (_COS[4] + z * _COS[5]))))))
+        q = np.int64(n) & 3
+        sa, ca = (cr, sr) if q & 1 else (sr, cr)
+        s[k] = -sa if q & 2 else sa
+        c[k] = -ca if (q + 1) & 2 else ca
+    for k in range(x.size):
+        if not abs(x[k]) <= _REDUCED:
+            c[k], s[k] = math.cos(x[k]), math.sin(x[k])
+
+
+#: Samples evaluated together by ``_torque_free_motion`` (its scratch rows stay in cache).
+_BLOCK = 256
+#: The rows of ``_torque_free_motion``'s scratch: times after t₀, u, dn u, am u, Π(−N; am u),
+#: φ/2, their cosines and sines, then q, q̇ and ω (``_attitude_rows``).
+_TAU, _U, _DN, _AM, _TURN, _HALF, _COS_AM, _SIN_AM, _COS_HALF, _SIN_HALF = range(10)
+_Q, _QDOT, _OMEGA = 10, 14, 18
+_ROWS = 21
+
+
+@njit(cache=True, fastmath={"contract"})  # fused multiply-adds: one rounding less per step
+def _clenshaw(coef: np.ndarray, n: int, x: np.ndarray, b1: np.ndarray, b2: np.ndarray
+              ) -> None:
+    """b1 = b₀, b2 = b₁ of Clenshaw's recurrence b_k = (c_k − b_{k+2}) + x b_{k+1} over the
+    first n coefficients c_k, at every x (= 2 cos θ; the sums Σ c_k cos (k+1)θ = b₀ cos θ − b₁
+    and Σ c_k sin (k+1)θ = b₀ sin θ): the samples in the inner loop, independent of each other
+    so that it vectorizes, two steps per pass so that neither needs a swap."""
+    m = x.size
+    for j in range(m):
+        b1[j] = 0.0
+        b2[j] = 0.0
+    k = n - 1
+    while k >= 1:  # b1 holds b_{k+1}, b2 b_{k+2}
+        ck, ck1 = coef[k], coef[k - 1]
+        for j in range(m):
+            b2[j] = (ck - b2[j]) + x[j] * b1[j]
+            b1[j] = (ck1 - b1[j]) + x[j] * b2[j]
+        k -= 2
+    if k == 0:
+        c0 = coef[0]
+        for j in range(m):
+            b = (c0 - b2[j]) + x[j] * b1[j]
+            b2[j] = b1[j]
+            b1[j] = b
+
+
+@njit(cache=True, fastmath={"contract"})
+def _series_sums(rates: np.ndarray, coefs: np.ndarray, terms: np.ndarray, u: np.ndarray,
+                 dn: np.ndarray, am: np.ndarray, turn: np.ndarray) -> None:
+    """dn u, am u and Π(−N; am u) at each u from ``_period_series`` (``_clenshaw`` for each
+    sum, over its own number of terms)."""
+    m = u.size
+    work = np.empty((5, m))
+    c, s, x, b1, b2 = work[0], work[1], work[2], work[3], work[4]
+    for k in range(m):
+        x[k] = rates[0] * u[k]  # θ
+    _cos_sin(x, c, s)
+    for k in range(m):
+        x[k] = 2.0 * c[k]
+    for r in range(3):  # one call of ``_clenshaw``: compiled once
+        _clenshaw(coefs[r], terms[r], x, b1, b2)
+        if r == 0:
+            for k in range(m):
+                dn[k] = rates[1] + (b1[k] * c[k] - b2[k])
         else:
-            am, dn = am_dn(u, ratios, scale, m1)
-            turn = third_kind(-N, am, m1, whole)
-        w[a], w[b], w[cc] = c[9] * math.cos(am), c[10] * math.sin(am), c[11] * dn
-        phi = precession * t[k] - wobble * (turn - turn0)
-        e = _euler_frame(w, phi, axes, Iw, flip)
-        q = _qmul(*_qmul(g[0], g[1], g[2], g[3], e[0], e[1], e[2], e[3]),
-                  -p[0], -p[1], -p[2], p[3])
+            out, rate = (am, rates[1]) if r == 1 else (turn, rates[2])
+            for k in range(m):
+                out[k] = rate * u[k] + b1[k] * s[k]
+
+
+@njit(cache=True, inline="always")
+def _pick(axis: int, a: int, b: int, va: float, vb: float, vc: float) -> float:
+    """The component along body axis ``axis`` of a vector given along a, b and the third."""
+    return va if axis == a else (vb if axis == b else vc)
+
+
+@njit(cache=True, error_model="numpy")
+def _attitude_rows(work: np.ndarray, m: int, c: np.ndarray, axes: np.ndarray, Iw: np.ndarray,
+                   frame: np.ndarray) -> None:
+    """ω, q = F e (F = ``frame``, e the Euler frame) and q̇ = ½ q ⊗ (ω, 0) into the rows
+    _OMEGA, _Q, _QDOT of ``work`` from cos am, sin am, dn and cos, sin φ/2 in its rows
+    (``_torque_free_motion``), for its first m samples. Selections only, no calls, no
+    branches on the samples and no exceptions (numpy's error model): the loop vectorizes."""
+    # read once: ``work`` could alias them for all the compiler knows
+    amp_a, amp_b, amp_c, flip = c[9], c[10], c[11], c[12]
+    a, b, cc = axes[0], axes[1], axes[2]
+    i_is_b = axes[3] == b
+    Ia, Ib, Ic = Iw[a], Iw[b], Iw[cc]
+    F0 = (frame[0, 0], frame[0, 1], frame[0, 2], frame[0, 3])
+    F1 = (frame[1, 0], frame[1, 1], frame[1, 2], frame[1, 3])
+    F2 = (frame[2, 0], frame[2, 1], frame[2, 2], frame[2, 3])
+    F3 = (frame[3, 0], frame[3, 1], frame[3, 2], frame[3, 3])
+    for k in range(m):
+        wa = amp_a * work[_COS_AM, k]
+        wb = amp_b * work[_SIN_AM, k]
+        wc = amp_c * work[_DN, k]
+        na, nb, nc = Ia * wa, Ib * wb, Ic * wc
+        e = _euler_frame(na, nb if i_is_b else nc, nc if i_is_b else nb, work[_COS_HALF, k],
+                         work[_SIN_HALF, k], flip)
+        q = (_dot4(F0, e), _dot4(F1, e), _dot4(F2, e), _dot4(F3, e))
+        w = (_pick(0, a, b, wa, wb, wc), _pick(1, a, b, wa, wb, wc), _pick(2, a, b, wa, wb, wc))
         qd = _qmul(q[0], q[1], q[2], q[3], w[0], w[1], w[2], 0.0)
         for r in range(4):
-            rows[k, r] = q[r]
-            rows[k, 4 + r] = 0.5 * qd[r]
-        W[k, 0], W[k, 1], W[k, 2] = w[0], w[1], w[2]
+            work[_Q + r, k] = q[r]
+            work[_QDOT + r, k] = 0.5 * qd[r]
+        for r in range(3):
+            work[_OMEGA + r, k] = w[r]
+
+
+@njit(cache=True, error_model="numpy")
+def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndarray,
+                        axes: np.ndarray, Iw: np.ndarray, frame: np.ndarray, rates: np.ndarray,
+                        coefs: np.ndarray, terms: np.ndarray, y0: np.ndarray, rows: np.ndarray,
+                        W: np.ndarray) -> None:
+    """Rows [q, q̇ = ½ q ⊗ (ω, 0), y0[8:]] (as many columns as ``rows`` has) and ω (unless W
+    has no rows) of ``free_rotation`` at each time t − t₀ (see there), the arguments between
+    t₀ and y0 those of ``EllipticMotion``: φ = (λ/I_a) t − λ(I_c − I_a)/(I_a I_c ν)
+    (Π(−N; am u) − Π(−N; am u₀)), q = F e (``frame``), e the Euler frame. am u, dn u and
+    Π(−N; am u) from the Fourier series ``rates``, ``coefs`` (``_period_series``) where it has
+    terms, else by ``am_dn`` and ``third_kind``. Block by block of samples, each step over a
+    whole block at once (the loops vectorize; only the rows are written sample by sample)."""
+    nu, u0, scale, m1, N, whole, turn0 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
+    precession, wobble = c[7], c[8]
+    series = coefs.shape[1] > 0
+    n = t.size
+    work = np.empty((_ROWS, min(n, _BLOCK)))
+    tau, u, am, dn, turn, half = (work[_TAU], work[_U], work[_AM], work[_DN], work[_TURN],
+                                  work[_HALF])
+    for start in range(0, n, _BLOCK):
+        m = min(n - start, _BLOCK)
+        for k in range(m):
+            tau[k] = t[start + k] - t0
+            u[k] = nu * tau[k] + u0
+        if series:
+            _series_sums(rates, coefs, terms, u[:m], dn, am, turn)
+        else:
+            for k in range(m):
+                am[k], dn[k] = am_dn(u[k], ratios, scale, m1)
+                turn[k] = third_kind(-N, am[k], m1, whole)
+        for k in range(m):
+            half[k] = 0.5 * (precession * tau[k] - wobble * (turn[k] - turn0))  # φ/2
+        for r in range(2):  # one call of ``_cos_sin``: compiled once
+            angle = am if r == 0 else half
+            _cos_sin(angle[:m], work[_COS_AM + 2 * r], work[_SIN_AM + 2 * r])
+        _attitude_rows(work, m, c, axes, Iw, frame)
+        for k in range(m):
+            row = start + k
+            for r in range(8):
+                rows[row, r] = work[_Q + r, k]
+            for r in range(8, rows.shape[1]):
+                rows[row, r] = y0[r]
+            if W.shape[0]:
+                for r in range(3):
+                    W[row, r] = work[_OMEGA + r, k]
 
 
 def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,
                   t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows [q, q̇] of the attitude q(t) ((x, y, z, w), world_R_body) and its rate
     q̇ = ½ q ⊗ (ω, 0), and rows of the body ω(t), of a torque-free rigid body with principal
-    moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; one compiled pass,
-    ``_torque_free_motion``): ``free_rotation_at(free_motion(moments, q0, w0), t)``.
+    moments ``moments`` from q(0) = q0, ω(0) = w0 (any times; compiled, block by block of
+    samples, ``_torque_free_motion``): ``free_rotation_at(free_motion(moments, q0, w0), t)``.
 
     ω(t) (Landau & Lifshitz, Mechanics §37; catalog 003 §7.7 [SUPPLEMENT]): with the moments
     relabelled so that the polhode circles axis c (the largest moment if |L|² > 2E I_mid, else
@@ -350,6 +502,10 @@ def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.nd
     return free_rotation_at(free_motion(moments, q0, w0), t)
 
 
+#: Passed to ``_torque_free_motion`` for "no ω rows".
+_NONE = np.empty((0, 3))
+
+
 def free_rotation_at(motion: FreeMotion, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``free_rotation`` from its constants ``motion`` (``free_motion``) at the times t."""
     t = np.ascontiguousarray(t, dtype=float)
@@ -363,7 +519,7 @@ def free_rotation_at(motion: FreeMotion, t: np.ndarray) -> tuple[np.ndarray, np.
         return (np.stack([*Q, *(0.5 * x for x in Qd)], axis=1),
                 np.repeat(w0[None, :], t.size, axis=0))
     rows, W = np.empty((t.size, 8)), np.empty((t.size, 3))
-    _torque_free_motion(t, *motion, rows, W)
+    _torque_free_motion(t, 0.0, *motion, np.empty(0), rows, W)
     return rows, W
 
 
@@ -377,9 +533,31 @@ class UniformSpin(NamedTuple):
     axis: np.ndarray
 
 
-#: The arguments of ``_torque_free_motion`` between the times and the outputs (c, ratios,
-#: axes, Iw, w0, q0, p, rates, coefs), or a uniform spin.
-FreeMotion = tuple[np.ndarray, ...] | UniformSpin
+class EllipticMotion(NamedTuple):
+    """``free_motion`` off the principal axes: the arguments of ``_torque_free_motion``
+    between t₀ and y0 (see ``free_motion`` for their meaning)."""
+
+    #: (ν, u₀, 2^N a_N, m1, N, Π(−N | m), Π(−N; am u₀), λ/I_a, λ(I_c − I_a)/(I_a I_c ν), A_a,
+    #: ±A_b, ±A_c, flip)
+    consts: np.ndarray
+    #: ``agm_ratios`` (for ``am_dn``)
+    ratios: np.ndarray
+    #: body axes (a, b, c, i, j), i, j, a cyclic
+    axes: np.ndarray
+    #: I/|L|
+    Iw: np.ndarray
+    #: 4 × 4: the Euler frame e ↦ q = g ⊗ e ⊗ p*
+    frame: np.ndarray
+    #: ``_period_series``: π/K, π/2K, Π(−N | m)/K
+    rates: np.ndarray
+    #: ``_period_series``: (3, n) coefficients of dn, am, Π(−N; am)
+    coefs: np.ndarray
+    #: the number of coefficients each of the three series uses (none: term by term)
+    terms: np.ndarray
+
+
+#: What ``free_motion`` returns.
+FreeMotion = EllipticMotion | UniformSpin
 
 
 def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray
@@ -443,10 +621,20 @@ def free_motion(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndar
     consts = np.array([nu, u0, scale, m1, N, whole, turn0, lam / Ia,
                        lam * (Ic - Ia) / (Ia * Ic * nu), amp_a, s_b * amp_b, s_c * amp_c,
                        flip])
-    rates, coefs = _period_series(ratios, scale, m1, N, whole)
-    if coefs.size:
-        consts[6] = _series_sums(rates, coefs, u0)[2]  # Π(−N; am u₀) from the same series
-    return (consts, ratios, np.array([a, b, c, i, j]), I / lam, w0, q0, p, rates, coefs)
+    rates, coefs, terms = _period_series(ratios, scale, m1, N, whole)
+    if coefs.shape[1]:  # Π(−N; am u₀) from the same series
+        sums = np.empty((3, 1))
+        _series_sums(rates, coefs, terms, np.array([u0]), sums[0], sums[1], sums[2])
+        consts[6] = sums[2, 0]
+    motion = EllipticMotion(consts, ratios, np.array([a, b, c, i, j]), I / lam, np.eye(4),
+                            rates, coefs, terms)
+    # q = g ⊗ e ⊗ p*, e the Euler frame, g = q0 ⊗ p ⊗ e(0)*: ``frame`` the matrix of e ↦ q;
+    # e(0) as every other sample's e (the identity frame gives it), so that q(0) = q0
+    e0 = free_rotation_at(motion, np.zeros(1))[0][0]
+    g = quat_product(quat_product(q0, p), (-e0[0], -e0[1], -e0[2], e0[3]))
+    p_conj = (-p[0], -p[1], -p[2], p[3])
+    frame = np.stack([quat_product(quat_product(g, e), p_conj) for e in np.eye(4)], axis=1)
+    return motion._replace(frame=frame)
 
 
 #: Fourier series of one period of dn u and 1/(1 + N sn²u) are kept up to the last
@@ -460,7 +648,7 @@ SERIES_MAX_SAMPLES = 2048
 
 
 def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole: float
-                   ) -> tuple[np.ndarray, np.ndarray]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """dn u and Π(−N; am u) as Fourier series over the period 2K of u, for ``_torque_free_motion``
     to evaluate in a few operations per sample instead of the descending recursion and
     Carlson's R_F, R_J: with θ = πu/K, dn u = π/2K + Σ dₙ cos nθ, so am u = ∫dn =
@@ -468,10 +656,12 @@ def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole:
     Π(−N; am u) = (Π(−N | m)/K) u + Σ fₙ (K/nπ) sin nθ. The coefficients come from samples
     of one period (FFT), doubled until the upper half of the spectrum is below round-off
     (both functions are analytic, so the coefficients fall geometrically). Returns ``rates``
-    (π/K, π/2K, Π(−N | m)/K) and ``coefs`` (3, n): dₙ, then the sine coefficients of am and
-    Π; no coefficients (shape (3, 0)) where the series would need more than
-    ``SERIES_MAX_SAMPLES`` samples or the motion is on the separatrix."""
-    none = np.empty(3), np.empty((3, 0))
+    (π/K, π/2K, Π(−N | m)/K), ``coefs`` (3, n): dₙ, then the sine coefficients of am and
+    Π, and ``terms``, how many of them each sum takes (up to its first coefficient at
+    round-off: the series of Π often falls more slowly than that of dn); no terms where the
+    series would need more than ``SERIES_MAX_SAMPLES`` samples or the motion is on the
+    separatrix."""
+    none = np.empty(3), np.empty((3, 0)), np.zeros(3, dtype=np.int64)
     if m1 == 0.0 or not math.isfinite(whole):
         return none
     K = float(carlson_rf(0.0, m1, 1.0))
@@ -490,29 +680,12 @@ def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole:
         return none
     # up to the first coefficient at round-off (they fall geometrically; later ones are noise)
     low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * np.abs(0.5 * spec[:, :1])
-    n = int(max(np.argmax(row) if row.any() else row.size for row in low))
+    n_dn, n_turn = (int(np.argmax(row)) if row.any() else row.size for row in low)
+    n = max(n_dn, n_turn)
     k = np.arange(1, n + 1)
     d, fn = spec[0, 1:n + 1], spec[1, 1:n + 1]
-    return rates, np.stack([d, d * K / (k * math.pi), fn * K / (k * math.pi)])
-
-
-@njit(cache=True, fastmath={"contract"})  # fused multiply-adds: one rounding less per step
-def _series_sums(rates: np.ndarray, coefs: np.ndarray, u: float
-                 ) -> tuple[float, float, float]:
-    """dn u, am u and Π(−N; am u) from ``_period_series`` (Clenshaw's recurrence for the three
-    sums at once)."""
-    theta = rates[0] * u
-    c, s = math.cos(theta), math.sin(theta)
-    two_c = 2.0 * c
-    d1 = d2 = a1 = a2 = p1 = p2 = 0.0
-    for k in range(coefs.shape[1] - 1, -1, -1):
-        # (cₖ − b₊₂) + 2 cos θ b₊₁: only the last product and sum wait on the previous step
-        d1, d2 = (coefs[0, k] - d2) + two_c * d1, d1
-        a1, a2 = (coefs[1, k] - a2) + two_c * a1, a1
-        p1, p2 = (coefs[2, k] - p2) + two_c * p1, p1
-    return rates[1] + (d1 * c - d2), rates[1] * u + a1 * s, rates[2] * u + p1 * s
-
-
+    return (rates, np.stack([d, d * K / (k * math.pi), fn * K / (k * math.pi)]),
+            np.array([n_dn, n_dn, n_turn]))
 
 
 @dataclass(frozen=True)
@@ -607,11 +780,15 @@ class QuaternionRigidBody(DirectModel):
         work terms of y0]; None when a torque acts."""
         if not self.torque_free():
             return None
-        t = np.asarray(t, dtype=float)
-        y0 = np.asarray(y0, dtype=float)
-        rows = np.empty((t.size, len(y0)))
-        rows[:, :8], _ = free_rotation_at(self._free_motion(y0), t - t0)
-        rows[:, 8:] = y0[8:]
+        t = np.ascontiguousarray(t, dtype=float)
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        motion = self._free_motion(y0)
+        rows = np.empty((t.size, y0.size))
+        if isinstance(motion, UniformSpin):
+            rows[:, :8], _ = free_rotation_at(motion, t - t0)
+            rows[:, 8:] = y0[8:]
+        else:  # the work terms too, in the same pass
+            _torque_free_motion(t, float(t0), *motion, y0, rows, _NONE)
         return rows
 
     #: Initial states whose ``free_motion`` is kept (``propagate``), per model.
