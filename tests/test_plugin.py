@@ -40,3 +40,15 @@ def test_system_in_a_child_process(mechsim_graph: Any) -> None:
     mechsim_graph.start("harmonic_oscillator", process=True, diagnostics=False)
     state = mechsim_graph.collect("/harmonic_oscillator/state").wait_for(count=5)
     assert all(len(m.position) == 1 for m in state)
+
+
+def test_a_timeout_reports_what_arrived_by_the_deadline(mechsim_graph: Any) -> None:
+    """The failure names the messages seen when the wait gave up (it named the count at the
+    start, always 0 for a new collector: a predicate never met read as "nothing arrived")."""
+    mechsim_graph.start("pendulum")
+    states = mechsim_graph.collect("/pendulum/state")
+    with pytest.raises(pytest.fail.Exception) as failed:
+        states.wait_for(predicate=lambda messages: len(messages) >= 3 and False, timeout=5.0)
+    first = str(failed.value).splitlines()[0]
+    assert f"{len(states.messages)} message(s)" in first and "predicate=given: not met" in first
+    assert states.messages  # the pendulum published meanwhile: the count is not 0

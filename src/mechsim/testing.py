@@ -152,9 +152,9 @@ class Collector:
             return ((count is None or len(self.messages) >= count)
                     and (predicate is None or predicate(self.messages)))
 
-        self.graph.spin_until(done, timeout, f"{self.topic}: {len(self.messages)} message(s) "
-                              f"after {timeout:g} s (wanted count={count}, predicate="
-                              f"{'given' if predicate else 'none'})")
+        self.graph.spin_until(done, timeout, lambda: (
+            f"{self.topic}: {len(self.messages)} message(s) after {timeout:g} s (wanted "
+            f"count={count}, predicate={'given: not met' if predicate else 'none'})"))
         return list(self.messages)
 
 
@@ -256,7 +256,10 @@ class Graph:
         return run
 
     # --- waiting ------------------------------------------------------------------------------
-    def spin_until(self, done: Callable[[], bool], timeout: float, what: str) -> None:
+    def spin_until(self, done: Callable[[], bool], timeout: float,
+                   what: str | Callable[[], str]) -> None:
+        """Spin until ``done()``; at ``timeout`` fail the test with ``what`` (or what it
+        returns then: the state at the deadline, not at the start)."""
         def alive() -> bool:
             for run in self._running:
                 if run.process is not None and run.process.poll() is not None:
@@ -265,7 +268,8 @@ class Graph:
             return True
 
         if not wait_until(self._probe_ex, lambda: alive() and done(), timeout):
-            pytest.fail(f"timed out: {what}{self._child_logs()}")
+            text = what if isinstance(what, str) else what()
+            pytest.fail(f"timed out: {text}{self._child_logs()}")
 
     def _child_logs(self) -> str:
         tails = [f"\n--- {r.log.name}:\n" + r.log.read_text(errors="replace")[-2000:]
