@@ -173,14 +173,17 @@ class Graph:
     services, checks diagnostics. Every wait spins the probe node until a condition holds."""
 
     def __init__(self, context: Any, workdir: Path) -> None:
-        from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+        from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
         self.context, self.workdir = context, workdir
         self.probe = Node("mechsim_test_probe", context=context)
         self._probe_ex = SingleThreadedExecutor(context=context)
         self._probe_ex.add_node(self.probe)
-        self._node_ex = MultiThreadedExecutor(num_threads=2, context=context)
+        # One thread: rclpy's multi-threaded executor spins hot while a timer is due whose
+        # callback group is busy (a paced node's tick running long), holding the interpreter
+        # lock from that very tick: a closed loop's 10 ms tick then ran every 150-200 ms.
+        self._node_ex = SingleThreadedExecutor(context=context)
         self._spinner: threading.Thread | None = None
         self._running: list[Running] = []
         self._collectors: dict[str, Collector] = {}
