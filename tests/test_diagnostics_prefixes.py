@@ -1,7 +1,7 @@
 """The diagnostics of a fast run are tracked once per chunk for all the reports inside it
 (``track_prefixes``, ``DiagnosticsFeed.reports``): every law's state at each report must be
-the one the piece-by-piece tracking gives (``track`` on each piece, ``DiagnosticsFeed.deliver``
-before each report), including across a new epoch and a non-finite sample, where the shortcut
+the one the piece-by-piece tracking gives (``track`` on each piece, ``feed_rows`` up to each
+report), including across a new epoch and a non-finite sample, where the shortcut
 steps aside."""
 
 from __future__ import annotations
@@ -105,13 +105,26 @@ def _feed(diag: DiagnosticsNode, reset: bool) -> DiagnosticsFeed:
     return feed
 
 
+def _deliver_until(feed: DiagnosticsFeed, until: int) -> None:
+    """The reference: every held run's samples stamped ``until`` or earlier fed piece by piece
+    (``feed_rows``, the runs in order), the rest held."""
+    keep = []
+    for base, leaf, ns, laws, matrix in feed._runs():
+        n = int(np.searchsorted(ns, until, "right"))
+        if n:
+            feed.diag.feed_rows(base, leaf, ns[:n], laws, matrix[:, :n])
+        if n < len(ns):
+            keep.append((base, leaf, ns[n:], laws, matrix[:, n:]))
+    feed.pending = keep
+
+
 @pytest.mark.parametrize("reset", [False, True])
 def test_reports_equal_delivering_before_each_report(ros_context: Any, reset: bool) -> None:
-    """Two diagnostics nodes fed the same chunks: one delivers up to each report stamp and
-    reports, the other steps through ``reports``; every report's statuses are equal, and so
-    is what is left held after the last one. Without a reset the reports before the NaN take
-    the shortcut (counted), the ones after it do not; with a reset a stream is held in two
-    runs, fed in turns."""
+    """Two diagnostics nodes fed the same chunks: one is fed piece by piece up to each report
+    stamp (the reference), the other steps through ``reports``; every report's statuses are
+    equal, and so are they after the rest is delivered. Without a reset the reports before
+    the NaN take the shortcut (counted), the ones after it do not; with a reset a stream is
+    held in two runs, fed in turns."""
     nodes = [DiagnosticsNode(context=ros_context, period=3600.0, stale_timeout=3600.0,
                              discover=False) for _ in range(2)]
     shortcuts: list[bool] = []
@@ -131,13 +144,13 @@ def test_reports_equal_delivering_before_each_report(ros_context: Any, reset: bo
         for stamps in rounds:
             expected, got = [], []
             for s in stamps:
-                feeds[0].deliver(s)
+                _deliver_until(feeds[0], s)
                 expected.append(nodes[0].status_rows())
             for _ in feeds[1].reports(stamps):
                 got.append(nodes[1].status_rows())
             assert got == expected
-        for feed in feeds:
-            feed.deliver()
+        _deliver_until(feeds[0], int(np.iinfo(np.int64).max))
+        feeds[1].deliver()
         assert nodes[0].status_rows() == nodes[1].status_rows()
         if not reset:
             assert ("nonfinite", "1") in [kv for row in nodes[1].status_rows()

@@ -78,10 +78,7 @@ class MessageFactory:
         self.observable_names = [q.name for q in model.observables]
         self.observable_units = [q.unit for q in model.observables]
         #: The frames whose parent is the world (moved by the origin), and the others.
-        world = [k for k, f in enumerate(model.frames) if f.parent == "world"]
-        contiguous = bool(world) and world == list(range(world[0], world[-1] + 1))
-        self._world: list[int] | slice = slice(world[0], world[-1] + 1) if contiguous \
-            else world
+        self._world = [k for k, f in enumerate(model.frames) if f.parent == "world"]
         self._origin = np.asarray(origin, dtype=float)
 
     def frame_id(self, frame: str) -> str:
@@ -147,8 +144,7 @@ class MessageFactory:
         frames whose parent is the world moved by the instance's origin, quaternions
         normalised (a zero quaternion left as it is)."""
         out = np.array(frames, dtype=float)
-        if self._world:
-            out[..., self._world, :3] += self._origin
+        out[..., self._world, :3] += self._origin
         x, y, z, w = (out[..., k] for k in range(3, 7))
         norm = np.sqrt(x * x + y * y + z * z + w * w)  # (summed in np.sum's order)
         norm[norm == 0.0] = 1.0

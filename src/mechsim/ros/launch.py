@@ -93,6 +93,10 @@ def _same(a: list[Any], b: list[Any]) -> bool:
     return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
 
 
+#: A stamp past every sample (``DiagnosticsFeed.deliver``).
+_EVERY_NS = int(np.iinfo(np.int64).max)
+
+
 class DiagnosticsFeed:
     """In-process sink that hands system_info messages and the energy/invariant values of
     each chunk straight to the diagnostics node: lossless, whatever the executor's pace.
@@ -138,24 +142,18 @@ class DiagnosticsFeed:
                  np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0])
                 for base, leaf, pieces, laws, parts in runs]
 
-    def deliver(self, until_ns: int | None = None) -> None:
-        """Feed the held samples stamped ``until_ns`` or earlier (all without it)."""
-        keep = []
-        for base, leaf, ns, laws, matrix in self._runs():
-            n = len(ns) if until_ns is None else int(np.searchsorted(ns, until_ns, "right"))
-            if n:
-                self.diag.feed_rows(base, leaf, ns[:n], laws, matrix[:, :n])
-            if n < len(ns):
-                keep.append((base, leaf, ns[n:], laws, matrix[:, n:]))
-        self.pending = keep
+    def deliver(self) -> None:
+        """Feed every held sample."""
+        for _ in self.reports([_EVERY_NS]):
+            pass
 
     def reports(self, stamps: list[int]) -> Iterator[None]:
-        """:meth:`deliver` up to each of ``stamps`` (increasing) in turn, one step per report:
-        the laws are tracked once for all of them where they can be
-        (``DiagnosticsNode.feed_prefixes``), piece by piece where not."""
+        """Feed the held samples stamped up to each of ``stamps`` (increasing) in turn, one
+        step per report (the rest stays held): the laws are tracked once for all of them
+        where they can be (``DiagnosticsNode.feed_prefixes``), piece by piece where not."""
         runs = self._runs()
         # A stream held in several runs (a new epoch among them) is fed piece by piece: the
-        # runs take turns at each report, as with deliver().
+        # runs take turns at each report.
         turns = Counter((base, leaf) for base, leaf, *_ in runs)
         steps: list[Iterator[None]] = []
         keep = []
