@@ -185,6 +185,7 @@ class Graph:
         # lock from that very tick: a closed loop's 10 ms tick then ran every 150-200 ms.
         self._node_ex = SingleThreadedExecutor(context=context)
         self._spinner: threading.Thread | None = None
+        self._stop_spinning = threading.Event()
         self._running: list[Running] = []
         self._collectors: dict[str, Collector] = {}
         self._own: list[Any] = []  # nodes of the test (add_node)
@@ -238,10 +239,13 @@ class Graph:
             self._spinner.start()
 
     def _spin_nodes(self) -> None:
+        """Spin until :meth:`close` asks to stop (the executor is shut down only after this
+        thread has ended: shutting it down under a running spin raised in this thread)."""
         from rclpy.executors import ExternalShutdownException
 
         try:
-            self._node_ex.spin()
+            while not self._stop_spinning.is_set():
+                self._node_ex.spin_once(timeout_sec=0.05)
         except ExternalShutdownException:
             pass
 
@@ -378,9 +382,10 @@ class Graph:
                     run.process.wait(timeout=60)
                 except subprocess.TimeoutExpired:
                     run.process.kill()
-        self._node_ex.shutdown()
+        self._stop_spinning.set()
         if self._spinner is not None:
             self._spinner.join(timeout=60)
+        self._node_ex.shutdown()
         for run in self._running:
             for node in run.nodes:
                 node.destroy_node()
