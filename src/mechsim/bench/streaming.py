@@ -103,12 +103,55 @@ LIVE_RUNS = (("pendulum", 30.0, "drain"), ("kepler", 30.0, "drain"),
              ("pendulum", 200.0, "executor"))
 
 
+def _live_subscriber(topics: list[list[str]], mode: str) -> Any:
+    """The subscriber process (``_SUBSCRIBER``), started and ready."""
+    import json as json_
+    import subprocess
+
+    sub = subprocess.Popen([sys.executable, "-c", _SUBSCRIBER, json_.dumps(topics), mode],
+                           stdout=subprocess.PIPE, text=True)
+    assert sub.stdout is not None
+    if sub.stdout.readline().strip() != "ready":
+        sub.kill()
+        sub.wait()
+        raise RuntimeError("the live subscriber did not start")
+    return sub
+
+
+def _wait_matched(publishers: list[Any]) -> None:
+    end = time.monotonic() + 60
+    while not all(p.get_subscription_count() for p in publishers):
+        if time.monotonic() > end:
+            raise RuntimeError("the live subscriber never matched")
+        time.sleep(0.01)
+
+
+class _FirstRows:
+    """A sink keeping one recorded payload of each topic (the bare loop's messages)."""
+
+    def __init__(self) -> None:
+        self.rows: dict[str, bytes] = {}
+
+    def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
+        for topic, _, _, rows in topics:
+            if len(rows):
+                self.rows.setdefault(topic, rows[0].tobytes())
+
+    def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
+        self.rows.setdefault(topic, data)
+
+    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
+        from mechsim.outputs.bag import cdr_bytes
+
+        self.rows.setdefault(topic, cdr_bytes(msg))
+
+
 def live_subscriber_rtf(system: str, duration: float, mode: str = "drain") -> dict[str, Any]:
     """Real-time factor of a fast, lossless run (no recording) with one live subscriber per
     streamed topic in another process (``mode``, see ``LIVE_RUNS``), and whether every
-    message arrived."""
+    message arrived; and the ceiling: the same messages, as many of each, sent to the same
+    kind of subscriber by a bare rclpy loop that simulates nothing (``bare_rtf``)."""
     import json as json_
-    import subprocess
 
     from mechsim.ros.launch import run_scene
     from mechsim.ros.outlet import streamed
@@ -116,41 +159,86 @@ def live_subscriber_rtf(system: str, duration: float, mode: str = "drain") -> di
 
     scene = single_system_scene(system)
     topics: list[list[str]] = []
+    qos: dict[str, Any] = {}
+    first = _FirstRows()
 
     def listed(node: Any) -> None:
         topics[:] = [[t, ch.type_name] for t, ch in node.outlet.channels.items()
                      if streamed(ch.qos)]
+        qos.update({t: node.outlet.channels[t].publisher.qos_profile for t, _ in topics})
 
-    run_scene(scene, fast=True, duration=0.2, before_first_message=listed)  # warm-up
-    sub = subprocess.Popen([sys.executable, "-c", _SUBSCRIBER, json_.dumps(topics), mode],
-                           stdout=subprocess.PIPE, text=True)
+    run_scene(scene, fast=True, duration=0.2, before_first_message=listed,  # warm-up
+              sinks=[first])
+    sub = _live_subscriber(topics, mode)
     try:
-        assert sub.stdout is not None
-        if sub.stdout.readline().strip() != "ready":
-            raise RuntimeError("the live subscriber did not start")
-
         def matched(node: Any) -> None:
-            pubs = [node.outlet.channels[t].publisher for t, _ in topics]
-            end = time.monotonic() + 60
-            while not all(p.get_subscription_count() for p in pubs):
-                if time.monotonic() > end:
-                    raise RuntimeError("the live subscriber never matched")
-                time.sleep(0.01)
+            _wait_matched([node.outlet.channels[t].publisher for t, _ in topics])
 
         t0 = time.monotonic()
         run = run_scene(scene, fast=True, duration=duration, lossless=True,
                         before_first_message=matched)
         wall = time.monotonic() - t0 - run.startup_time
+        assert sub.stdout is not None
         received = json_.loads(sub.stdout.readline())
     finally:
         if sub.poll() is None:
             sub.kill()
         sub.wait()
     published = {t: run.messages.get(t, 0) for t, _ in topics}
+    bare = _bare_loop_wall(topics, qos, first.rows, published, mode)
     return {"system": system, "subscriber": mode, "sim_s": run.sim_time, "wall_s": wall,
             "rtf": run.sim_time / wall, "messages": sum(published.values()),
             "every_message": received == published,
-            "lost": sum(published.values()) - sum(received.values())}
+            "lost": sum(published.values()) - sum(received.values()),
+            "bare_rtf": run.sim_time / bare}
+
+
+def _bare_loop_wall(topics: list[list[str]], qos: dict[str, Any], rows: dict[str, bytes],
+                    counts: dict[str, int], mode: str) -> float:
+    """Wall seconds a bare rclpy loop takes to send ``counts[topic]`` copies of each topic's
+    payload, sample by sample in slices of ``LOSSLESS_DEPTH`` acknowledged before the next
+    (as ``--lossless`` does), to a new subscriber process of the same kind: what the machine
+    allows an rclpy publisher with nothing to simulate."""
+    from mechsim.environment import import_rclpy
+
+    rclpy = import_rclpy()
+    from rclpy.duration import Duration
+    from rclpy.qos import QoSProfile
+
+    from mechsim.ros.outlet import LOSSLESS_DEPTH
+
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("bare_publisher", context=context)
+    try:
+        pubs = {}
+        for t, type_name in topics:
+            pkg, _, name = type_name.split("/")
+            cls = getattr(__import__(f"{pkg}.msg", fromlist=[name]), name)
+            q = qos[t]
+            pubs[t] = node.create_publisher(
+                cls, t, QoSProfile(depth=max(q.depth, LOSSLESS_DEPTH), history=q.history,
+                                   reliability=q.reliability, durability=q.durability))
+        sub = _live_subscriber(topics, mode)
+        try:
+            _wait_matched(list(pubs.values()))
+            samples = max(counts.values())
+            t0 = time.monotonic()
+            for start in range(0, samples, LOSSLESS_DEPTH):
+                for t, p in pubs.items():
+                    data, publish = rows.get(t, b""), p.publish
+                    # a topic sent less often than every sample (diagnostics) keeps its count
+                    for _ in range(max(0, min(start + LOSSLESS_DEPTH, counts[t]) - start)):
+                        publish(data)
+                for p in pubs.values():
+                    p.wait_for_all_acked(Duration(seconds=60))
+            return time.monotonic() - t0
+        finally:
+            sub.kill()
+            sub.wait()
+    finally:
+        node.destroy_node()
+        rclpy.shutdown(context=context)
 
 
 STAGES = ("integrate", "evaluate", "encode", "publish", "diagnostics", "write")
@@ -291,8 +379,9 @@ def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
     live = []
     for s, live_duration, mode in LIVE_RUNS:
         row = live_subscriber_rtf(s, live_duration, mode)
-        print(f"  {s:22s} live subscriber ({mode}): RTF {row['rtf']:8.1f}, every message: "
-              f"{row['every_message']}", file=sys.stderr)
+        print(f"  {s:22s} live subscriber ({mode}): RTF {row['rtf']:8.1f} (bare rclpy loop "
+              f"{row['bare_rtf']:.1f}), every message: {row['every_message']}",
+              file=sys.stderr)
         live.append(row)
     all_systems_realtime(1.0)  # warm: load every kernel once
     cpu = all_systems_realtime(realtime_duration)
@@ -323,11 +412,16 @@ def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
               "message was acknowledged, and whether every message arrived. Subscriber "
               "`executor`: one executor callback a message; `drain`: woken by the executor, "
               "it takes every waiting message of the topic in a loop.", "",
-              "| system | simulated [s] | subscriber | real-time factor | messages | "
-              "every message arrived |", "|---|---|---|---|---|---|"]
+              "The ceiling: a bare rclpy loop that simulates nothing sends the same "
+              "messages (one recorded payload of each topic, as many as the run sent) the "
+              "same way to a new subscriber of the same kind; its real-time factor is the "
+              "run's simulated time over that loop's wall time.", "",
+              "| system | simulated [s] | subscriber | real-time factor | bare rclpy loop "
+              "(ceiling) | messages | every message arrived |",
+              "|---|---|---|---|---|---|---|"]
     for r in live:
         lines.append(f"| {r['system']} | {r['sim_s']:g} | {r['subscriber']} | {r['rtf']:.1f} | "
-                     f"{r['messages']} | "
+                     f"{r['bare_rtf']:.1f} | {r['messages']} | "
                      + ("yes" if r["every_message"] else f"no ({r['lost']} lost)") + " |")
     lines += ["", f"All {cpu['systems']} systems streaming together in real time at 100 Hz "
               f"(one process, {cpu['sim_s']:g} s): CPU share {cpu['cpu_share_run']:.2f} of one "
