@@ -525,3 +525,35 @@ def test_a_stop_wrapped_by_compiled_code_stops_the_run(ros_context: Any,
                     context=ros_context)
     assert run.interrupted and not run.failures, run.failures
     assert calls["n"] == 3 and 0 < run.sim_time < 1e6
+
+
+def test_consumers_of_a_refused_run_do_not_drain(tmp_path: Path) -> None:
+    """A multi-process run whose simulators published nothing (a refused start) leaves
+    ``NOTHING_PUBLISHED`` beside its consumers' reports, and a consumer then stops without
+    draining: what it still receives comes from another graph's nodes of the same names
+    (seen: a refused ``run --processes`` waited the full drain limit for them)."""
+    from mechsim.ros.launch import _published_any
+    from mechsim.ros.process import NOTHING_PUBLISHED, drain
+
+    class Executor:
+        spins = 0
+
+        def spin_once(self, timeout_sec: float) -> None:
+            self.spins += 1
+
+    (tmp_path / "system0.json").write_text('{"samples": 0}')
+    (tmp_path / "diagnostics.json").write_text('{"samples": 5}')  # not a simulator's
+    assert not _published_any(str(tmp_path))
+    (tmp_path / "system1.json").write_text('{"samples": 3}')
+    assert _published_any(str(tmp_path))
+    (tmp_path / "system1.json").write_text("{trunc")
+    assert _published_any(str(tmp_path))  # unreadable: drained, to be safe
+
+    report = str(tmp_path / "recorder.json")
+    spinning = Executor()
+    drain(spinning, lambda: 0, report)
+    assert spinning.spins > 0  # no marker: spins until nothing arrives
+    (tmp_path / NOTHING_PUBLISHED).touch()
+    idle = Executor()
+    drain(idle, lambda: 0, report)
+    assert idle.spins == 0

@@ -38,6 +38,7 @@ import numpy as np
 
 from mechsim.errors import MechsimError, ParameterError
 from mechsim.ros.process import (
+    NOTHING_PUBLISHED,
     die_with_parent,
     drain,
     exit_process,
@@ -455,6 +456,21 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
 
 
 # --- one process per node -----------------------------------------------------------------
+def _published_any(reports: str) -> bool:
+    """Did a simulator of a multi-process run publish a sample (its report in ``reports``)?"""
+    import json
+
+    for f in os.listdir(reports):
+        if f.startswith("system") and f.endswith(".json"):
+            try:
+                with open(os.path.join(reports, f)) as fh:
+                    if json.load(fh).get("samples", 0):
+                        return True
+            except (OSError, ValueError):
+                return True  # unreadable: assume it did, and drain
+    return False
+
+
 def _spawn(args: list[str], module: str = "mechsim.ros.launch") -> subprocess.Popen[bytes]:
     return subprocess.Popen([sys.executable, "-m", module, *args],
                             env=dict(os.environ), start_new_session=True)
@@ -530,6 +546,8 @@ def run_processes(target: str, scene: Scene, sets: list[str], duration: float | 
         # Simulators first (they let their readers acknowledge), then the consumers drain.
         # (diagnostics before the recorder: its last report is recorded too).
         for group in (list(sims.values()), *([c] for c in consumers)):
+            if group and group[0] not in sims.values() and not _published_any(reports):
+                open(os.path.join(reports, NOTHING_PUBLISHED), "x").close()
             for p in group:
                 if p.poll() is None:
                     p.send_signal(signal.SIGTERM)
@@ -543,6 +561,9 @@ def run_processes(target: str, scene: Scene, sets: list[str], duration: float | 
             signal.signal(signal.SIGTERM, previous_term)
         got: dict[str, Any] = {}
         for f in os.listdir(reports):
+            if f == NOTHING_PUBLISHED:
+                os.unlink(os.path.join(reports, f))
+                continue
             with open(os.path.join(reports, f)) as fh:
                 got[f.removesuffix(".json")] = json.load(fh)
             os.unlink(os.path.join(reports, f))
@@ -701,7 +722,7 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
                 node.outlet.settle()  # a lossless run's last slice acknowledged
                 wait_acked([ch.publisher for ch in node.outlet.channels.values()])
             elif node is not None and report is not None:
-                drain(executor, lambda: node.received)
+                drain(executor, lambda: node.received, report)
                 wait_acked([ch.publisher for ch in node.outlet.channels.values()])
         except KeyboardInterrupt:
             pass

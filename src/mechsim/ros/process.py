@@ -100,11 +100,19 @@ class held_signals:  # noqa: N801 - used like the function it was: ``with held_s
 DRAIN_QUIET = 0.5
 #: Longest drain, however busy the graph.
 DRAIN_LIMIT = 60.0
+#: A file the launcher of a multi-process run leaves beside the consumers' reports when none
+#: of its simulators published anything (a refused start): nothing of the run to drain. (What
+#: arrives then comes from another graph's nodes of the same names, and never stops.)
+NOTHING_PUBLISHED = "nothing-published"
 
 
-def drain(executor: Any, received: Callable[[], int]) -> None:
+def drain(executor: Any, received: Callable[[], int], report: str | None = None) -> None:
     """Spin ``executor`` until ``received()`` has not changed for ``DRAIN_QUIET`` s: the
-    messages in flight when a consumer was told to stop are taken, not dropped."""
+    messages in flight when a consumer was told to stop are taken, not dropped. None when
+    ``NOTHING_PUBLISHED`` lies beside ``report``."""
+    if report is not None and os.path.exists(
+            os.path.join(os.path.dirname(report), NOTHING_PUBLISHED)):
+        return
     end = time.monotonic() + DRAIN_LIMIT
     last, quiet_since = received(), time.monotonic()
     while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:

@@ -142,7 +142,7 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None,
         except KeyboardInterrupt:
             pass
         with held_signals():
-            drain(executor, lambda: sum(node.counts.values()))
+            drain(executor, lambda: sum(node.counts.values()), report)
             lines = out.close()
     except BaseException as e:
         with held_signals():
