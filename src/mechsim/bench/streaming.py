@@ -9,7 +9,9 @@
    (integrate, evaluate, encode, publish incl. the hand-off to the recorder, diagnostics,
    and write: the bag writer's thread, which overlaps the others on a second core).
    The same without the bag, ``--lossless``, with one live subscriber per streamed topic in
-   another process (Python, raw): the real-time factor and whether every message arrived.
+   another process (Python, raw): the real-time factor and whether every message arrived,
+   beside the ceiling of this machine: a bare rclpy loop sending the same messages the same
+   way to a new subscriber of the same kind, with nothing to simulate.
 2. The CPU share of a scene with every system streaming in real time at 100 Hz (one instance
    each), without and with a bag and a Rerun recording: process CPU time / wall time from the
    first sample to the end (start-up excluded; also given with it), so 1.0 is one full core.
