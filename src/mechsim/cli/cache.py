@@ -1,4 +1,4 @@
-"""`mechsim cache info|clear`: the cache of generated, compiled kernel modules."""
+"""`mechsim cache info|clear|warm`: the cache of generated, compiled kernel modules."""
 
 from __future__ import annotations
 
@@ -11,9 +11,47 @@ def _size(n: int) -> str:
     return f"{n / 1e6:.1f} MB" if n >= 100_000 else f"{n / 1e3:.1f} kB"
 
 
+def warm(systems: list[str], quiet: bool) -> int:
+    """Derive and compile the kernels of every formulation of ``systems`` (all when empty) and
+    take one short run of each (its closed form too, where it has one), so that a first run
+    later loads everything from the cache. A formulation its default parameters do not allow
+    is skipped with its reason. Returns how many were made or found."""
+    from mechsim.cli.common import say
+    from mechsim.errors import MechsimError
+    from mechsim.simulate import simulate
+    from mechsim.systems import system_class, system_ids
+
+    done = 0
+    for sid in systems or system_ids():
+        cls = system_class(sid)
+        forms = cls.formulations if len(cls.formulations) > 1 else (None,)
+        for form in forms:
+            label = sid if form is None else f"{sid} ({form})"
+            try:
+                model = cls() if form is None else cls(formulation=form)
+                simulate(model, 0.02, 0.01, method="auto", closed_form=True)
+            except MechsimError as e:
+                if not quiet:
+                    say(f"cache warm: {label}: skipped: {e}")
+                continue
+            done += 1
+            if not quiet:
+                say(f"cache warm: {label}")
+    return done
+
+
 def cmd_cache(a: argparse.Namespace) -> int:
     from mechsim import codegen
 
+    if a.action == "warm":
+        n = warm(a.systems, a.quiet)
+        if not a.quiet:
+            print(f"{n} models ready in {codegen.cache_dir()}")
+        return 0
+    if a.systems:
+        from mechsim.errors import MechsimError
+
+        raise MechsimError(f"cache {a.action}: takes no system (only `warm` does)")
     if a.action == "clear":
         removed = codegen.cache_clear()
         print(f"removed {removed} generated module{'s' if removed != 1 else ''} from "
@@ -35,7 +73,10 @@ def add_parser(sub: Any) -> None:
                        description="Each model's derived and compiled kernels and the shared "
                        "integrator loops are kept on disk ($MECHSIM_CACHE_DIR, else "
                        "$XDG_CACHE_HOME/mechsim), keyed on every input; `clear` removes "
-                       "them (the next run derives and compiles again).")
-    s.add_argument("action", choices=("info", "clear"))
+                       "them (the next run derives and compiles again); `warm` derives and "
+                       "compiles every formulation of the systems named (all by default) now.")
+    s.add_argument("action", choices=("info", "clear", "warm"))
+    s.add_argument("systems", nargs="*", metavar="SYSTEM", help="with `warm`: only these")
+    s.add_argument("--quiet", action="store_true", help="with `warm`: no line per model")
     s.add_argument("--json", action="store_true", help="info as JSON")
     s.set_defaults(func=cmd_cache)
