@@ -1,7 +1,8 @@
 """The cache of generated kernel modules: keyed on every input of the derivation (a system
 whose parameters are reordered, with the old kernels still cached, computes with the new
 order), bounded (least recently used modules go first), and shown and emptied by
-``mechsim cache info|clear`` without touching anything else in the directory."""
+``mechsim cache info|clear`` without touching anything else in the directory; ``cache warm``
+derives a system's models ahead of its first run."""
 
 from __future__ import annotations
 
@@ -130,3 +131,26 @@ def test_a_model_being_derived_elsewhere_is_waited_for(cache: Path) -> None:
         codegen.write_atomic(path, "VALUE = 1\n")
     waiter.join(120)
     assert not derived and loaded["module"].VALUE == 1
+
+
+def test_cache_warm(capsys: pytest.CaptureFixture[str]) -> None:
+    """``mechsim cache warm SYSTEM``: every formulation of the system derived, compiled and
+    run once, a line each (none with ``--quiet``, before or after the systems); an unknown
+    system is a one-line error, a system given to another action a usage error (exit 2)."""
+    from mechsim.systems import system_class
+
+    forms = system_class("pendulum").formulations
+    assert len(forms) > 1
+    assert main(["cache", "warm", "pendulum"]) == 0
+    out = capsys.readouterr()
+    assert [f"mechsim: cache warm: pendulum ({f})" for f in forms] == out.err.splitlines()
+    assert out.out.startswith(f"{len(forms)} models ready in ")
+    for argv in (["--quiet", "pendulum"], ["pendulum", "--quiet"]):
+        assert main(["cache", "warm", *argv]) == 0
+        assert capsys.readouterr().err == ""
+    assert main(["cache", "warm", "no_such_system"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("mechsim: error: unknown system")
+    with pytest.raises(SystemExit) as stop:  # argparse's usage error, as for every verb
+        main(["cache", "info", "pendulum"])
+    assert stop.value.code == 2

@@ -40,23 +40,27 @@ def warm(systems: list[str], quiet: bool) -> int:
     return done
 
 
-def cmd_cache(a: argparse.Namespace) -> int:
+def cmd_cache_warm(a: argparse.Namespace) -> int:
     from mechsim import codegen
 
-    if a.action == "warm":
-        n = warm(a.systems, a.quiet)
-        if not a.quiet:
-            print(f"{n} models ready in {codegen.cache_dir()}")
-        return 0
-    if a.systems:
-        from mechsim.errors import MechsimError
+    n = warm(a.systems, a.quiet)
+    if not a.quiet:
+        print(f"{n} models ready in {codegen.cache_dir()}")
+    return 0
 
-        raise MechsimError(f"cache {a.action}: takes no system (only `warm` does)")
-    if a.action == "clear":
-        removed = codegen.cache_clear()
-        print(f"removed {removed} generated module{'s' if removed != 1 else ''} from "
-              f"{codegen.cache_dir()}")
-        return 0
+
+def cmd_cache_clear(a: argparse.Namespace) -> int:
+    from mechsim import codegen
+
+    removed = codegen.cache_clear()
+    print(f"removed {removed} generated module{'s' if removed != 1 else ''} from "
+          f"{codegen.cache_dir()}")
+    return 0
+
+
+def cmd_cache_info(a: argparse.Namespace) -> int:
+    from mechsim import codegen
+
     info = codegen.cache_info()
     if a.json:
         print(json.dumps(info, indent=2))
@@ -69,14 +73,19 @@ def cmd_cache(a: argparse.Namespace) -> int:
 
 
 def add_parser(sub: Any) -> None:
-    s = sub.add_parser("cache", help="show or empty the cache of generated kernel modules",
+    c = sub.add_parser("cache", help="show, empty or fill the cache of generated kernel modules",
                        description="Each model's derived and compiled kernels and the shared "
                        "integrator loops are kept on disk ($MECHSIM_CACHE_DIR, else "
-                       "$XDG_CACHE_HOME/mechsim), keyed on every input; `clear` removes "
-                       "them (the next run derives and compiles again); `warm` derives and "
-                       "compiles every formulation of the systems named (all by default) now.")
-    s.add_argument("action", choices=("info", "clear", "warm"))
-    s.add_argument("systems", nargs="*", metavar="SYSTEM", help="with `warm`: only these")
-    s.add_argument("--quiet", action="store_true", help="with `warm`: no line per model")
-    s.add_argument("--json", action="store_true", help="info as JSON")
-    s.set_defaults(func=cmd_cache)
+                       "$XDG_CACHE_HOME/mechsim), keyed on every input.")
+    csub = c.add_subparsers(dest="cache_command", required=True)
+    i = csub.add_parser("info", help="where the cache is, what it holds and its bound")
+    i.add_argument("--json", action="store_true", help="as JSON")
+    i.set_defaults(func=cmd_cache_info)
+    r = csub.add_parser("clear", help="remove every generated module (the next run derives "
+                        "and compiles again); nothing else in the directory is touched")
+    r.set_defaults(func=cmd_cache_clear)
+    w = csub.add_parser("warm", help="derive and compile every formulation of the systems "
+                        "now (all by default), so that their first runs load from the cache")
+    w.add_argument("systems", nargs="*", metavar="SYSTEM", help="only these systems")
+    w.add_argument("--quiet", action="store_true", help="no line per model")
+    w.set_defaults(func=cmd_cache_warm)
