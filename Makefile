@@ -23,18 +23,12 @@ run: bootstrap
 
 # Per-run ROS_DOMAIN_ID from the shell's PID, in 1..101 (0 is everyone's default;
 # 102..214 are unusable), unless the caller set one. Exit 5 (no tests collected) is a pass.
-# Beside the tests, at low priority, `mechsim cache warm` derives the models not yet in the
-# kernel cache, on the CPU the tests leave idle while they wait for other processes and DDS
-# discovery (a third of it with two workers); a test needing a model being built waits for
-# it (the build lock) instead of building it too. Stopped when the tests end.
 test: bootstrap
 	@$(VENV)/bin/ruff check src tests tools
 	@export FASTDDS_DEFAULT_PROFILES_FILE="$(PROFILE)"; \
 	export ROS_DOMAIN_ID="$${ROS_DOMAIN_ID:-$$(( $$$$ % 101 + 1 ))}"; \
 	echo "make test: ROS_DOMAIN_ID=$$ROS_DOMAIN_ID"; \
-	nice -n 10 $(VENV)/bin/mechsim cache warm --quiet >/dev/null 2>&1 & warm=$$!; \
 	$(VENV)/bin/python -m pytest $(PYTEST_ARGS); rc=$$?; \
-	kill $$warm 2>/dev/null; wait $$warm 2>/dev/null; \
 	if [ $$rc -eq 5 ]; then echo "make test: no tests collected"; rc=0; fi; \
 	exit $$rc
 
