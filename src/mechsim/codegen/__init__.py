@@ -18,7 +18,8 @@ module for every model (``load_module``), so the per-model cost is the derivatio
 compilation of the small kernels a run needs (a run with ``yoshida8`` never compiles ``rhs``).
 
 The cache is bounded (``MAX_MODULES`` files; the least recently used are removed first) and
-``cache_info``/``cache_clear`` report and empty it (``mechsim cache info|clear``).
+``cache_info``/``cache_clear`` report and empty it (``mechsim cache info|clear``; ``mechsim
+cache warm`` fills it).
 """
 
 from __future__ import annotations
