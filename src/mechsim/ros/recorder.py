@@ -17,8 +17,11 @@ its acknowledgments); the counts received are reported next to what was publishe
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from rclpy.node import Node
@@ -125,6 +128,28 @@ class RecorderNode(Node):
         return topic in self._subs
 
 
+@contextlib.contextmanager
+def _stop_requested() -> Iterator[threading.Event]:
+    """An event that Ctrl-C or SIGTERM sets while the block runs (main thread; elsewhere it
+    is never set and a stop raises as usual). Raised as KeyboardInterrupt, a stop landing
+    inside rclpy's deserialisation came out as "TypeError: Unable to convert function return
+    value to a Python type" (seen: the import a message's constructor makes was
+    interrupted), which stopped the recorder as an error and lost the message being taken."""
+    stop = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.getsignal(s) for s in signals}
+    for s in signals:
+        signal.signal(s, lambda signum, frame: stop.set())
+    try:
+        yield stop
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
 def run_recorder(scene: Any, bag: str | None, rrd: str | None,
                  report: str | None = None) -> list[str]:
     """The scene's topics from the graph into ``bag`` / ``rrd`` until SIGINT/SIGTERM, then
@@ -147,8 +172,9 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None,
     lines: list[str] = []
     try:
         try:
-            while True:
-                executor.spin_once(timeout_sec=0.1)
+            with _stop_requested() as stop:
+                while not stop.is_set():
+                    executor.spin_once(timeout_sec=0.1)
         except KeyboardInterrupt:
             pass
         with held_signals():
