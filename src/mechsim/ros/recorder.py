@@ -85,20 +85,10 @@ class RecorderNode(Node):
 
     def scan(self) -> None:
         """Subscribe to every wanted topic that has appeared since the last scan."""
-        try:
-            found = self.get_topic_names_and_types()
-        except (TypeError, RuntimeError):
-            return  # the graph changed under the query (see below): next scan
-        for topic, types in found:
+        for topic, types in self.get_topic_names_and_types():
             if topic in self._subs or not self.wanted(topic) or len(types) != 1:
                 continue
-            try:
-                offered = [p.qos_profile for p in self.get_publishers_info_by_topic(topic)]
-            except (TypeError, RuntimeError):
-                # Seen once, under load, across two hosts as a simulator ended: rclpy's
-                # "Unable to convert function return value to a Python type" from a graph
-                # query, which stopped the recorder. The graph is asked again next scan.
-                continue
+            offered = [p.qos_profile for p in self.get_publishers_info_by_topic(topic)]
             if not offered:
                 continue  # its publisher is not visible yet: next scan
             cls = message_class(types[0])
