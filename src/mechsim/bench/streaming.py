@@ -207,6 +207,7 @@ def _bare_loop_wall(topics: list[list[str]], qos: dict[str, Any], rows: dict[str
     from rclpy.duration import Duration
     from rclpy.qos import QoSProfile
 
+    from mechsim.outputs.bag import message_class
     from mechsim.ros.outlet import LOSSLESS_DEPTH
 
     context = rclpy.context.Context()
@@ -215,12 +216,11 @@ def _bare_loop_wall(topics: list[list[str]], qos: dict[str, Any], rows: dict[str
     try:
         pubs = {}
         for t, type_name in topics:
-            pkg, _, name = type_name.split("/")
-            cls = getattr(__import__(f"{pkg}.msg", fromlist=[name]), name)
             q = qos[t]
             pubs[t] = node.create_publisher(
-                cls, t, QoSProfile(depth=max(q.depth, LOSSLESS_DEPTH), history=q.history,
-                                   reliability=q.reliability, durability=q.durability))
+                message_class(type_name), t,
+                QoSProfile(depth=max(q.depth, LOSSLESS_DEPTH), history=q.history,
+                           reliability=q.reliability, durability=q.durability))
         sub = _live_subscriber(topics, mode)
         try:
             _wait_matched(list(pubs.values()))

@@ -546,7 +546,8 @@ def run_processes(target: str, scene: Scene, sets: list[str], duration: float | 
         # Simulators first (they let their readers acknowledge), then the consumers drain.
         # (diagnostics before the recorder: its last report is recorded too).
         for group in (list(sims.values()), *([c] for c in consumers)):
-            if group and group[0] not in sims.values() and not _published_any(reports):
+            if consumers and group and group[0] is consumers[0] \
+                    and not _published_any(reports):  # once, after the simulators ended
                 open(os.path.join(reports, NOTHING_PUBLISHED), "x").close()
             for p in group:
                 if p.poll() is None:
