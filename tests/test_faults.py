@@ -443,10 +443,8 @@ def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Pa
     try:
         assert _parameter("/rated/simulator", "publish_rate") == 40.0
         assert _parameter("/rated/simulator", "real_time_factor") == 0.0
-        # (with a bag: two consumer processes, each stopped without a drain)
         dup = subprocess.run([PY, "-m", "mechsim.cli", "run", "pendulum", "--processes",
-                              "--name", "rated", "--fast", "--duration", "1",
-                              "--bag", str(tmp_path / "dup_bag")], env=ros_env,
+                              "--name", "rated", "--fast", "--duration", "1"], env=ros_env,
                              cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert dup.returncode == 2, dup.stderr
         assert "/rated/simulator is already running" in dup.stderr
