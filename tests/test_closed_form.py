@@ -50,7 +50,8 @@ def test_exact_matches_tight_integration(system: str, params: dict) -> None:
 
 @pytest.mark.parametrize("system, params", [("driven_oscillator", {}),
                                             ("periodic_drive", {"harmonics": 5}),
-                                            ("rigid_body", {})])
+                                            ("rigid_body", {}),
+                                            ("symmetric_top", {})])
 def test_constants_kept_per_anchor_follow_the_anchor(system: str, params: dict) -> None:
     """``propagate`` keeps constants of each anchor (t0, y0) on the model: runs from other
     anchors in between change nothing, and each equals the run of a fresh model."""

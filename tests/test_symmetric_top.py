@@ -255,6 +255,59 @@ def test_free_top_exact_solution(values: dict) -> None:
     assert np.max(np.abs(r.total / r.total[0] - 1)) < 1e-13
 
 
-def test_heavy_top_has_no_closed_form() -> None:
-    assert not top().has_closed_form()
+def _slow_precession() -> dict[str, object]:
+    m = top(**{"initial.theta": 0.8, "initial_rate.psi": 60.0})
+    return steady(0.8, m.omega3(), m.steady_precession_rates()[0],
+                  **{"initial_rate.theta": 1e-3})
+
+
+@pytest.mark.parametrize("values", [
+    {},  # the default top: released with φ̇ = θ̇ = 0, cusps
+    {"initial_rate.phi": 3.0, "initial_rate.theta": 1.0},  # waves
+    {"initial.theta": 1.0, "initial_rate.psi": 60.0, "initial_rate.phi": -8.0,
+     "initial_rate.theta": -2.0},  # loops: φ̇ changes sign
+    {"initial.theta": 2.3, "initial_rate.psi": 5.0, "initial_rate.phi": -6.0,
+     "initial_rate.theta": 0.5},  # suspended (θ > π/2)
+    {"initial.theta": 0.3, "initial_rate.psi": 80.0},  # fast top near the vertical
+    {"initial.theta": 1.2, "initial_rate.psi": 30.0, "initial_rate.phi": 2.0,
+     "axial_inertia": 0.035, "initial_rate.theta": 0.7},  # oblate: I₃ > I₁
+    _slow_precession(),  # nutation of 1e-5 rad about steady precession
+    steady(0.5, 20.0, 10.0 / (1 + math.cos(0.5))),  # p_φ = p_ψ: u₃ = 1, the axis falls
+])
+def test_heavy_top_exact_solution(values: dict) -> None:
+    """Lagrange's top in closed form (elliptic functions and Fourier series of φ̇, ψ̇) agrees
+    with radau15 at 1e-14 to 1e-12 (q, and q̇ relative to its largest value) over ten time
+    scales; p_φ, p_ψ and E stay constant; a run from a later anchor on the same motion gives
+    the same states."""
+    from mechsim.integrators import make_stepper
+
+    m = top(**values)
+    assert m.has_closed_form()
+    t = np.linspace(0.0, 10 * m.time_scale(), 41)[1:]
+    exact = make_stepper(m, "exact").advance(t)
+    ref = make_stepper(m, "radau15", 1e-14).advance(t)
+    assert np.max(np.abs(exact[:, :4] - ref[:, :4])) < 1e-12
+    assert np.max(np.abs(exact[:, 4:8] - ref[:, 4:8])) < 1e-12 * np.max(np.abs(ref[:, 4:8]))
+    later = m.propagate(t[13], exact[13], t[13:])
+    assert np.max(np.abs(later[:, :8] - exact[13:, :8])) < 1e-12 * np.max(np.abs(ref[:, 4:8]))
+    r = mechsim.simulate(m, 2.0, 0.01, method="exact")
+    for name in ("p_phi", "p_psi"):
+        assert np.max(np.abs(r.invariants[name] - r.invariants[name][0])) < 1e-13 * max(
+            1.0, float(np.max(np.abs(r.invariants[name]))))
+    assert np.max(np.abs(r.total - r.total[0])) < 1e-12 * float(np.max(np.abs(r.kinetic)))
+
+
+def test_heavy_top_through_the_vertical_has_no_closed_form() -> None:
+    """A top whose axis passes through the vertical has no closed form in Euler angles:
+    exact is refused, auto integrates. p_φ = p_ψ (φ̇₀ = I₃ω₃/(I₁(1 + cos θ₀)), θ̇₀ = 0) makes
+    u = 1 a root of f(u); with I₃²ω₃²/I₁² > (2MgR/I₁)(1 + cos θ₀) the axis rises to it."""
+    theta, spin = 0.5, 40.0
+    I1, I3 = 0.02, 0.01
+    rate = I3 * spin / (I1 * (1 + math.cos(theta)))
+    m = top(**steady(theta, spin, rate))
+    assert abs(m.momenta()[0] - m.momenta()[1]) < 1e-12
+    assert not m.has_closed_form()
+    with pytest.raises(ParameterError, match="^method: exact"):
+        mechsim.simulate(m, 1.0, 0.01, method="exact")
+    assert mechsim.simulate(m, 1.0, 0.01, closed_form=True).method == "dop853"
     assert not top(gravity=0.0, formulation="euler_angles").has_closed_form()

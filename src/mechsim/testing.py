@@ -346,7 +346,8 @@ class Graph:
     # --- diagnostics --------------------------------------------------------------------------
     def laws(self, namespace: str, timeout: float = DEFAULT_TIMEOUT) -> dict[str, Any]:
         """The latest /diagnostics status of each law of ``namespace`` once every law the
-        system declares has reported (``mechsim/<ns>/<law>`` statuses)."""
+        system declares has reported on samples (``mechsim/<ns>/<law>`` statuses; the
+        diagnostics node's "no samples yet" before its first samples does not count)."""
         from mechsim_msgs.msg import SystemInfo
 
         info = self.collect(f"/{namespace}/system_info", SystemInfo).wait_for(count=1,
@@ -358,7 +359,8 @@ class Graph:
         def all_reported(msgs: list[Any]) -> bool:
             for m in msgs:
                 for status in m.status:
-                    if status.name in expected:
+                    if status.name in expected and any(
+                            v.key == "samples" and v.value != "0" for v in status.values):
                         latest[status.name] = status
             return expected <= set(latest)
 

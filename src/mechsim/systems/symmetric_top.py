@@ -41,18 +41,25 @@ the roots of E′ = V(θ), not asymptotes of V (§7.8.2).
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import sympy as sp
+from numba import njit
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
+from mechsim.systems._elliptic import _amplitudes, agm_ratios, carlson_rf, elliptic_f
 from mechsim.systems._rigid import (
     RB_SIZE,
     RIGID_KERNELS,
+    SERIES_FLOOR,
+    SERIES_MAX_SAMPLES,
     QuaternionRigidBody,
     RigidData,
+    _clenshaw,
+    _cos_sin,
+    _qmul,
     rb_momentum,
     rb_omega,
     rb_unit,
@@ -109,6 +116,195 @@ def frames(t, y, p, out):
         out[1, 3 + k] = nodes[k]
         out[2, 3 + k] = 0.0
     out[2, 6] = 1.0
+
+
+# --- Lagrange's top in closed form ------------------------------------------------------------
+# With u = cos θ, energy and the two momenta give u̇² = f(u) = (1 − u²)(α − βu) − (b − au)²,
+# a = p_ψ/I₁, b = p_φ/I₁, β = 2MgR/I₁ (catalog 003 §7.8.1; Goldstein §5.7), whose roots
+# −1 ≤ u₁ ≤ u₀ ≤ u₂ ≤ 1 ≤ u₃ bound the nutation: u = u₁ + (u₂ − u₁) sn²(κt + c | m),
+# m = (u₂ − u₁)/(u₃ − u₁), κ = √(β(u₃ − u₁))/2. φ̇ = (b − au)/(1 − u²) and ψ̇ = ω₃ − uφ̇ are
+# periodic in t with u, so φ and ψ are their means times t plus integrated Fourier series.
+
+#: The rows of ``_lagrange_top_rows``'s scratch: times after t₀, the phase x = π(κτ + c)/K, its
+#: cosine, sine and 2 cos, Clenshaw's two sums, sn², u̇, φ/2, ψ/2 and their cosines and sines.
+(_T_TAU, _T_X, _T_COS, _T_SIN, _T_2COS, _T_B1, _T_B2, _T_SN2, _T_UDOT, _T_HPHI, _T_HPSI,
+ _T_CPHI, _T_SPHI, _T_CPSI, _T_SPSI) = range(15)
+_T_ROWS = 15
+#: Samples evaluated together (the scratch rows stay in cache).
+_T_BLOCK = 256
+
+
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+def _lagrange_top_rows(t: np.ndarray, t0: float, c: np.ndarray, coefs: np.ndarray,
+                       terms: np.ndarray, y0: np.ndarray, rows: np.ndarray) -> None:
+    """Rows [q, q̇ = ½ q ⊗ (ω, 0), y0[8:]] of Lagrange's top at each time t from the anchor
+    t₀ (``LagrangeMotion``): u, u̇, φ and ψ from their Fourier series in the phase (one
+    Clenshaw pass each over a block of samples), then θ's half angles from u, the attitude
+    q = ±q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ) and the body ω from the Euler rates."""
+    kappa, v0, rate, below, above, du, mean = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
+    a, b_u1, w3, phi0, dphibar, psi0, dpsibar = c[7], c[8], c[9], c[10], c[11], c[12], c[13]
+    phi_off, psi_off, sign = c[14], c[15], c[16]
+    n = t.size
+    work = np.empty((_T_ROWS, min(n, _T_BLOCK)))
+    tau, x, cx, sx, x2 = work[_T_TAU], work[_T_X], work[_T_COS], work[_T_SIN], work[_T_2COS]
+    b1, b2, sn2, udot = work[_T_B1], work[_T_B2], work[_T_SN2], work[_T_UDOT]
+    hphi, hpsi = work[_T_HPHI], work[_T_HPSI]
+    for start in range(0, n, _T_BLOCK):
+        m = min(n - start, _T_BLOCK)
+        for k in range(m):
+            tau[k] = t[start + k] - t0
+            x[k] = rate * (kappa * tau[k] + v0)
+        _cos_sin(x[:m], cx, sx)
+        for k in range(m):
+            x2[k] = 2.0 * cx[k]
+        for r in range(4):  # one call of ``_clenshaw``: compiled once
+            _clenshaw(coefs[r], terms[r], x2[:m], b1, b2)
+            if r == 0:
+                for k in range(m):
+                    sn2[k] = mean + (b1[k] * cx[k] - b2[k])
+            elif r == 1:
+                for k in range(m):
+                    udot[k] = b1[k] * sx[k]
+            elif r == 2:
+                for k in range(m):
+                    hphi[k] = 0.5 * (phi0 + dphibar * tau[k] + (b1[k] * sx[k] - phi_off))
+            else:
+                for k in range(m):
+                    hpsi[k] = 0.5 * (psi0 + dpsibar * tau[k] - (b1[k] * sx[k] - psi_off))
+        _cos_sin(hphi[:m], work[_T_CPHI], work[_T_SPHI])
+        _cos_sin(hpsi[:m], work[_T_CPSI], work[_T_SPSI])
+        for k in range(m):
+            rise = du * sn2[k]  # u − u₁
+            ch = math.sqrt(max(0.5 * (above + rise), 0.0))  # cos θ/2 = √((1 + u)/2)
+            sh = math.sqrt(max(0.5 * (below - rise), 0.0))  # sin θ/2 = √((1 − u)/2)
+            s = 2.0 * sh * ch  # sin θ
+            dphi = (b_u1 - a * rise) / (s * s)  # (b − au)/sin²θ
+            dth = -udot[k] / s
+            cf, sf = work[_T_CPHI, k], work[_T_SPHI, k]
+            cp, sp_ = work[_T_CPSI, k], work[_T_SPSI, k]
+            spsi, cpsi = 2.0 * sp_ * cp, cp * cp - sp_ * sp_
+            wx = dphi * s * spsi + dth * cpsi
+            wy = dphi * s * cpsi - dth * spsi
+            cd, sd = cf * cp + sf * sp_, sf * cp - cf * sp_  # (φ − ψ)/2
+            cs, ss = cf * cp - sf * sp_, sf * cp + cf * sp_  # (φ + ψ)/2
+            qx, qy, qz, qw = sign * sh * cd, sign * sh * sd, sign * ch * ss, sign * ch * cs
+            qd = _qmul(qx, qy, qz, qw, wx, wy, w3, 0.0)
+            row = start + k
+            rows[row, 0], rows[row, 1], rows[row, 2], rows[row, 3] = qx, qy, qz, qw
+            for r in range(4):
+                rows[row, 4 + r] = 0.5 * qd[r]
+            for r in range(8, rows.shape[1]):
+                rows[row, r] = y0[r]
+
+
+class LagrangeMotion(NamedTuple):
+    """The constants of ``_lagrange_top_rows`` for one initial state."""
+
+    #: (κ, c, π/K, 1 − u₁, 1 + u₁, u₂ − u₁, mean of sn², a, b − au₁, ω₃, φ₀, mean φ̇, ψ₀,
+    #: mean ψ̇, the φ and ψ series at the anchor, the sign of q)
+    consts: np.ndarray
+    #: (4, n): cosine coefficients of sn², sine coefficients of u̇, of φ's and of ψ's
+    #: periodic parts
+    coefs: np.ndarray
+    #: the number of coefficients each series uses
+    terms: np.ndarray
+
+
+#: The motion must stay this far from the vertical (u = ±1), where the Euler angles are
+#: singular; otherwise there is no closed form here (``propagate`` returns None).
+VERTICAL_MARGIN = 1e-6
+
+
+def _nutation_roots(beta: float, F2: float, F1: float, F0: float) -> tuple[float, float, float]:
+    """The roots x_lo ≤ 0 ≤ x_hi < x_big of βx³ + F₂x² + F₁x + F₀ (f(u₀ + x), F₀ ≥ 0): the
+    largest from numpy, the small pair from their sum and product (so that they keep their
+    digits when close together, near steady precession), each polished by Newton's method."""
+    roots = np.roots([beta, F2, F1, F0])
+    big = float(max(r.real for r in roots))
+
+    def poly(x: float) -> tuple[float, float]:
+        return ((beta * x + F2) * x + F1) * x + F0, (3.0 * beta * x + 2.0 * F2) * x + F1
+
+    total, product = -F2 / beta - big, -F0 / (beta * big)
+    disc = max(total * total - 4.0 * product, 0.0)
+    first = 0.5 * (total + math.copysign(math.sqrt(disc), total))
+    pair = sorted((first, product / first) if first != 0.0 else (0.0, 0.0))
+    polished = []
+    for x in (pair[0], pair[1], big):
+        for _ in range(3):
+            f, df = poly(x)
+            if df == 0.0:
+                break
+            step = x - f / df
+            if abs(poly(step)[0]) >= abs(f):
+                break
+            x = step
+        polished.append(x)
+    lo, hi = min(polished[0], 0.0), max(polished[1], 0.0)
+    return lo, hi, polished[2]
+
+
+def lagrange_motion(inertia: tuple[float, float], mgr: float, y0: np.ndarray
+                    ) -> LagrangeMotion | None:
+    """The constants of Lagrange's top (gravity on, ``_lagrange_top_rows``) from the state
+    y0 = [q, q̇, ...]; None where the motion comes within ``VERTICAL_MARGIN`` of the vertical
+    or its series would need more than ``SERIES_MAX_SAMPLES`` samples a period."""
+    I1, I3 = inertia
+    q0 = rb_unit(y0)
+    phi0, _, psi0, dphi0, dth0, _ = top_euler(y0)
+    w3 = rb_omega(y0)[2]
+    ch2, sh2 = q0[3] * q0[3] + q0[2] * q0[2], q0[0] * q0[0] + q0[1] * q0[1]
+    u0, s2 = ch2 - sh2, 4.0 * ch2 * sh2  # cos θ₀, sin²θ₀ from the half angles
+    a, beta = I3 * w3 / I1, 2.0 * mgr / I1
+    w = dth0 * dth0 + dphi0 * dphi0 * s2  # α − β u₀
+    # f(u₀ + x) = F₀ + F₁x + F₂x² + βx³
+    F0 = s2 * dth0 * dth0
+    F1 = -2.0 * u0 * w - beta * s2 + 2.0 * a * dphi0 * s2
+    F2 = -w + 2.0 * beta * u0 - a * a
+    lo, hi, big = _nutation_roots(beta, F2, F1, F0)
+    u1, du, span = u0 + lo, hi - lo, big - lo
+    below, above = 2.0 * sh2 - lo, 2.0 * ch2 + lo  # 1 − u₁, 1 + u₁ (1 ∓ u₀ = 2 sin², 2 cos²)
+    b_u1 = dphi0 * s2 - a * lo  # b − au₁
+    if below - du < VERTICAL_MARGIN or above < VERTICAL_MARGIN:
+        return None
+    m, m1 = du / span, (big - hi) / span
+    kappa = 0.5 * math.sqrt(beta * span)
+    K = float(carlson_rf(0.0, m1, 1.0))
+    # sn²c = (u₀ − u₁)/(u₂ − u₁), c > 0 while u rises (u̇ = −sin θ θ̇ = 2(u₂ − u₁)κ sn cn dn)
+    am0 = math.atan2(math.sqrt(-lo), math.sqrt(hi)) if du > 0.0 else 0.0
+    v0 = math.copysign(elliptic_f(am0, m1), dth0 * -1.0 if dth0 != 0.0 else 1.0)
+    ratios, scale = agm_ratios(m, m1)
+    M = 64
+    while M <= SERIES_MAX_SAMPLES:
+        am, dn = np.empty(M), np.empty(M)
+        _amplitudes(2.0 * K * np.arange(M) / M, ratios, scale, m1, am, dn)
+        sn2 = np.sin(am) ** 2
+        uu = u1 + du * sn2
+        dphi = (b_u1 - a * du * sn2) / ((below - du * sn2) * (above + du * sn2))
+        series = np.stack([sn2, dphi, uu * dphi])
+        spec = np.fft.rfft(series, axis=1).real * (2.0 / M)
+        size = np.maximum(np.max(np.abs(series), axis=1), 1e-300)
+        if np.all(np.abs(spec[:, M // 4:]).max(axis=1) <= 10.0 * SERIES_FLOOR * size):
+            break
+        M *= 2
+    else:
+        return None
+    low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * size[:, None]
+    counts = [int(np.argmax(row)) if row.any() else row.size for row in low]
+    n = max(counts)
+    k = np.arange(1, n + 1)
+    rate = math.pi / K
+    coefs = np.stack([spec[0, 1:n + 1], -kappa * du * rate * k * spec[0, 1:n + 1],
+                      spec[1, 1:n + 1] / (kappa * rate * k), spec[2, 1:n + 1] / (kappa * rate * k)])
+    terms = np.array([counts[0], counts[0], counts[1], counts[2]], dtype=np.int64)
+    x0 = rate * v0
+    offsets = [float(np.sum(coefs[r, :terms[r]] * np.sin(k[:terms[r]] * x0))) for r in (2, 3)]
+    consts = np.array([kappa, v0, rate, below, above, du, 0.5 * spec[0, 0], a, b_u1, w3,
+                       phi0, 0.5 * spec[1, 0], psi0, w3 - 0.5 * spec[2, 0], *offsets, 1.0])
+    e0 = np.empty((1, 8))
+    _lagrange_top_rows(np.zeros(1), 0.0, consts, coefs, terms, np.zeros(8), e0)
+    consts[16] = 1.0 if float(np.dot(e0[0, :4], q0)) >= 0.0 else -1.0
+    return LagrangeMotion(consts, np.ascontiguousarray(coefs), terms)
 
 
 # --- the system -------------------------------------------------------------------------------
@@ -310,6 +506,27 @@ class _QuaternionTop(SymmetricTop, QuaternionRigidBody):
                       dphi * math.sin(th) * math.cos(psi) - dth * math.sin(psi),
                       dphi * math.cos(th) + dpsi])
         return q, w
+
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """The motion in closed form: torque-free (gravity 0) as any rigid body, else
+        Lagrange's top (``lagrange_motion``); None where the top comes near the vertical."""
+        if self.torque_free():
+            return super().propagate(t0, y0, t)
+        t = np.ascontiguousarray(t, dtype=float)
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        key = (y0.tobytes(), tuple(self.values.items()))
+        cache = self.__dict__.setdefault("_lagrange_cache", {})
+        if key not in cache:
+            if len(cache) >= self.MOTION_CACHE_SIZE:
+                cache.clear()
+            I1, I3, mgr = self._consts()
+            cache[key] = lagrange_motion((I1, I3), mgr, y0)
+        motion = cache[key]
+        if motion is None:
+            return None
+        rows = np.empty((t.size, y0.size))
+        _lagrange_top_rows(t, float(t0), *motion, y0, rows)
+        return rows
 
     @property
     def invariants(self) -> tuple[Quantity, ...]:
