@@ -88,6 +88,10 @@ class DirectModel(Model):
         parts = []
         for f in self.kernel_functions:
             src = textwrap.dedent(inspect.getsource(f))
+            if not src.startswith(f"def {f.__name__}("):
+                # inspect reads the file as it is now, at the lines of the code imported
+                raise KernelContractError(f"{f.__module__}.{f.__name__}: its source file "
+                                          "changed since it was imported: start again")
             parts.append(f"{codegen.decorator(f.__name__)}\n{src}")
         given = tuple(f.__name__ for f in self.kernel_functions
                       if f.__name__ in codegen.FUNCTIONS)

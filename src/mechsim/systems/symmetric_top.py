@@ -23,9 +23,11 @@ Formulations:
 - ``quaternion`` (default): Euler's equations about the support point with the attitude as a
   unit quaternion (``_rigid.QuaternionRigidBody``); gravity acts as the torque R x̂₃ × (−Mg ẑ).
   Nothing is singular at θ = 0 (sleeping top). Euler angles and their rates are observables;
-  exactly at θ = 0 only φ + ψ is defined: φ̇ = 0 and ψ̇ = ω₃ are published there. With
-  gravity 0 the motion is uniform precession, in closed form (method ``exact``,
-  ``_rigid.free_rotation``).
+  exactly at θ = 0 only φ + ψ is defined: φ̇ = 0 and ψ̇ = ω₃ are published there. Method
+  ``exact``: with gravity 0 uniform precession (``_rigid.free_rotation``); with gravity
+  Lagrange's top in elliptic functions (``lagrange_motion``: u = cos θ between the roots of
+  f(u), catalog 003 §7.8.1 [SUPPLEMENT, not in the seeds; Goldstein §5.7]; φ, ψ by
+  quadrature of their rates as Fourier series), except near the vertical.
 - ``euler_angles``: the Lagrangian L = ½I₁(θ̇² + φ̇² sin²θ) + ½I₃(ψ̇ + φ̇ cosθ)² − MgR cosθ
   (seed 003 line 1874, seed 002 eq. 10.38) given to the engine; singular at sin θ = 0, so it
   refuses initial θ within 0.01 rad of 0 or π. Both publish the same invariants p_φ, p_ψ and
