@@ -310,4 +310,11 @@ def test_heavy_top_through_the_vertical_has_no_closed_form() -> None:
     with pytest.raises(ParameterError, match="^method: exact"):
         mechsim.simulate(m, 1.0, 0.01, method="exact")
     assert mechsim.simulate(m, 1.0, 0.01, closed_form=True).method == "dop853"
+    # Going on from that state with a model whose own initial state has one (as after a
+    # runtime parameter change): refused when the stepper is made, not at its next output.
+    from mechsim.integrators import make_stepper
+
+    assert top().has_closed_form()
+    with pytest.raises(ParameterError, match="^method: exact: .* from the state at t = 2"):
+        make_stepper(top(), "exact", t0=2.0, y0=m.initial_y())
     assert not top(gravity=0.0, formulation="euler_angles").has_closed_form()

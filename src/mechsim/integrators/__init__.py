@@ -314,10 +314,17 @@ class ClosedForm(Stepper):
 
     method = "exact"
 
-    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float) -> None:
+    def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float,
+                 check: bool = True) -> None:
         super().__init__(model, y0, t0, tolerance)
         self.t0, self.y0 = self.t, self.y.copy()
         self.state = new_state(FIXED_STATE, self.t)
+        # ``choose_method`` asked about the model's initial state; a run that goes on from
+        # another state (a parameter change) is refused here, not at its next output.
+        if check and model.propagate(self.t, self.y, np.array([self.t])) is None:
+            raise ParameterError("method", f"exact: {model.id} ({model.formulation}) has no "
+                                 f"closed form from the state at t = {self.t:.6g}: use auto "
+                                 "or dop853")
 
     def set_model(self, model: Model) -> None:
         super().set_model(model)
@@ -859,8 +866,8 @@ def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
         stepper = Radau15(model, y, t0, tolerance)
         stepper.eps = Radau15.eps_range[0]
         return stepper
-    if chosen == "exact":
-        return ClosedForm(model, y, t0, tolerance)
+    if chosen == "exact":  # from the initial state, ``choose_method`` has checked
+        return ClosedForm(model, y, t0, tolerance, check=y0 is not None)
     if chosen == "gauss6":
         return Gauss(model, y, t0, tolerance, step=step)
     if chosen == "dop853":
