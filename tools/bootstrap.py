@@ -4,18 +4,21 @@
 Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-bootstrap.json):
 
 1. venv      create ./.venv with a Python 3.11 interpreter;
-2. pip       pip install -r requirements.txt;
-3. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
+2. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
+             with (skipped, with a note, where node or npm is missing; that test then skips);
+             in the background from here on;
+3. numerics  pip install the pins of numpy, scipy, sympy, numba and pyyaml from
+             requirements.txt: what the next step imports;
+4. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
+             CPU, from the source tree) so that the first run of a system only compiles that
+             system's kernels; in the background from here on, in two processes, beside pip
+             and the interface builds;
+5. pip       pip install -r requirements.txt;
+6. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
              .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
-4. project   pip install -e . --no-deps --no-build-isolation;
-5. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
-             src/mechsim_msgs into the venv (build trees under .cache/build/);
-6. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
-             CPU) so that the first run of a system only compiles that system's kernels; this
-             runs in the background from after step 4, in two processes, beside the interface
-             builds;
-7. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
-             with (skipped, with a note, where node or npm is missing; that test then skips).
+7. project   pip install -e . --no-deps --no-build-isolation;
+8. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
+             src/mechsim_msgs into the venv (build trees under .cache/build/).
 
 Then, every time: Debian's `chromium` (the headless browser tests/test_live_viewer.py opens the
 live Rerun view in) is installed with apt-get if /usr/bin/chromium is missing and this runs as
@@ -114,14 +117,15 @@ class Pending:
     """A step's commands running in the background, each with its own log: :meth:`wait`
     raises StepFailed as ``run_logged`` would."""
 
-    def __init__(self, cmds: list[tuple[list[str], Path]]) -> None:
+    def __init__(self, cmds: list[tuple[list[str], Path]],
+                 env: dict[str, str] | None = None) -> None:
         self.runs = []
         for cmd, log in cmds:
             out = log.open("w")
             out.write(f"$ {' '.join(cmd)}\n")
             out.flush()
             proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
-                                    env=clean_env())
+                                    env=env or clean_env())
             self.runs.append((cmd, log, out, proc))
 
     def wait(self) -> None:
@@ -140,10 +144,10 @@ class Pending:
             out.close()
 
 
-def start_logged(step: str, *cmds: list[str]) -> Pending:
+def start_logged(step: str, *cmds: list[str], env: dict[str, str] | None = None) -> Pending:
     """Start the commands in the background, with output to the step's logs."""
     LOG_DIR.mkdir(parents=True, exist_ok=True)
-    return Pending([(cmd, LOG_DIR / f"{step}-{i}.log") for i, cmd in enumerate(cmds, 1)])
+    return Pending([(cmd, LOG_DIR / f"{step}-{i}.log") for i, cmd in enumerate(cmds, 1)], env)
 
 
 def last_error_line(log: Path) -> str:
@@ -193,6 +197,26 @@ def step_venv() -> None:
     python = find_python()
     say(f"creating .venv with {python}")
     run_logged("venv", [python, "-m", "venv", str(VENV)])
+
+
+#: What compiling the shared loops imports (mechsim's numerical core), installed first so that
+#: the loops compile while pip installs the rest.
+NUMERICS = ("numpy", "scipy", "sympy", "numba", "pyyaml")
+
+
+def numeric_pins() -> list[str]:
+    """The requirements.txt lines that pin ``NUMERICS``."""
+    pins = []
+    for line in REQUIREMENTS.read_text().splitlines():
+        name = re.split(r"[=<>!~\[; ]", line.strip(), maxsplit=1)[0].lower()
+        if name in NUMERICS:
+            pins.append(line.strip())
+    return pins
+
+
+def step_numerics() -> None:
+    say("pip install numpy, scipy, sympy, numba, pyyaml (for the loops, first)")
+    run_logged("numerics", [str(VENV_PY), "-m", "pip", "install", *numeric_pins()])
 
 
 def step_pip() -> None:
@@ -247,8 +271,10 @@ def step_project() -> None:
 def step_loops() -> Pending:
     say("compiling the shared integrator loops (numba, ~40 s of CPU in two processes, "
         "alongside the next steps)")
+    # From the source tree: the project is installed into the venv only later.
+    env = dict(clean_env(), PYTHONPATH=str(ROOT / "src"))
     return start_logged("loops", *([str(VENV_PY), "-c", "import mechsim.integrators as i; "
-                                    f"i.precompile({part})"] for part in (0, 1)))
+                                    f"i.precompile({part})"] for part in (0, 1)), env=env)
 
 
 #: What the compiled loops are made from (their cache key inside mechsim covers the same).
@@ -261,13 +287,14 @@ LOOP_SOURCES = ("src/mechsim/integrators/kernels.py", "src/mechsim/integrators/s
 FOXGLOVE = ROOT / "tests" / "foxglove"
 
 
-def step_foxglove() -> None:
+def step_foxglove() -> Pending | None:
     npm = shutil.which("npm")
     if npm is None or shutil.which("node") is None:
         say("no node/npm: Foxglove's decoders not installed (their test will skip)")
-        return
-    say("npm ci in tests/foxglove (Foxglove's ROS 2 decoders, a few seconds)")
-    run_logged("foxglove", [npm, "ci", "--no-audit", "--no-fund", "--prefix", str(FOXGLOVE)])
+        return None
+    say("npm ci in tests/foxglove (Foxglove's ROS 2 decoders, in the background)")
+    return start_logged("foxglove", [npm, "ci", "--no-audit", "--no-fund", "--prefix",
+                                     str(FOXGLOVE)])
 
 
 def step_interface(pkg: str) -> None:
@@ -329,20 +356,23 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
         if re.match(r"\s*(ros-|catkin|setuptools)", ln, re.IGNORECASE)
     )
     build_key = hashlib.sha256(f"{venv_key}|{build_reqs}".encode()).hexdigest()[:16]
+    numerics_key = hashlib.sha256("|".join([venv_key, *numeric_pins()]).encode()).hexdigest()
+    # Background steps (npm, the loops) run beside the ones after them: npm from the start,
+    # the loops once the numerical packages are in, while pip installs the rest.
     steps: list[tuple[str, str, Callable[[], Pending | None]]] = [
         ("venv", venv_key, step_venv),
+        ("foxglove", sha256_files([FOXGLOVE / "package.json", FOXGLOVE / "package-lock.json"]),
+         step_foxglove),
+        ("numerics", numerics_key[:16], step_numerics),
+        ("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops),
         ("pip", pip_key, step_pip),
         ("cmake-paths", pip_key, step_cmake_paths),
         ("project", sha256_files([ROOT / "pyproject.toml", ROOT / "setup.cfg"], venv_key),
          step_project),
     ]
-    # The loops compile in the background (one core) while the interfaces build.
-    steps.append(("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops))
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
-    steps.append(("foxglove", sha256_files([FOXGLOVE / "package.json",
-                                            FOXGLOVE / "package-lock.json"]), step_foxglove))
     return steps
 
 
