@@ -225,6 +225,22 @@ def test_parameters() -> None:
     assert mechsim.systems.system_class(TOP).formulations == ("quaternion", "euler_angles")
 
 
+def _exact_against_radau15(m: mechsim.systems.base.Model, n: int, bound: float
+                           ) -> tuple[np.ndarray, np.ndarray, float]:
+    """``exact`` at n times over ten time scales agrees with radau15 at 1e-14 within
+    ``bound`` (q, and q̇ relative to its largest value); (times, exact rows, that value)."""
+    from mechsim.integrators import make_stepper
+
+    assert m.has_closed_form()
+    t = np.linspace(0.0, 10 * m.time_scale(), n + 1)[1:]
+    exact = make_stepper(m, "exact").advance(t)
+    ref = make_stepper(m, "radau15", 1e-14).advance(t)
+    rate = float(np.max(np.abs(ref[:, 4:8])))
+    assert np.max(np.abs(exact[:, :4] - ref[:, :4])) < bound
+    assert np.max(np.abs(exact[:, 4:8] - ref[:, 4:8])) < bound * rate
+    return t, exact, rate
+
+
 @pytest.mark.parametrize("values", [
     {"initial.theta": 0.5, "initial_rate.phi": 2.0, "initial_rate.psi": 5.0,
      "initial_rate.theta": 0.3},
@@ -236,15 +252,8 @@ def test_free_top_exact_solution(values: dict) -> None:
     """Uniform precession in closed form: agrees with radau15 at 1e-14 to 1e-13 (q, and q̇
     relative to its largest value) over ten time scales, and with the precession rates of
     ``free_precession_rates`` (body cone Ω, space cone |L|/I₁)."""
-    from mechsim.integrators import make_stepper
-
     m = top(gravity=0.0, **values)
-    assert m.has_closed_form()
-    t = np.linspace(0.0, 10 * m.time_scale(), 11)[1:]
-    exact = make_stepper(m, "exact").advance(t)
-    ref = make_stepper(m, "radau15", 1e-14).advance(t)
-    assert np.max(np.abs(exact[:, :4] - ref[:, :4])) < 1e-13
-    assert np.max(np.abs(exact[:, 4:8] - ref[:, 4:8])) < 1e-13 * np.max(np.abs(ref[:, 4:8]))
+    _exact_against_radau15(m, 10, 1e-13)
     r = mechsim.simulate(m, 6.0, 0.01, method="exact")
     Ob, Os = m.free_precession_rates()
     eta = r.observables["omega_1"] + 1j * r.observables["omega_2"]
@@ -279,17 +288,10 @@ def test_heavy_top_exact_solution(values: dict) -> None:
     with radau15 at 1e-14 to 1e-12 (q, and q̇ relative to its largest value) over ten time
     scales; p_φ, p_ψ and E stay constant; a run from a later anchor on the same motion gives
     the same states."""
-    from mechsim.integrators import make_stepper
-
     m = top(**values)
-    assert m.has_closed_form()
-    t = np.linspace(0.0, 10 * m.time_scale(), 41)[1:]
-    exact = make_stepper(m, "exact").advance(t)
-    ref = make_stepper(m, "radau15", 1e-14).advance(t)
-    assert np.max(np.abs(exact[:, :4] - ref[:, :4])) < 1e-12
-    assert np.max(np.abs(exact[:, 4:8] - ref[:, 4:8])) < 1e-12 * np.max(np.abs(ref[:, 4:8]))
+    t, exact, rate = _exact_against_radau15(m, 40, 1e-12)
     later = m.propagate(t[13], exact[13], t[13:])
-    assert np.max(np.abs(later[:, :8] - exact[13:, :8])) < 1e-12 * np.max(np.abs(ref[:, 4:8]))
+    assert np.max(np.abs(later[:, :8] - exact[13:, :8])) < 1e-12 * rate
     r = mechsim.simulate(m, 2.0, 0.01, method="exact")
     for name in ("p_phi", "p_psi"):
         assert np.max(np.abs(r.invariants[name] - r.invariants[name][0])) < 1e-13 * max(
