@@ -335,7 +335,8 @@ class SymmetricTop(Model):
     formulations = ("quaternion", "euler_angles")
     oracles = ("steady precession Ω± (θ constant), reality condition, sleeping-top threshold, "
                "nutation bounds, conical pendulum Ω² = MgR/(I₁|cosθ|), torque-free body and "
-               "space precession; p_φ, p_ψ, E; quaternion and Euler-angle forms agree")
+               "space precession; Lagrange's top in closed form (sn² for cos θ) = radau15; "
+               "p_φ, p_ψ, E; quaternion and Euler-angle forms agree")
     parameters = (
         positive("mass", 1.0, "kg", "mass M"),
         nonnegative("gravity", 9.81, "m/s^2", "g (0: torque-free top)"),
