@@ -34,9 +34,10 @@ Two parts:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -647,6 +648,28 @@ SERIES_FLOOR = 1e-16
 SERIES_MAX_SAMPLES = 2048
 
 
+def period_spectra(sample: Callable[[int], np.ndarray],
+                   size: Callable[[np.ndarray, np.ndarray], np.ndarray]
+                   ) -> tuple[np.ndarray, list[int]] | None:
+    """The cosine spectra (real parts of the FFT, times 2/M: f = c₀/2 + Σ cₙ cos nθ) of
+    periodic functions even about the start of their period, from ``sample(M)``, their rows at
+    M equispaced points of one period, M doubled from 64 until the upper half of each spectrum
+    is below ten times ``SERIES_FLOOR`` × its ``size(f, spec)`` (their coefficients fall
+    geometrically, the FFT's own round-off is about 1e-16); with how many coefficients each
+    takes, up to its first at the floor (later ones are noise). None where that needs more
+    than ``SERIES_MAX_SAMPLES`` samples."""
+    M = 64
+    while M <= SERIES_MAX_SAMPLES:
+        f = sample(M)
+        spec = np.fft.rfft(f, axis=1).real * (2.0 / M)
+        floor = size(f, spec)
+        if np.all(np.abs(spec[:, M // 4:]).max(axis=1) <= 10.0 * SERIES_FLOOR * floor):
+            low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * floor[:, None]
+            return spec, [int(np.argmax(row)) if row.any() else row.size for row in low]
+        M *= 2
+    return None
+
+
 def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """dn u and Π(−N; am u) as Fourier series over the period 2K of u, for ``_torque_free_motion``
@@ -666,21 +689,16 @@ def _period_series(ratios: np.ndarray, scale: float, m1: float, N: float, whole:
         return none
     K = float(carlson_rf(0.0, m1, 1.0))
     rates = np.array([math.pi / K, 0.5 * math.pi / K, whole / K])
-    M = 64
-    while M <= SERIES_MAX_SAMPLES:
+
+    def sample(M: int) -> np.ndarray:
         am, dn = np.empty(M), np.empty(M)
         _amplitudes(2.0 * K * np.arange(M) / M, ratios, scale, m1, am, dn)
-        f = 1.0 / (1.0 + N * np.sin(am) ** 2)
-        spec = np.stack([np.fft.rfft(dn).real, np.fft.rfft(f).real]) * (2.0 / M)
-        top = np.abs(spec[:, M // 4:]).max(axis=1)
-        if np.all(top <= 10.0 * SERIES_FLOOR * np.abs(0.5 * spec[:, 0])):
-            break
-        M *= 2
-    else:
+        return np.stack([dn, 1.0 / (1.0 + N * np.sin(am) ** 2)])
+
+    found = period_spectra(sample, lambda f, spec: np.abs(0.5 * spec[:, 0]))
+    if found is None:
         return none
-    # up to the first coefficient at round-off (they fall geometrically; later ones are noise)
-    low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * np.abs(0.5 * spec[:, :1])
-    n_dn, n_turn = (int(np.argmax(row)) if row.any() else row.size for row in low)
+    spec, (n_dn, n_turn) = found
     n = max(n_dn, n_turn)
     k = np.arange(1, n + 1)
     d, fn = spec[0, 1:n + 1], spec[1, 1:n + 1]
@@ -791,18 +809,22 @@ class QuaternionRigidBody(DirectModel):
             _torque_free_motion(t, float(t0), *motion, y0, rows, _NONE)
         return rows
 
-    #: Initial states whose ``free_motion`` is kept (``propagate``), per model.
+    #: Initial states whose closed-form constants are kept (``propagate``), per model.
     MOTION_CACHE_SIZE = 8
 
-    def _free_motion(self, y0: np.ndarray) -> FreeMotion:
-        """``free_motion`` from the state y0, computed once per state and parameter values
-        (its constants depend on nothing else; t₀ only shifts the times)."""
+    def motion_constants(self, y0: np.ndarray, make: Callable[[], Any]) -> Any:
+        """``make()``, the constants of a closed form from the state y0 (None: no closed form
+        from there), computed once per state and parameter values: they depend on nothing
+        else, and t₀ only shifts the times."""
         key = (y0.tobytes(), tuple(self.values.items()))
-        cache = self.__dict__.setdefault("_free_motion_cache", {})
-        motion = cache.get(key)
-        if motion is None:
-            motion = free_motion(self.rigid.moments, y0[:4], np.array(rb_omega(y0)))
+        cache = self.__dict__.setdefault("_motion_cache", {})
+        if key not in cache:
             if len(cache) >= self.MOTION_CACHE_SIZE:
                 cache.clear()
-            cache[key] = motion
-        return motion
+            cache[key] = make()
+        return cache[key]
+
+    def _free_motion(self, y0: np.ndarray) -> FreeMotion:
+        """``free_motion`` from the state y0 (``motion_constants``)."""
+        return self.motion_constants(y0, lambda: free_motion(
+            self.rigid.moments, y0[:4], np.array(rb_omega(y0))))

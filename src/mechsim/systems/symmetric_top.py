@@ -55,13 +55,12 @@ from mechsim.systems._elliptic import _amplitudes, agm_ratios, carlson_rf, ellip
 from mechsim.systems._rigid import (
     RB_SIZE,
     RIGID_KERNELS,
-    SERIES_FLOOR,
-    SERIES_MAX_SAMPLES,
     QuaternionRigidBody,
     RigidData,
     _clenshaw,
     _cos_sin,
     _qmul,
+    period_spectra,
     rb_momentum,
     rb_omega,
     rb_unit,
@@ -250,7 +249,7 @@ def lagrange_motion(inertia: tuple[float, float], mgr: float, y0: np.ndarray
                     ) -> LagrangeMotion | None:
     """The constants of Lagrange's top (gravity on, ``_lagrange_top_rows``) from the state
     y0 = [q, q̇, ...]; None where the motion comes within ``VERTICAL_MARGIN`` of the vertical
-    or its series would need more than ``SERIES_MAX_SAMPLES`` samples a period."""
+    or its series would need more than ``_rigid.SERIES_MAX_SAMPLES`` samples a period."""
     I1, I3 = inertia
     q0 = rb_unit(y0)
     phi0, _, psi0, dphi0, dth0, _ = top_euler(y0)
@@ -274,25 +273,22 @@ def lagrange_motion(inertia: tuple[float, float], mgr: float, y0: np.ndarray
     K = float(carlson_rf(0.0, m1, 1.0))
     # sn²c = (u₀ − u₁)/(u₂ − u₁), c > 0 while u rises (u̇ = −sin θ θ̇ = 2(u₂ − u₁)κ sn cn dn)
     am0 = math.atan2(math.sqrt(-lo), math.sqrt(hi)) if du > 0.0 else 0.0
-    v0 = math.copysign(elliptic_f(am0, m1), dth0 * -1.0 if dth0 != 0.0 else 1.0)
+    v0 = math.copysign(elliptic_f(am0, m1), -dth0 or 1.0)
     ratios, scale = agm_ratios(m, m1)
-    M = 64
-    while M <= SERIES_MAX_SAMPLES:
+
+    def sample(M: int) -> np.ndarray:  # sn², φ̇ and uφ̇ over one period of sn²
         am, dn = np.empty(M), np.empty(M)
         _amplitudes(2.0 * K * np.arange(M) / M, ratios, scale, m1, am, dn)
         sn2 = np.sin(am) ** 2
-        uu = u1 + du * sn2
         dphi = (b_u1 - a * du * sn2) / ((below - du * sn2) * (above + du * sn2))
-        series = np.stack([sn2, dphi, uu * dphi])
-        spec = np.fft.rfft(series, axis=1).real * (2.0 / M)
-        size = np.maximum(np.max(np.abs(series), axis=1), 1e-300)
-        if np.all(np.abs(spec[:, M // 4:]).max(axis=1) <= 10.0 * SERIES_FLOOR * size):
-            break
-        M *= 2
-    else:
+        return np.stack([sn2, dphi, (u1 + du * sn2) * dphi])
+
+    # relative to each function's largest value (φ̇ may average to zero)
+    found = period_spectra(sample, lambda f, spec: np.maximum(np.max(np.abs(f), axis=1),
+                                                              1e-300))
+    if found is None:
         return None
-    low = np.abs(spec[:, 1:]) <= SERIES_FLOOR * size[:, None]
-    counts = [int(np.argmax(row)) if row.any() else row.size for row in low]
+    spec, counts = found
     n = max(counts)
     k = np.arange(1, n + 1)
     rate = math.pi / K
@@ -517,14 +513,8 @@ class _QuaternionTop(SymmetricTop, QuaternionRigidBody):
             return super().propagate(t0, y0, t)
         t = np.ascontiguousarray(t, dtype=float)
         y0 = np.ascontiguousarray(y0, dtype=float)
-        key = (y0.tobytes(), tuple(self.values.items()))
-        cache = self.__dict__.setdefault("_lagrange_cache", {})
-        if key not in cache:
-            if len(cache) >= self.MOTION_CACHE_SIZE:
-                cache.clear()
-            I1, I3, mgr = self._consts()
-            cache[key] = lagrange_motion((I1, I3), mgr, y0)
-        motion = cache[key]
+        I1, I3, mgr = self._consts()
+        motion = self.motion_constants(y0, lambda: lagrange_motion((I1, I3), mgr, y0))
         if motion is None:
             return None
         rows = np.empty((t.size, y0.size))
