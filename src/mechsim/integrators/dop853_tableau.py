@@ -151,7 +151,7 @@ def stages_source(name: str, doc: str, nodes: np.ndarray, stages: np.ndarray,
     for s in rows:
         out += ["    for i in range(n):",
                 f"        ytmp[i] = y0[i] + h * ({stage_sum(stages[s], range(s))})",
-                f"    rhs(t0 + {float(nodes[s])!r} * h, yp, pp, K[{s}].ctypes)"]
+                f"    rhs(t0 + {float(nodes[s])!r} * h, yp, pp, _row(K, {s}))"]
     return out + ["", ""]
 
 
