@@ -358,24 +358,24 @@ def _take_increment(i, h, sums, y, comp, y_new, inc, err5, err3):
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
-                   g_old, ev_dir, comp):
+                   g_old, ev_dir, comp, restart):
     """``_erk_advance`` with DOP853."""
     return _erk_advance(ks, PAIR_DOP853, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,
-                        h_max, max_steps, g_old, ev_dir, comp)
+                        h_max, max_steps, g_old, ev_dir, comp, restart)
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dopri5_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
-                   g_old, ev_dir, comp):
+                   g_old, ev_dir, comp, restart):
     """``_erk_advance`` with DOPRI5."""
     return _erk_advance(ks, PAIR_DOPRI5, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,
-                        h_max, max_steps, g_old, ev_dir, comp)
+                        h_max, max_steps, g_old, ev_dir, comp, restart)
 
 
 @njit(inline="always")  # into each pair's entry point: its ``pair`` a constant there, the
 # other pair's branches drop out of the compiled loop (a run-time ``pair`` cost DOP853 3–6 %)
 def _erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max,
-                 max_steps, g_old, ev_dir, comp):
+                 max_steps, g_old, ev_dir, comp, restart):
     """Advance with the explicit pair ``pair`` (``PAIR_DOP853``, ``PAIR_DOPRI5``) until every
     time in ``t_out`` (increasing, >= the start of the last step) is written to ``Y_out``.
     ``state``: a ``DOP853_STATE`` record; ``y`` the current state with its compensation
@@ -383,7 +383,10 @@ def _erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h
     entry; ``g_old`` the event functions at (t, y), ``ev_dir`` their directions.
     Returns (status, number of outputs written); on EVENT the state is at the event time
     (outputs before it written) and ``last_event`` is its index; on STIFF the state is at the
-    end of the last accepted step (outputs up to it written)."""
+    end of the last accepted step (outputs up to it written). ``restart``: first start afresh
+    at the state's time and y (``erk_restart``; 2: keeping the last step's dense output)."""
+    if restart > 0:
+        erk_restart(ks, pair, state, y, p, K, rtol, atol, g_old, restart == 2)
     s = state[0]
     rhs = ks.rhs
     pp = p.ctypes
