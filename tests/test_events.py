@@ -15,7 +15,7 @@ import pytest
 
 import mechsim
 from mechsim.errors import IntegrationError, ParameterError
-from mechsim.integrators import make_stepper
+from mechsim.integrators import loop_signatures, make_stepper
 from mechsim.params import nonnegative, number, positive
 from mechsim.systems.base import Event, Quantity, Structure
 from mechsim.systems.direct import DirectModel
@@ -166,3 +166,28 @@ def test_symplectic_methods_refuse_models_with_events() -> None:
     with pytest.raises(ParameterError, match="^method: yoshida8 does not handle events"):
         mechsim.simulate(LagrangianBall(), 1.0, 0.1, method="yoshida8")
     assert mechsim.simulate(LagrangianBall(), 0.2, 0.1).method == "dop853"
+
+
+def test_steppers_pass_the_loops_the_types_set_up_compiled() -> None:
+    """Every shared loop is called with exactly the argument types ``precompile`` compiles at
+    set-up: events, restarts, constraints, radau15, the compositions and Gauss. Another type
+    (a read-only array, say) would have numba compile a second specialization at run time,
+    ≈ 20 s of CPU in every new environment, with no error."""
+    from mechsim.systems import load_system
+
+    ball = LagrangianBall(restitution=0.8)
+    runs = [(ball, m) for m in ("dop853", "dopri5", "radau15")]
+    runs += [(load_system("pendulum", formulation="multiplier"), "dop853"),
+             (load_system("harmonic_oscillator"), "yoshida8"),
+             (load_system("harmonic_oscillator"), "gauss6")]
+    for model, method in runs:
+        st = make_stepper(model, method, 1e-8)
+        st.advance(np.linspace(0.0, 2.0, 5))
+        if method in ("dop853", "dopri5", "radau15"):
+            st.restart(st.t, st.y, st.p)  # a restart between advances (inputs, events)
+            st.advance(np.array([2.5]))
+        mechsim.simulate(model, 0.5, 0.1, method=method)  # the outputs' loop too
+    for loop, types in loop_signatures().items():
+        assert loop.signatures, f"{loop.__name__} never called"
+        for sig in loop.signatures:
+            assert tuple(sig) == types, f"{loop.__name__}: called with {sig}, compiled {types}"

@@ -73,6 +73,7 @@ import weakref
 from abc import ABC, abstractmethod
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -130,10 +131,11 @@ PRECOMPILE_PARTS = (("dop853_advance", "erk_initial_step",
                     ("radau15_advance", "dopri5_advance"))
 
 
-def precompile(part: int | None = None) -> None:
-    """Compile the shared loops for the argument types the steppers pass (once per machine;
-    ``tools/bootstrap.py`` calls this so that the first run of any system only compiles that
-    system's small kernels): all of them, or ``PRECOMPILE_PARTS[part]``."""
+def loop_signatures() -> dict[Any, tuple[Any, ...]]:
+    """Each shared loop and the numba types of the arguments the steppers pass it: the one
+    specialization set-up compiles. An argument of another type (a read-only array, another
+    integer width) would make numba compile a second one at run time, in every new
+    environment (≈ 20 s of CPU for DOP853's), and nothing would say so."""
     from numba import typeof
 
     from mechsim.codegen.contract import KERNEL_SET
@@ -155,10 +157,18 @@ def precompile(part: int | None = None) -> None:
     stray = {loop.__name__ for loop in signatures} ^ {n for p in PRECOMPILE_PARTS for n in p}
     if stray:  # a loop added or renamed without its part: set-up would not compile it
         raise RuntimeError(f"PRECOMPILE_PARTS out of step with the loops: {sorted(stray)}")
+    return {loop: tuple(a if a is KERNEL_SET else typeof(a) for a in args)
+            for loop, args in signatures.items()}
+
+
+def precompile(part: int | None = None) -> None:
+    """Compile the shared loops for the argument types the steppers pass (once per machine;
+    ``tools/bootstrap.py`` calls this so that the first run of any system only compiles that
+    system's small kernels): all of them, or ``PRECOMPILE_PARTS[part]``."""
     wanted = None if part is None else set(PRECOMPILE_PARTS[part])
-    for loop, args in signatures.items():
+    for loop, types in loop_signatures().items():
         if wanted is None or loop.__name__ in wanted:
-            loop.compile(tuple(a if a is KERNEL_SET else typeof(a) for a in args))
+            loop.compile(types)
 
 
 class StiffnessError(IntegrationError):
@@ -351,11 +361,11 @@ _NO_TIMES = np.empty(0)
 
 def _event_directions(model: Model) -> np.ndarray:
     """The directions of the model's events (a zero standing in when it has none), made once
-    per model: a shared read-only array."""
+    per model and shared by its steppers; nothing writes it (it stays writeable: a read-only
+    array is another numba type, see ``loop_signatures``)."""
     d = _EVENT_DIRECTIONS.get(model)
     if d is None:
         d = np.array([e.direction for e in model.events] or [0], dtype=np.int64)
-        d.flags.writeable = False
         _EVENT_DIRECTIONS[model] = d
     return d
 
