@@ -380,7 +380,8 @@ def _erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h
     time in ``t_out`` (increasing, >= the start of the last step) is written to ``Y_out``.
     ``state``: a ``DOP853_STATE`` record; ``y`` the current state with its compensation
     ``comp``; ``y_old``/``K``/``F`` the last step's data, with K[_fsal(pair)] = f(t, y) on
-    entry; ``g_old`` the event functions at (t, y), ``ev_dir`` their directions.
+    entry (or made by ``restart``, below); ``g_old`` the event functions at (t, y) (likewise),
+    ``ev_dir`` their directions.
     Returns (status, number of outputs written); on EVENT the state is at the event time
     (outputs before it written) and ``last_event`` is its index; on STIFF the state is at the
     end of the last accepted step (outputs up to it written). ``restart``: first start afresh
