@@ -152,7 +152,9 @@ def test_constraint_residual_past_hard_limit_stops_one_system(ros_context: Any,
 
     def corrupt(node: Any) -> None:
         numeric = [p.name for p in node.model.parameter_spec() if p.is_numeric]
-        node.stepper.p[numeric.index("length")] *= 2.0
+        p = node.stepper.p.copy()
+        p[numeric.index("length")] *= 2.0
+        node.stepper.p[:] = node.model.complete_parameters(p)  # with the constants of 2L
 
     run, inj, bag = _run(ros_context, tmp_path, corrupt)
     _check_scene_went_on(run, inj, bag, "constraint residual constraint_rod_length")

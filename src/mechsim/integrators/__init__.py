@@ -265,8 +265,9 @@ class Stepper(ABC):
         return float(self.state["error_estimate"][0])
 
     def set_parameters(self, p: np.ndarray) -> None:
-        """New parameter values, same structure (runtime ROS parameter changes)."""
-        self.p = np.array(p, dtype=np.float64)
+        """New parameter values, same structure (runtime ROS parameter changes); what the
+        model derives from them is recomputed (``complete_parameters``)."""
+        self.p = self.model.complete_parameters(p)
 
     def set_model(self, model: Model) -> None:
         """The same system with new parameter values; the state carries over."""

@@ -487,6 +487,18 @@ class Model(ABC):
             self.__dict__["_parameter_vector"] = self._make_parameter_vector()
         return self.__dict__["_parameter_vector"].copy()  # type: ignore[no-any-return]
 
+    def complete_parameters(self, p: np.ndarray) -> np.ndarray:
+        """A parameter vector of this model's layout, as float64, with whatever the model
+        derives from its parameters recomputed (``LagrangianModel``: its parameter
+        constants): a caller that changed a parameter in a copy of ``parameter_vector()``
+        gets a consistent vector. A vector of another length is refused."""
+        p = np.array(p, dtype=np.float64)
+        size = self.kernels.n_p
+        if p.shape != (size,):
+            raise ValueError(f"{self.id}: a parameter vector has {size} entries "
+                             f"(got shape {p.shape})")
+        return p
+
     def _make_parameter_vector(self) -> np.ndarray:
         return np.array([float(self.values[p.name]) for p in self.parameter_spec()  # type: ignore[arg-type]
                          if p.is_numeric], dtype=np.float64)

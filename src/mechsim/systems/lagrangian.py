@@ -17,6 +17,9 @@ that declaration sympy derives, once per declaration (the generated module is ca
   close total − total₀ = W_ext − W_d by construction of the equations, not of the outputs (the
   effort's power u·q̇ is part of P_ext: q̈ includes it);
 - constraint projection, invariants, observables (which may use the multipliers λ) and frames;
+- the *parameter constants*: every subexpression of these that depends on the parameters alone
+  (ω = √(G(m₁ + m₂)/L³), L/M, …) is computed once per parameter vector, into slots after the
+  efforts (``_ParameterConstants``), instead of at every call of a kernel;
 - state events (``b.event``: a sign change of an expression, which may use λ) with discrete
   modes (``b.mode``: extra state entries an expression may switch on, e.g. a constraint that is
   active only in contact, ``b.constraint(name, g, active=...)``); the model handles each event
@@ -35,6 +38,7 @@ from typing import ClassVar
 
 import numpy as np
 import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
 from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
@@ -46,7 +50,7 @@ Expr = sp.Expr
 
 #: Part of every derivation's cache key, with this module's source text: any change to the
 #: generator gives new kernel modules (see ``mechsim.codegen``).
-GENERATOR_VERSION = 6
+GENERATOR_VERSION = 7
 _GENERATOR_SOURCE = codegen.source_fingerprint([sys.modules[__name__]])
 
 
@@ -240,8 +244,15 @@ class LagrangianModel(Model):
         return slice(start, start + len(self.declaration.coords))
 
     def _make_parameter_vector(self) -> np.ndarray:
-        return np.concatenate([super()._make_parameter_vector(),
-                               np.zeros(len(self.declaration.coords))])
+        """The numeric parameters, the efforts (zero) and the parameter constants."""
+        p = super()._make_parameter_vector()
+        return self.complete_parameters(np.concatenate([p, np.zeros(self.kernels.n_p - p.size)]))
+
+    def complete_parameters(self, p: np.ndarray) -> np.ndarray:
+        """``p`` (a copy) with its parameter constants computed afresh from its parameters."""
+        p = super().complete_parameters(p)
+        self.kernels.module.parameter_constants(p)
+        return p
 
     def derivation_key(self) -> str:
         """Every input of the derivation: the declaration (expressions with their symbols'
@@ -265,14 +276,14 @@ class LagrangianModel(Model):
     def kernel_source(self) -> codegen.KernelSource:
         """Derive the kernel functions (sympy; about a second for most systems)."""
         d = self.declaration
-        body, functions = _derive(d, self._param_index(), self.structure)
+        body, functions, n_constants = _derive(d, self._param_index(), self.structure)
         n = len(d.q)
         return codegen.KernelSource(
             name=f"{self.id}_{self.formulation}", functions=functions, body=body, constants={
                 "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
                 "N_INV": len(self.invariants), "N_OBS": len(self.observables),
                 "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes),
-                "N_P": self.effort_slice().stop})
+                "N_P": self.effort_slice().stop + n_constants})
 
     @cached_property
     def _canonical(self) -> bool:
@@ -343,14 +354,102 @@ def _printer() -> PythonCodePrinter:
     return _KernelPrinter({"fully_qualified_modules": True})
 
 
-def _emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
-    """Common-subexpression-eliminated assignments ``target = expr``."""
+#: Functions a parameter constant may contain: those numpy evaluates as the kernels do.
+_CONSTANT_FUNCTIONS = (sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.atan2, sp.sinh,
+                       sp.cosh, sp.tanh, sp.exp, sp.log, sp.Abs)
+
+
+class _ParameterConstants:
+    """The parameter constants of one derivation: subexpressions of the kernels in the
+    parameters and numbers alone, each replaced by a symbol ``pc_<i>`` that the kernels load
+    from ``p[first + i]`` like a parameter. The kernel module's ``parameter_constants(p)``
+    (plain Python on numpy scalars, so the same IEEE results as the compiled kernels: a
+    division by zero gives inf, not an exception) fills those slots from the parameters;
+    ``LagrangianModel.complete_parameters`` calls it for every parameter vector."""
+
+    def __init__(self, params: dict[str, sp.Symbol], pindex: dict[str, int], first: int
+                 ) -> None:
+        self.params = params
+        self.pindex = pindex
+        self.symbols = set(params.values())
+        self.first = first
+        self.found: dict[Expr, sp.Symbol] = {}
+        self._pure: dict[Expr, bool] = {}
+
+    def is_constant(self, e: Expr) -> bool:
+        """Parameters and numbers only, in forms numpy evaluates."""
+        known = self._pure.get(e)
+        if known is None:
+            if e.is_Atom:
+                known = bool(e.is_number or e in self.symbols)
+            else:
+                known = bool((e.is_Add or e.is_Mul or e.is_Pow
+                              or isinstance(e, _CONSTANT_FUNCTIONS))
+                             and all(self.is_constant(a) for a in e.args))
+            self._pure[e] = known
+        return known
+
+    def _symbol(self, e: Expr) -> sp.Symbol:
+        if e not in self.found:
+            self.found[e] = sp.Symbol(f"pc_{len(self.found)}", real=True)
+        return self.found[e]
+
+    def hoist(self, e: Expr) -> Expr:
+        """``e`` with its largest constant subexpressions replaced by their symbols (the
+        constant terms of a sum, and factors of a product, taken together)."""
+        if e.is_Atom or not e.args:
+            return e
+        if self.is_constant(e):
+            return self._symbol(e) if e.free_symbols else e
+        if e.is_Add or e.is_Mul:
+            const = [a for a in e.args if self.is_constant(a)]
+            if len(const) >= 2 and any(a.free_symbols for a in const):
+                rest = [self.hoist(a) for a in e.args if not self.is_constant(a)]
+                return e.func(self._symbol(e.func(*const)), *rest)
+        return e.func(*[self.hoist(a) for a in e.args])
+
+    def loads(self) -> list[str]:
+        return [f"    {s.name} = p[{self.first + i}]" for i, s in enumerate(self.found.values())]
+
+    def source(self) -> str:
+        """``parameter_constants(p)``: fills p[first:] from the parameters, in place."""
+        pr = NumPyPrinter({"fully_qualified_modules": True})
+        lines = ["def parameter_constants(p):",
+                 '    """The parameter constants (``_ParameterConstants``) into p, in place."""',
+                 '    with numpy.errstate(all="ignore"):']
+        lines += [f"        {sym.name} = p[{self.pindex[name]}]"
+                  for name, sym in self.params.items()]
+        lines += [f"        p[{self.first + i}] = {pr.doprint(e)}"
+                  for i, e in enumerate(self.found)]
+        if not self.found:
+            lines[2:] = ["    return"]
+        return "\n".join(["import numpy", "", "", *lines, ""])
+
+
+def _emit(assign: list[tuple[str, Expr]], indent: str = "    ",
+          constants: _ParameterConstants | None = None) -> list[str]:
+    """Common-subexpression-eliminated assignments ``target = expr`` (with ``constants``:
+    after their parameter constants are taken out)."""
     if not assign:
         return []
     pr = _printer()
     targets = [a for a, _ in assign]
     exprs = [sp.sympify(e) for _, e in assign]
     repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic")
+    if constants is not None:
+        # After cse, so what it shares stays shared (the damping power of dE and P_diss is
+        # one value: W_ext of an undriven system stays exactly 0); a shared subexpression
+        # in the parameters alone goes back into its users, to be taken out whole with them.
+        known: dict[sp.Symbol, Expr] = {}
+        kept: list[tuple[sp.Symbol, Expr]] = []
+        for sym, e in repl:
+            e = e.xreplace(known)
+            if constants.is_constant(e) and e.free_symbols:
+                known[sym] = e
+            else:
+                kept.append((sym, constants.hoist(e)))
+        repl = kept
+        reduced = [constants.hoist(e.xreplace(known)) for e in reduced]
     lines = [f"{indent}{s} = {pr.doprint(e)}" for s, e in repl]
     lines += [f"{indent}{tgt} = {pr.doprint(e)}" for tgt, e in zip(targets, reduced, strict=True)]
     return lines
@@ -362,14 +461,15 @@ def _emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
 SCALAR_SOLVE_MAX = 8
 
 
-def _ldl_solve(M: sp.Matrix, f: list[Expr], x: list[str]) -> list[str]:
+def _ldl_solve(M: sp.Matrix, f: list[Expr], x: list[str],
+               constants: _ParameterConstants | None = None) -> list[str]:
     """Lines setting the scalars ``x`` to the solution of M x = f, M symmetric positive
     definite (a mass matrix), by LDLᵀ without pivoting (stable for such M); entries of M that
     are identically zero are left out of the arithmetic."""
     n = len(x)
     m = {(i, j): f"m_{i}_{j}" for i in range(n) for j in range(i + 1) if M[i, j] != 0}
     lines = _emit([(name, M[i, j]) for (i, j), name in m.items()]
-                  + [(f"f_{i}", f[i]) for i in range(n)])
+                  + [(f"f_{i}", f[i]) for i in range(n)], constants=constants)
     L: dict[tuple[int, int], str] = {}  # nonzero entries below the diagonal
     for j in range(n):
         terms = [f"{L[j, k]} * {L[j, k]} * d_{k}" for k in range(j) if (j, k) in L]
@@ -437,10 +537,19 @@ def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
 
 
 def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
-            ) -> tuple[str, tuple[str, ...]]:
-    """The kernel module body and the contract functions it defines (those it leaves out are
-    no-ops: no constraints, not separable, no canonical form, no events, nothing to output)."""
+            ) -> tuple[str, tuple[str, ...], int]:
+    """The kernel module body, the contract functions it defines (those it leaves out are
+    no-ops: no constraints, not separable, no canonical form, no events, nothing to output)
+    and the number of parameter constants (in p after the efforts)."""
     n, nc = len(d.q), len(d.constraints)
+    hoist = _ParameterConstants(d.params, pindex, len(pindex) + len(d.efforts))
+
+    def emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
+        return _emit(assign, indent, hoist)
+
+    def func(name: str, args: str, body: list[str]) -> str:
+        return _func(name, args, hoist.loads() + body)  # (loads it does not read are dropped)
+
     t, q, v = d.t, sp.Matrix(d.q), sp.Matrix(d.v)
     T, V, D = d.kinetic, d.potential, d.rayleigh
     L = T - V + d.linear
@@ -482,11 +591,11 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         # expression evaluates exactly as without the input (W_ext of a free or damped
         # system stays exactly 0).
         effort_accel = [d.efforts[i] / M[i, i] for i in range(n)]
-        body += _emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
-        body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)])
+        body += emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
+        body += emit([(f"ua_{i}", effort_accel[i]) for i in range(n)])
         body += [f"    a[{i}] += ua_{i}" for i in range(n)]
     elif nc == 0 and n <= SCALAR_SOLVE_MAX:
-        body += _ldl_solve(M, [f[i] for i in range(n)], [f"x_{i}" for i in range(n)])
+        body += _ldl_solve(M, [f[i] for i in range(n)], [f"x_{i}" for i in range(n)], hoist)
         body += [f"    a[{i}] = x_{i}" for i in range(n)]
     else:
         m = n + nc
@@ -506,11 +615,11 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
             if k in active:  # released: the row reads λ_k = 0
                 assign.append((f"A[{n + k}, {n + k}]", 1 - act[k]))
             assign.append((f"b[{n + k}]", -act[k] * gamma[k]))
-        body += _emit(assign)
+        body += emit(assign)
         body.append("    x = _solve(A, b)")
         body += [f"    a[{i}] = x[{i}]" for i in range(n)]
         body += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
-    out.append(_func("accel", "t, y, p, a, lam", body))
+    out.append(func("accel", "t, y, p, a, lam", body))
 
     # rhs: without constraints the accelerations are written inline (no array allocation
     # per call; a full mass matrix solved in scalars up to SCALAR_SOLVE_MAX coordinates);
@@ -518,26 +627,26 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
     if diagonal:
         dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
         P_u = sum(sp.diff(E, d.v[i]) * effort_accel[i] for i in range(n))  # dE's effort part
-        body = list(pre) + _emit([(a_names[i], accel_exprs[i]) for i in range(n)]
+        body = list(pre) + emit([(a_names[i], accel_exprs[i]) for i in range(n)]
                                  + [("P_diss", P_diss), ("dE", dE_inline)])
-        body += _emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
+        body += emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
         body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
         external = "dE + P_diss + P_u"
     elif nc == 0 and n <= SCALAR_SOLVE_MAX:
-        body = list(pre) + _ldl_solve(M, [f[i] for i in range(n)], a_names)
-        body += _emit([("P_diss", P_diss), ("dE", dE)])
+        body = list(pre) + _ldl_solve(M, [f[i] for i in range(n)], a_names, hoist)
+        body += emit([("P_diss", P_diss), ("dE", dE)])
         external = "dE + P_diss"
     else:
         body = [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                 "    accel(t, y, p, acc, lam)"]
         body += pre
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
-        body += _emit([("P_diss", P_diss), ("dE", dE)])
+        body += emit([("P_diss", P_diss), ("dE", dE)])
         external = "dE + P_diss"
     body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
     body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
     body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
-    out.append(_func("rhs", "t, y, p, dy", body))
+    out.append(func("rhs", "t, y, p, dy", body))
 
     # project
     if nc:
@@ -546,7 +655,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += [f"    G = _matrix({nc}, {n})", f"    r = _vector({nc})",
                  f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
         inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
-        inner += _emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
+        inner += emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
                        + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
                           for j in range(n)],
                        indent="        ")
@@ -555,11 +664,11 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += inner
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
-        body += _emit([(f"r[{k}]", act[k] * gdot[k]) for k in range(nc)]
+        body += emit([(f"r[{k}]", act[k] * gdot[k]) for k in range(nc)]
                       + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
                          for j in range(n)])
         body += ["    _project_onto(G, r, vv)"]
-        out.append(_func("project", "t, y, p", body))
+        out.append(func("project", "t, y, p", body))
 
     # accel_q for separable systems
     if st.separable:
@@ -567,8 +676,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         gradV = sp.Matrix([sp.diff(V, qi) for qi in d.q])
         acc = Minv * (-gradV)
         body = _prelude(d, pindex, with_v=False, q_name="q")
-        body += _emit([(f"a[{i}]", sp.simplify(acc[i])) for i in range(n)])
-        out.append(_func("accel_q", "t, q, p, a", body))
+        body += emit([(f"a[{i}]", sp.simplify(acc[i])) for i in range(n)])
+        out.append(func("accel_q", "t, q, p, a", body))
 
     # canonical form (conservative, unconstrained, no events): z = [q, p = ∂L/∂q̇, ...]
     if _canonical_ok(d, st):
@@ -578,39 +687,39 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         zpre += [f"    pm_{i} = z[{n + i}]" for i in range(n)]
         zpre += [f"    {sym.name} = p[{pindex[name]}]" for name, sym in d.params.items()]
         if M.is_diagonal():
-            vel = _emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
+            vel = emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
                          for i, vs in enumerate(d.v)])
         else:
             vel = [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
-            vel += _emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
+            vel += emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
                           if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
             vel += ["    x = _solve(A, b)"] + [f"    {vs.name} = x[{i}]"
                                                 for i, vs in enumerate(d.v)]
-        body = list(pre) + _emit([(f"z[{n + i}]", dL_dv[i]) for i in range(n)])
+        body = list(pre) + emit([(f"z[{n + i}]", dL_dv[i]) for i in range(n)])
         body += [f"    z[{i}] = y[{i}]" for i in range(n)]
         body += [f"    for k in range({2 * n}, y.size):", "        z[k] = y[k]"]
-        out.append(_func("to_momenta", "t, y, p, z", body))
+        out.append(func("to_momenta", "t, y, p, z", body))
         body = list(zpre) + vel
         body += [f"    y[{i}] = z[{i}]" for i in range(n)]
         body += [f"    y[{n + i}] = {vs.name}" for i, vs in enumerate(d.v)]
         body += [f"    for k in range({2 * n}, z.size):", "        y[k] = z[k]"]
-        out.append(_func("from_momenta", "t, z, p, y", body))
+        out.append(func("from_momenta", "t, z, p, y", body))
         dL_dq = [sp.diff(L, qi) for qi in d.q]
-        body = list(zpre) + vel + _emit([(f"dz[{n + i}]", dL_dq[i]) for i in range(n)])
+        body = list(zpre) + vel + emit([(f"dz[{n + i}]", dL_dq[i]) for i in range(n)])
         body += [f"    dz[{i}] = {vs.name}" for i, vs in enumerate(d.v)]
         body += [f"    for k in range({2 * n}, z.size):", "        dz[k] = 0.0"]
-        out.append(_func("canonical_rhs", "t, z, p, dz", body))
+        out.append(func("canonical_rhs", "t, z, p, dz", body))
 
     # energy
-    body = list(pre) + _emit([("out[0]", T), ("out[1]", V), ("out[2]", h)])
-    out.append(_func("energy", "t, y, p, out", body))
+    body = list(pre) + emit([("out[0]", T), ("out[1]", V), ("out[2]", h)])
+    out.append(func("energy", "t, y, p, out", body))
 
     # invariants (declared ones, then constraint residuals)
     inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(act, d.constraints,
                                                                       strict=True)]
     if inv:
-        body = list(pre) + _emit([(f"out[{i}]", e) for i, e in enumerate(inv)])
-        out.append(_func("invariants", "t, y, p, out", body))
+        body = list(pre) + emit([(f"out[{i}]", e) for i, e in enumerate(inv)])
+        out.append(func("invariants", "t, y, p, out", body))
 
     # observables (may use the multipliers)
     obs = [e for _, e in d.observables]
@@ -622,8 +731,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
     if obs:
-        body += _emit([(f"out[{i}]", e) for i, e in enumerate(obs)])
-        out.append(_func("observables", "t, y, p, out", body))
+        body += emit([(f"out[{i}]", e) for i, e in enumerate(obs)])
+        out.append(func("observables", "t, y, p, out", body))
 
     # events (may use the multipliers, like observables)
     evx = [e for _, e in d.events]
@@ -634,8 +743,8 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
         body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
     if evx:
-        body += _emit([(f"out[{i}]", e) for i, e in enumerate(evx)])
-        out.append(_func("event", "t, y, p, out", body))
+        body += emit([(f"out[{i}]", e) for i, e in enumerate(evx)])
+        out.append(func("event", "t, y, p, out", body))
 
     # frames
     assign = []
@@ -643,9 +752,10 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         for c, e in enumerate(fr.translation + fr.rotation):
             assign.append((f"out[{k}, {c}]", e))
     if assign:
-        out.append(_func("frames", "t, y, p, out", list(pre) + _emit(assign)))
+        out.append(func("frames", "t, y, p, out", list(pre) + emit(assign)))
     functions = tuple(name for name in FUNCTIONS
                       if any(text.startswith(f"{codegen.decorator(name)}\ndef {name}(")
                              for text in out))
-    return "\n\n".join(out), functions
+    out.append(hoist.source())
+    return "\n\n".join(out), functions, len(hoist.found)
 
