@@ -628,7 +628,7 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
         P_u = sum(sp.diff(E, d.v[i]) * effort_accel[i] for i in range(n))  # dE's effort part
         body = list(pre) + emit([(a_names[i], accel_exprs[i]) for i in range(n)]
-                                 + [("P_diss", P_diss), ("dE", dE_inline)])
+                                + [("P_diss", P_diss), ("dE", dE_inline)])
         body += emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
         body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
         external = "dE + P_diss + P_u"
@@ -656,17 +656,17 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
                  f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
         inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         inner += emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
-                       + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
-                          for j in range(n)],
-                       indent="        ")
+                      + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                         for j in range(n)],
+                      indent="        ")
         inner += ["        _project_onto(G, r, qq)",
                   "        if _all_below(r, 1e-15):", "            break"]
         body += inner
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
         body += emit([(f"r[{k}]", act[k] * gdot[k]) for k in range(nc)]
-                      + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
-                         for j in range(n)])
+                     + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                        for j in range(n)])
         body += ["    _project_onto(G, r, vv)"]
         out.append(func("project", "t, y, p", body))
 
@@ -688,11 +688,11 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         zpre += [f"    {sym.name} = p[{pindex[name]}]" for name, sym in d.params.items()]
         if M.is_diagonal():
             vel = emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
-                         for i, vs in enumerate(d.v)])
+                        for i, vs in enumerate(d.v)])
         else:
             vel = [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
             vel += emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
-                          if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
+                         if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
             vel += ["    x = _solve(A, b)"] + [f"    {vs.name} = x[{i}]"
                                                 for i, vs in enumerate(d.v)]
         body = list(pre) + emit([(f"z[{n + i}]", dL_dv[i]) for i in range(n)])
