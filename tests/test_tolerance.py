@@ -51,14 +51,17 @@ def _relative(Y: np.ndarray, R: np.ndarray, n: int, scales: tuple[float, float])
                float(np.max(np.abs(Y[:, n:2 * n] - R[:, n:2 * n]))) / scales[1])
 
 
+@pytest.mark.parametrize("work_terms", [True, False], ids=["with_work", "state_only"])
 @pytest.mark.parametrize(("sid", "formulation"), _variants())
-def test_auto_meets_the_tolerance(sid: str, formulation: str) -> None:
+def test_auto_meets_the_tolerance(sid: str, formulation: str, work_terms: bool) -> None:
+    """Also for a caller that reads the state only (``work_terms=False``: the explicit pairs'
+    step control then judges q and q̇ alone)."""
     model = _model(sid, formulation)
     n = len(model.coordinates)
     t, refs, scales, disagreement = _references(sid, formulation)
     failures = []
     for tol in TOLERANCES:
-        st = make_stepper(model, "auto", tol, horizon=t[-1])
+        st = make_stepper(model, "auto", tol, horizon=t[-1], work_terms=work_terms)
         Y = st.advance(t)
         ref = refs["radau15" if st.method != "radau15" else "dop853"]
         err = _relative(Y, ref, n, scales)

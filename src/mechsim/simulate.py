@@ -192,14 +192,18 @@ def output_times(t_end: float, output_dt: float, t0: float = 0.0) -> np.ndarray:
 
 def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e-10,
              method: str = "auto", outputs: tuple[str, ...] = OUTPUTS,
-             step: float | None = None, closed_form: bool = False) -> SimulationResult:
+             step: float | None = None, closed_form: bool = False,
+             work_terms: bool = True) -> SimulationResult:
     """Integrate ``model`` from its initial state to ``t_end``, sampling every ``output_dt``.
 
     ``method``: "auto", "dop853", "dopri5", "radau15", "gauss6", "exact", "yoshida8",
     "yoshida6" or "verlet" (see mechsim.integrators; ``auto`` knows the horizon ``t_end``);
     ``closed_form=True`` lets "auto" use the exact propagator.
     ``outputs``: which of energy, invariants, observables, frames to evaluate (energy always
-    when asked by the balance). Wall time covers integration and output evaluation.
+    when asked by the balance). ``work_terms=False``: the work terms are not needed (no
+    work balance): ``work_external`` and ``work_dissipated`` are NaN, and the explicit pairs
+    leave them out of their arithmetic and step control. Wall time covers integration and
+    output evaluation.
     """
     if outputs != OUTPUTS:
         for o in outputs:
@@ -209,11 +213,14 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
     stepper: Stepper = make_stepper(model, method, tolerance, step=step,
-                                    closed_form=closed_form, horizon=t_end)
+                                    closed_form=closed_form, horizon=t_end,
+                                    work_terms=work_terms)
     Y = stepper.advance(t)
+    at = model.layout
+    if not work_terms:  # (methods other than the explicit pairs integrate them anyway)
+        Y[:, at.work_external] = Y[:, at.work_dissipated] = np.nan
     out = evaluate(model, t, Y, stepper.p, outputs)
     wall = time.perf_counter() - start
-    at = model.layout
     return SimulationResult(model=model, method=stepper.method, tolerance=tolerance, t=t,
                             q=Y[:, at.q], v=Y[:, at.v], work_external=Y[:, at.work_external],
                             work_dissipated=Y[:, at.work_dissipated], outputs=out,

@@ -17,6 +17,8 @@ Methods:
 - ``dop853``: adaptive explicit Runge-Kutta 8(5,3), dense output, events, constraint
   projection after every step (keeps constraint residuals at round-off). Works for every
   model; its local tolerance is a thousandth of the tolerance (errors add up over a run).
+  With ``work_terms=False`` (a caller that reads the state only) it and ``dopri5`` integrate
+  q and q̇ alone.
 - ``dopri5``: adaptive explicit Runge–Kutta 5(4) of Dormand and Prince (FSAL, 6 evaluations
   a step) with its 4th-order dense output, in DOP853's loop (events, projection, stiffness
   test, local tolerance a thousandth of the tolerance): for loose tolerances (~1e-4), where
@@ -145,7 +147,7 @@ def loop_signatures() -> dict[Any, tuple[Any, ...]]:
     dop, fixed = new_state(DOP853_STATE, 0.0), new_state(FIXED_STATE, 0.0)
     iv = np.zeros(1, dtype=np.int64)
     signatures = {
-        L.erk_initial_step: (KERNEL_SET, 0.0, v, v, v, 0.0, 0.0, 0.0),
+        L.erk_initial_step: (KERNEL_SET, 0.0, v, v, v, 0.0, 0.0, 0.0, 0),
         **{loop: (KERNEL_SET, dop, v, v, m2, m2, v, v, m2, 0.0, 0.0, 0.0, 0, v, iv, v, 0)
            for loop in (L.dop853_advance, L.dopri5_advance)},
         L.composition_advance: (KERNEL_SET, fixed, v, v, 0, 0, 0.0, v, m2, v, v),
@@ -385,7 +387,12 @@ class DOP853(Stepper):
 
     A subclass with another explicit pair of the shared loop sets ``method`` (its loop is
     ``kernels.<method>_advance``), ``PAIR`` (``state.Pair``, for the restart), ``N_STAGES``
-    (rows of K), ``STIFF_EDGE`` (for the message) and its own ``LOCAL_FACTOR``: ``DOPRI5``."""
+    (rows of K), ``STIFF_EDGE`` (for the message) and its own ``LOCAL_FACTOR``: ``DOPRI5``.
+
+    ``work_terms=False``: the work terms are not integrated (for callers that read the state
+    only): the loop's arithmetic and its error norm cover q and q̇ alone, and the work
+    columns of what ``advance`` returns are NaN. The step control then judges the state alone,
+    as scipy's would on it; the tolerance is met the same way (``tests/test_tolerance.py``)."""
 
     method = "dop853"
     PAIR = Pair.DOP853
@@ -397,9 +404,11 @@ class DOP853(Stepper):
     stiff_steps_per_output = 1000.0
 
     def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float,
-                 max_step: float = math.inf, max_steps: int = 10_000_000) -> None:
+                 max_step: float = math.inf, max_steps: int = 10_000_000,
+                 work_terms: bool = True) -> None:
         super().__init__(model, y0, t0, tolerance)
         n = self.y.size
+        self.work_terms = work_terms
         self.K = np.zeros((self.N_STAGES, n))
         self.F = np.zeros((7, n))
         self.y_old = self.y.copy()
@@ -410,6 +419,8 @@ class DOP853(Stepper):
         self.ev_dir = _event_directions(model)
         self.g_old = np.zeros(self.ev_dir.size)
         self.state = new_state(DOP853_STATE, self.t)
+        # All of y (the modes, constant between events, with their zero rates) or q and q̇.
+        self.state["n_integrated"] = n if work_terms else 2 * self.kernels.n_q
         self._t = self.state["t"]  # a view: the loop's time, without a field lookup a call
         self.ks = self.kernels.kernel_set("rhs", "project", "event")
         self._restart = _NO_RESTART
@@ -477,6 +488,9 @@ class DOP853(Stepper):
                 "with a stiff (implicit) method such as scipy's Radau or BDF")
         if status != Status.OK:
             raise self._fail(status) from None
+        if not self.work_terms:
+            n_q = self.kernels.n_q
+            Y[:done, 2 * n_q:2 * n_q + 2] = np.nan  # not integrated: not a value
         return Y[:done]
 
     def _restart_after_event(self, t: float, y: np.ndarray) -> None:
@@ -571,7 +585,7 @@ class Radau15(Stepper):
         self.w_floor = float(np.max(np.abs(energy)))
         self.kernels.rhs(self.t, self.y, self.p, self.dy)
         h0 = loops().erk_initial_step(self.ks, self.t, self.y, self.p, self.dy.copy(),
-                                      self.tolerance, self.tolerance, 8.0)
+                                      self.tolerance, self.tolerance, 8.0, self.y.size)
         self.state["h"], self.state["h_old"] = h0, 0.0
         self.state["n_evaluations"] += 2
         self.b[:] = 0.0
@@ -899,10 +913,12 @@ def _dop853_meets(model: Model, y0: np.ndarray, t0: float, tolerance: float,
 def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
                  t0: float = 0.0, y0: np.ndarray | None = None,
                  step: float | None = None, closed_form: bool = False,
-                 horizon: float | None = None) -> Stepper:
+                 horizon: float | None = None, work_terms: bool = True) -> Stepper:
     """A stepper for ``model`` (see ``choose_method``; ``horizon``, the span the run is to
     cover if known, informs ``auto``; ``step`` fixes the step of a fixed-step method instead
-    of sizing it from the tolerance)."""
+    of sizing it from the tolerance). ``work_terms=False``: the caller reads the state only;
+    the explicit pairs then leave the work terms out (``DOP853``), other methods integrate
+    them as ever."""
     chosen = choose_method(model, method, closed_form, tolerance, horizon)
     y = model.initial_y() if y0 is None else y0
     if (method == "auto" and chosen == "dop853" and not model.structure.dissipative
@@ -916,9 +932,9 @@ def make_stepper(model: Model, method: str = "auto", tolerance: float = 1e-10,
     if chosen == "gauss6":
         return Gauss(model, y, t0, tolerance, step=step)
     if chosen == "dop853":
-        return DOP853(model, y, t0, tolerance)
+        return DOP853(model, y, t0, tolerance, work_terms=work_terms)
     if chosen == "dopri5":
-        return DOPRI5(model, y, t0, tolerance)
+        return DOPRI5(model, y, t0, tolerance, work_terms=work_terms)
     if chosen == "radau15":
         return Radau15(model, y, t0, tolerance)
     return Composition(model, y, t0, tolerance, method=chosen, step=step)

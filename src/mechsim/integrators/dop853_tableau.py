@@ -141,13 +141,14 @@ def stage_sum(coefficients: np.ndarray, stages: range, row: str = "K[{j}, i]") -
 
 def stages_source(name: str, doc: str, nodes: np.ndarray, stages: np.ndarray,
                   rows: range) -> list[str]:
-    """Source lines of a compiled function ``name(ks, t0, y0, h, K, ytmp, p)`` that evaluates
-    the stages ``rows`` (zero-based) of an explicit Runge–Kutta tableau from (t0, y0) into
-    K[row], each from the stages before it; ytmp ends as the last stage's y. Shared by the
-    explicit pairs (DOP853, DOPRI5)."""
+    """Source lines of a compiled function ``name(ks, t0, y0, h, K, ytmp, p, n)`` that
+    evaluates the stages ``rows`` (zero-based) of an explicit Runge–Kutta tableau from
+    (t0, y0) into K[row], each from the stages before it, for the first ``n`` components (the
+    integrated ones; the rest of ytmp is left as the caller set it); ytmp ends as the last
+    stage's y. Shared by the explicit pairs (DOP853, DOPRI5)."""
     out = ["@njit(cache=True, error_model=\"numpy\")",
-           f"def {name}(ks, t0, y0, h, K, ytmp, p):", f'    """{doc}"""',
-           "    n = y0.size", "    rhs = ks.rhs", "    pp = p.ctypes", "    yp = ytmp.ctypes"]
+           f"def {name}(ks, t0, y0, h, K, ytmp, p, n):", f'    """{doc}"""',
+           "    rhs = ks.rhs", "    pp = p.ctypes", "    yp = ytmp.ctypes"]
     for s in rows:
         out += ["    for i in range(n):",
                 f"        ytmp[i] = y0[i] + h * ({stage_sum(stages[s], range(s))})",

@@ -68,12 +68,12 @@ def _row(typingctx, a, i):  # type: ignore[no-untyped-def]
 # ``dop853_tableau`` and ``dopri5_tableau``, the stage sums written out from the tableaus.
 
 
-def _dop853_stages(ks, t0, y0, h, K, ytmp, p):
+def _dop853_stages(ks, t0, y0, h, K, ytmp, p, n):
     """Stages 2 … 12 from (t0, y0) into K[1 … 11]; ytmp ends as stage 12's y."""
     raise NotImplementedError
 
 
-def _dop853_dense_stages(ks, t0, y0, h, K, ytmp, p):
+def _dop853_dense_stages(ks, t0, y0, h, K, ytmp, p, n):
     """Stages 14 … 16 (dense output only) into K[13 … 15]."""
     raise NotImplementedError
 
@@ -88,7 +88,7 @@ def _dop853_dense_sums(K, i):
     raise NotImplementedError
 
 
-def _dopri5_stages(ks, t0, y0, h, K, ytmp, p):
+def _dopri5_stages(ks, t0, y0, h, K, ytmp, p, n):
     """Stages 2 … 6 from (t0, y0) into K[1 … 5]; ytmp ends as stage 6's y."""
     raise NotImplementedError
 
@@ -146,23 +146,24 @@ def _rms_norm(x, scale):
 
 
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def erk_initial_step(ks, t, y, p, f0, rtol, atol, order):
+def erk_initial_step(ks, t, y, p, f0, rtol, atol, order, n):
     """First step size (Hairer's starting-step algorithm, as in ``dop853.f`` (``order`` 8) and
-    ``dopri5.f`` (5))."""
-    n = y.size
+    ``dopri5.f`` (5)), from the first ``n`` (integrated) components."""
     scale = np.empty(n)
     for i in range(n):
         scale[i] = atol + abs(y[i]) * rtol
-    d0 = _rms_norm(y, scale)
-    d1 = _rms_norm(f0, scale)
+    d0 = _rms_norm(y[:n], scale)
+    d1 = _rms_norm(f0[:n], scale)
     if d0 < 1e-5 or d1 < 1e-5:
         h0 = 1e-6
     else:
         h0 = 0.01 * d0 / d1
-    y1 = y + h0 * f0
-    f1 = np.zeros(n)
+    y1 = y.copy()
+    for i in range(n):
+        y1[i] += h0 * f0[i]
+    f1 = np.zeros(y.size)
     ks.rhs(t + h0, y1.ctypes, p.ctypes, f1.ctypes)
-    d2 = _rms_norm(f1 - f0, scale) / h0
+    d2 = _rms_norm(f1[:n] - f0[:n], scale) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
@@ -183,7 +184,7 @@ def erk_restart(ks, pair, state, y, p, K, rtol, atol, g_old, keep_dense):
     last = _fsal(pair)
     ks.rhs(t, y.ctypes, p.ctypes, K[last].ctypes)
     s.h = erk_initial_step(ks, t, y, p, K[last].copy(), rtol, atol,
-                           5.0 if pair == PAIR_DOPRI5 else 8.0)
+                           5.0 if pair == PAIR_DOPRI5 else 8.0, s.n_integrated)
     if not keep_dense:
         s.t_old = t
         s.h_old = 0.0
@@ -216,12 +217,18 @@ def _dense_prepare(ks, pair, s, y, y_old, K, F, p):
     """Interpolation coefficients for the last accepted step (t_old, t] (DOP853: with its
     three extra stages; DOPRI5 needs none and leaves F[4 … 6] at zero, where ``_dense_eval``
     reads its 4th-order interpolant)."""
-    n = y.size
+    n = s.n_integrated
     h = s.h_old
     last = _fsal(pair)
     if pair == PAIR_DOP853:
-        # F[6] as the stages' scratch state: the coefficients below overwrite it.
-        _dop853_dense_stages(ks, s.t_old, y_old, h, K, F[6], p)
+        # F[6] as the stages' scratch state (the entries not integrated as at the step's
+        # start, for the kernels; zero again after, so that ``_dense_eval`` keeps them): the
+        # coefficients below overwrite it.
+        for i in range(n, y.size):
+            F[6, i] = y_old[i]
+        _dop853_dense_stages(ks, s.t_old, y_old, h, K, F[6], p, n)
+        for i in range(n, y.size):
+            F[6, i] = 0.0
         s.n_evaluations += 3
     for i in range(n):
         dlt = y[i] - y_old[i]
@@ -391,12 +398,12 @@ def _erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h
     s = state[0]
     rhs = ks.rhs
     pp = p.ctypes
-    n = y.size
+    n = s.n_integrated  # the first n components; the rest (modes, work terms left out) kept
     n_c = ks.n_c
     n_ev = ks.n_ev
-    y_new = np.empty(n)
+    y_new = y.copy()
     inc = np.empty(n)
-    ytmp = np.empty(n)
+    ytmp = y.copy()
     scale = np.empty(n)
     err5 = np.empty(n)
     err3 = np.empty(n)
@@ -432,12 +439,12 @@ def _erk_advance(ks, pair, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h
             for i in range(n):
                 K[0, i] = K[last, i]
         if dopri5:
-            _dopri5_stages(ks, t, y, h, K, ytmp, p)
+            _dopri5_stages(ks, t, y, h, K, ytmp, p, n)
             for i in range(n):
                 _take_increment(i, h, _dopri5_increment(K, i), y, comp, y_new, inc, err5,
                                 err3)
         else:
-            _dop853_stages(ks, t, y, h, K, ytmp, p)
+            _dop853_stages(ks, t, y, h, K, ytmp, p, n)
             for i in range(n):
                 _take_increment(i, h, _dop853_increment(K, i), y, comp, y_new, inc, err5,
                                 err3)

@@ -54,10 +54,13 @@ _COMMON = [("t", _F), ("n_steps", _I), ("n_evaluations", _I), ("n_rejected", _I)
 
 #: DOP853 and DOPRI5 (the explicit pairs): next step h, the last accepted step (t_old, h_old)
 #: whose dense output is ready when ``dense_ready``; event bookkeeping; Hairer's stiffness
-#: test (positive and negative tests in a row, last h·|λ|).
+#: test (positive and negative tests in a row, last h·|λ|); how many leading components of
+#: y are integrated (the rest are kept as they are: the modes, constant between events, and
+#: the work terms where nothing reads them).
 DOP853_STATE = np.dtype(_COMMON + [
     ("h", _F), ("t_old", _F), ("h_old", _F), ("dense_ready", _I), ("last_event", _I),
-    ("n_events", _I), ("stiff_positive", _I), ("stiff_negative", _I), ("h_lambda", _F)])
+    ("n_events", _I), ("stiff_positive", _I), ("stiff_negative", _I), ("h_lambda", _F),
+    ("n_integrated", _I)])
 
 #: Fixed-step methods (compositions, Gauss–Legendre): the counters only.
 FIXED_STATE = np.dtype(_COMMON)
