@@ -34,6 +34,21 @@ def test_a_parameter_changed_in_the_vector_reaches_its_constants() -> None:
     np.testing.assert_array_equal(st.advance(t), wider)
 
 
+def test_a_restart_with_a_changed_parameter_reaches_its_constants() -> None:
+    """``restart`` (the simulator node's path for a new effort) takes a whole vector too."""
+    model = load_system("cr3bp")
+    t = np.linspace(0.0, 5.0, 6)
+    wider = make_stepper(model.with_values(separation=1.2), "dop853", 1e-10)
+    wider.advance(t[:1])
+    p = model.parameter_vector()
+    p[_index(model, "separation")] = 1.2
+    st = make_stepper(model, "dop853", 1e-10)
+    st.advance(t[:1])
+    st.restart(0.0, model.initial_y(), p)
+    wider.restart(0.0, model.initial_y(), wider.p)
+    np.testing.assert_array_equal(st.advance(t), wider.advance(t))
+
+
 def test_a_vector_of_another_layout_is_refused() -> None:
     model = load_system("cr3bp")
     st = make_stepper(model, "dop853", 1e-8)

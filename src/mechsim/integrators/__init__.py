@@ -308,11 +308,12 @@ class Stepper(ABC):
         """Go on afresh from state ``y`` at time ``t`` with parameters ``p``: no step crosses
         ``t``, so an input held constant over each output interval (zero-order hold) changes
         exactly there. ``y`` is a state the stepper returned at ``t`` (the adaptive methods step
-        past their last output time, so their own state may be later). Only ``TAKES_INPUTS``."""
+        past their last output time, so their own state may be later). Only ``TAKES_INPUTS``.
+        What the model derives from ``p`` is recomputed, as by ``set_parameters``."""
         if self.method not in self.TAKES_INPUTS:
             raise IntegrationError(f"{self.method} takes no inputs: use "
                                    f"{' or '.join(self.TAKES_INPUTS)}")
-        self.p = np.array(p, dtype=np.float64)
+        self.p = self.model.complete_parameters(p)
         self.t = float(t)
         self._restart_after_event(self.t, np.array(y, dtype=np.float64))
 
