@@ -46,7 +46,6 @@ from collections.abc import Callable
 
 import numpy as np
 import sympy as sp
-from scipy.optimize import brentq
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, number, positive
@@ -261,6 +260,8 @@ class BeadOnWire(LagrangianModel):
         elif x0 >= 2 * math.pi * a:
             th = 2 * math.pi
         else:
+            from scipy.optimize import brentq  # here: importing it costs 0.2-0.4 s
+
             th = brentq(lambda t: a * (t - math.sin(t)) - x0, 0.0, 2 * math.pi, xtol=1e-15,
                         rtol=1e-15)
         return 4 * a * math.cos(th / 2)

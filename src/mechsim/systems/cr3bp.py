@@ -31,7 +31,6 @@ import math
 
 import numpy as np
 import sympy as sp
-from scipy.optimize import brentq
 
 from mechsim.errors import ParameterError
 from mechsim.params import number, positive
@@ -157,6 +156,8 @@ class CR3BP(LagrangianModel):
         def dOmega(x: float) -> float:
             r1, r2 = x + mu, x - (1 - mu)
             return x - (1 - mu) * r1 / abs(r1) ** 3 - mu * r2 / abs(r2) ** 3
+
+        from scipy.optimize import brentq  # here: importing scipy.optimize costs 0.2-0.4 s
 
         eps = 1e-12
         x1 = brentq(dOmega, -mu + eps, 1 - mu - eps, xtol=1e-15, rtol=1e-15)

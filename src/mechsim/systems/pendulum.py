@@ -24,7 +24,6 @@ import math
 
 import numpy as np
 import sympy as sp
-from scipy.special import ellipk
 
 from mechsim.params import Parameter, nonnegative, positive
 from mechsim.systems._elliptic import elliptic_f, jacobi_amplitude
@@ -130,6 +129,8 @@ class Pendulum(LagrangianModel):
     def exact_period(self) -> float:
         """T = 4 √(R/g) K(k), k = sin(φ_max / 2) (K takes the parameter m = k²)."""
         k = math.sin(self.amplitude() / 2)
+        from scipy.special import ellipk  # here: importing scipy.special costs 0.3 s
+
         return 4 * math.sqrt(self.value("length") / self.value("gravity")) * float(ellipk(k * k))
 
     def tension_at(self, phi: np.ndarray) -> np.ndarray:
