@@ -12,7 +12,7 @@ import sympy as sp
 
 from mechsim.integrators import make_stepper
 from mechsim.systems import load_system
-from mechsim.systems.lagrangian import _ParameterConstants
+from mechsim.systems.lagrangian_kernels import _ParameterConstants
 
 
 def _index(model, name: str) -> int:  # type: ignore[no-untyped-def]

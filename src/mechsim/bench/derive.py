@@ -78,7 +78,7 @@ import mechsim.codegen.contract as contract
 from mechsim import codegen
 from mechsim.integrators import loops
 from mechsim.simulate import simulate
-from mechsim.systems import lagrangian, system_class
+from mechsim.systems import lagrangian_kernels, system_class
 from mechsim.systems.base import Model
 
 from numba.core import event
@@ -95,7 +95,7 @@ class Compiling(event.Listener):
 event.register("numba:compile", Compiling())
 codegen.Kernels._compile = timed("compile", codegen.Kernels._compile)
 contract.make_kernel_set = timed("compile", contract.make_kernel_set)
-lagrangian._emit = timed("codegen", lagrangian._emit)
+lagrangian_kernels._emit = timed("codegen", lagrangian_kernels._emit)
 phase("model")
 cls = system_class(sys.argv[1])
 if hasattr(cls, "kernel_source"):

@@ -25,9 +25,11 @@ cache warm`` fills it).
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import importlib.metadata
 import importlib.util
+import json
 import os
 import sys
 import time
@@ -44,12 +46,15 @@ if TYPE_CHECKING:
     from mechsim.codegen.contract import KernelSet
 
 __all__ = ["FUNCTIONS", "HOT", "SIZES", "Kernels", "KernelSource", "build", "cache_clear",
-           "cache_dir", "cache_info", "decorator", "fingerprint", "load_module",
-           "source_fingerprint", "write_atomic"]
+           "cache_dir", "cache_info", "decorator", "distribution_version", "fingerprint",
+           "load_module", "package_fingerprint", "recall", "remember", "source_fingerprint",
+           "write_atomic"]
 
 
 #: At most this many generated modules are kept; the least recently used go first.
 MAX_MODULES = 400
+#: At most this many recalled model summaries (``recall``, a few hundred bytes each) are kept.
+MAX_SUMMARIES = 2000
 #: A module used within this many seconds is never evicted (another process may load it).
 _EVICT_GRACE = 600.0
 _PREFIX = "mechsim_"
@@ -96,6 +101,23 @@ def source_fingerprint(modules: Iterable[ModuleType | Path]) -> str:
 #: versions): a change here invalidates all of them.
 RUNTIME = fingerprint(source_fingerprint(sorted(Path(__file__).parent.glob("*.py"))),
                       importlib.metadata.version("numba"), sys.version_info[:2])
+
+
+@functools.cache
+def package_fingerprint() -> str:
+    """Hash of the source text of every module of the ``mechsim`` package (read once per
+    process): what a recalled summary (``recall``) must have been made by."""
+    root = Path(__file__).resolve().parent.parent
+    return source_fingerprint(sorted(root.rglob("*.py")))
+
+
+@functools.cache
+def distribution_version(name: str) -> str:
+    """The installed version of distribution ``name`` ("" if it is not installed)."""
+    try:
+        return importlib.metadata.version(name)
+    except importlib.metadata.PackageNotFoundError:
+        return ""
 
 
 def decorator(name: str) -> str:
@@ -316,6 +338,49 @@ def load_module(name: str, key: str, make_text: Callable[[], str]) -> ModuleType
     return module
 
 
+def _summary_dir() -> Path:
+    return cache_dir() / "summaries"
+
+
+def recall(key: str) -> dict[str, Any] | None:
+    """What ``remember`` stored under ``key`` (a hash of every input of what it holds), or
+    None when there is nothing, or nothing readable (then the caller makes it again)."""
+    path = _summary_dir() / f"{key}.json"
+    try:
+        value = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(value, dict):
+        return None
+    _touch_file(path)
+    return value
+
+
+def remember(key: str, value: dict[str, Any]) -> None:
+    """Store ``value`` (JSON) under ``key`` for ``recall``; a cache that cannot be written is
+    left as it is. At most ``MAX_SUMMARIES`` are kept, the least recently used go first."""
+    folder = _summary_dir()
+    with contextlib.suppress(OSError):
+        write_atomic(folder / f"{key}.json", json.dumps(value, sort_keys=True))
+        entries = sorted(folder.glob("*.json"))
+        if len(entries) > MAX_SUMMARIES:
+            for path in sorted(entries, key=_mtime)[: len(entries) - MAX_SUMMARIES]:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+
+
+def _mtime(path: Path) -> float:
+    try:
+        return path.stat().st_mtime
+    except OSError:
+        return 0.0
+
+
+def _touch_file(path: Path) -> None:
+    with contextlib.suppress(OSError):
+        path.touch()
+
+
 def build(name: str, key: str, make_source: Callable[[], KernelSource]) -> Kernels:
     """The kernels of a model: ``name`` (system id and formulation), ``key`` everything its
     kernel source is made from; ``make_source`` (the derivation) runs only on a cache miss."""
@@ -403,6 +468,11 @@ def cache_clear() -> int:
             if p.name.startswith(_PREFIX):
                 with contextlib.suppress(OSError):
                     p.unlink()
+    summaries = _summary_dir()
+    if summaries.is_dir():
+        for p in summaries.glob("*.json"):
+            with contextlib.suppress(OSError):
+                p.unlink()
     derived = cache_dir() / "derived"  # an older layout kept derivations apart
     if derived.is_dir():
         for p in derived.glob("*.py"):

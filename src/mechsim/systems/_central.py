@@ -9,13 +9,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
-import sympy as sp
 
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder
 
-Expr = sp.Expr
+if TYPE_CHECKING:
+    from sympy import Expr
+
 
 
 def declare_orbit_quantities(b: LagrangianBuilder, mu: Expr, x: Expr, y: Expr, dx: Expr,

@@ -9,15 +9,17 @@ underscore).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-import sympy as sp
 from numba import njit
 
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
-Expr = sp.Expr
+if TYPE_CHECKING:
+    from sympy import Expr
+
 
 
 def regime(omega0: float, beta: float, rtol: float = 1e-12) -> str:

@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
+
+from mechsim.systems._symbolic import sympy as sp
 
 # --- the contact event and the impulse ------------------------------------------------------
 

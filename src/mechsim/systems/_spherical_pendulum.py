@@ -8,9 +8,13 @@ document's L = ½ m l²(θ̇² + sin²θ φ̇²) + m g l cos θ, eq. 10.47).
 
 from __future__ import annotations
 
-import sympy as sp
+from typing import TYPE_CHECKING
 
-Expr = sp.Expr
+from mechsim.systems._symbolic import sympy as sp
+
+if TYPE_CHECKING:
+    from sympy import Expr
+
 
 
 def kinetic(m: Expr, l: Expr, th: Expr, dth: Expr, dphi: Expr) -> Expr:

@@ -43,21 +43,27 @@ import math
 import operator
 import tokenize
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, number, positive
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Law, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 SHAPES = ("parabola", "line", "cycloid", "custom")
 
-_FUNCTIONS = {name: getattr(sp, name) for name in (
-    "sin", "cos", "tan", "exp", "log", "sqrt", "sinh", "cosh", "tanh", "atan", "asin", "acos",
-    "asinh", "acosh", "atanh")}
-_FUNCTIONS.update({"pi": sp.pi, "E": sp.E, "abs": sp.Abs})
+#: The names a curve may use besides x, and the sympy objects they stand for (``_symbols``).
+_FUNCTIONS = ("sin", "cos", "tan", "exp", "log", "sqrt", "sinh", "cosh", "tanh", "atan", "asin",
+              "acos", "asinh", "acosh", "atanh", "pi", "E", "abs")
+
+
+def _symbols() -> dict[str, Any]:
+    return {name: sp.Abs if name == "abs" else getattr(sp, name) for name in _FUNCTIONS}
+
+
 _OPERATORS = {"+", "-", "*", "/", "**", "^", "(", ")"}
 
 # Bounds checked before sympy sees a curve (sympy evaluates constant parts exactly or with
@@ -167,7 +173,7 @@ def parse_curve(text: str) -> sp.Expr:
         raise ParameterError("curve", f"cannot read {text!r} as an expression in x") from None
     _bounded(tree, text)
     try:
-        expr = sp.sympify(source, locals={"x": x, **_FUNCTIONS}, rational=False)
+        expr = sp.sympify(source, locals={"x": x, **_symbols()}, rational=False)
     except (sp.SympifyError, SyntaxError, TypeError, ValueError, ZeroDivisionError):
         raise ParameterError("curve", f"cannot read {text!r} as an expression in x") from None
     if not isinstance(expr, sp.Expr) or expr.free_symbols - {x}:

@@ -38,7 +38,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, number, positive
@@ -49,6 +48,7 @@ from mechsim.systems._central import (
     kepler_elements,
     turning_points,
 )
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -31,7 +31,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, number, positive
@@ -42,6 +41,7 @@ from mechsim.systems._central import (
     pericentre_time,
     vector_law_scales,
 )
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

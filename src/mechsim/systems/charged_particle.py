@@ -42,12 +42,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 from numba import njit
 from scipy.constants import epsilon_0, mu_0
 
 from mechsim.errors import ParameterError
 from mechsim.params import number, positive
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

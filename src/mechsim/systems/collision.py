@@ -33,7 +33,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import nonnegative, positive
@@ -48,6 +47,7 @@ from mechsim.systems._scattering import (
     recoil_angle,
     reflect,
 )
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -32,9 +32,9 @@ import math
 
 import numpy as np
 import scipy.linalg
-import sympy as sp
 
 from mechsim.params import Parameter, nonnegative, number, positive
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -15,10 +15,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.params import nonnegative, number, positive
 from mechsim.systems._oscillator import LinearOscillator, tone_response
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder
 
 

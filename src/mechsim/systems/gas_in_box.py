@@ -35,9 +35,9 @@ import functools
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.params import Parameter, positive
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.params import Parameter, positive
 from mechsim.systems._central import (
@@ -25,6 +24,7 @@ from mechsim.systems._central import (
     kepler_propagate,
 )
 from mechsim.systems._oscillator import state_rows
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 

@@ -25,9 +25,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.params import nonnegative, number, positive
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.driven_oscillator import DrivenOscillator
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -28,9 +28,9 @@ q̇ = 0 (q = x₀) and h_q = −½ m v₀², constant but not zero.
 from __future__ import annotations
 
 import numpy as np
-import sympy as sp
 
 from mechsim.params import number, positive
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Law, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -23,10 +23,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.params import Parameter, nonnegative, positive
 from mechsim.systems._elliptic import elliptic_f, jacobi_amplitude
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 

@@ -39,11 +39,11 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
 from mechsim.systems._oscillator import LinearOscillator, tone_response
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder
 
 WAVEFORMS = ("square", "sawtooth", "user")

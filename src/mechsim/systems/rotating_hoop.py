@@ -29,10 +29,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.params import Parameter, nonnegative, number, positive
 from mechsim.systems import _spherical_pendulum as sph
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Law, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -41,7 +41,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
@@ -58,6 +57,7 @@ from mechsim.systems._scattering import (
     reflect,
     rutherford_cross_section,
 )
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -37,11 +37,11 @@ import math
 
 import numpy as np
 import scipy.linalg
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, number
 from mechsim.systems._oscillator import free_solution, state_rows
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

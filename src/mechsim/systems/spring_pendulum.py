@@ -24,11 +24,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
 from mechsim.systems._oscillator import free_solution
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -46,7 +46,6 @@ import math
 from typing import Any, NamedTuple
 
 import numpy as np
-import sympy as sp
 from numba import njit
 
 from mechsim.errors import ParameterError
@@ -66,6 +65,7 @@ from mechsim.systems._rigid import (
     rb_unit,
 )
 from mechsim.systems._rotation import euler_zxz_angles, euler_zxz_quat, quat_from_euler_zxz, rotate
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import FrameSpec, Model, Quantity, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

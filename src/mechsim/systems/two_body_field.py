@@ -37,7 +37,6 @@ magnitude of L here.
 from __future__ import annotations
 
 import numpy as np
-import sympy as sp
 
 from mechsim.errors import ParameterError
 from mechsim.params import nonnegative, number, positive
@@ -48,6 +47,7 @@ from mechsim.systems._central import (
     pericentre_time,
     vector_law_scales,
 )
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 

@@ -1,0 +1,476 @@
+"""How a Lagrangian declaration (``mechsim.systems.lagrangian``) becomes the source of its kernel
+module: the equations of motion, the power balance, the projections, the canonical form and the
+outputs, derived with sympy, common subexpressions shared (``_emit``), parameter constants
+taken out (``_ParameterConstants``) and printed as numba kernels (``_KernelPrinter``).
+
+Imported only to derive a model missing from the cache (``LagrangianModel.kernel_source``);
+this module's text is part of every derivation's cache key (``GENERATOR_SOURCE``).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import TYPE_CHECKING
+
+import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
+from sympy.printing.precedence import PRECEDENCE
+from sympy.printing.pycode import PythonCodePrinter
+
+from mechsim import codegen
+from mechsim.codegen import FUNCTIONS
+from mechsim.systems.base import Structure
+
+if TYPE_CHECKING:
+    from sympy import Expr
+
+    from mechsim.systems.declaration import LagrangianBuilder
+
+#: Largest |n| of an integer power x**n written out as products (``_binary_power``).
+POWER_PRODUCT_MAX = 16
+
+
+def _binary_power(base: str, n: int) -> str:
+    """``base**n`` (n ≥ 1) written out as the products numba evaluates for it: repeated
+    squaring, the powers of the set bits of n multiplied in increasing order (numba's
+    ``int_power``), so the value is the same to the last bit. Numba compiles ``int_power`` as
+    a subroutine in every process that compiles a kernel using ``**`` (about 0.1 s)."""
+    result = ""
+    square = base
+    while n:
+        if n & 1:
+            result = f"({result}*{square})" if result else square
+        n >>= 1
+        if n:
+            square = f"({square}*{square})"
+    return result
+
+
+class _KernelPrinter(PythonCodePrinter):
+    """Python printer for numba kernels: half-integer powers as square roots (x**1.5 is a
+    general pow call, x*sqrt(x) is two instructions), small integer powers as the products
+    numba would evaluate (``_binary_power``)."""
+
+    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        b, e = expr.as_base_exp()
+        base = self.parenthesize(b, PRECEDENCE["Pow"], strict=False)  # a factor of a product
+        if isinstance(e, sp.Rational) and e.q == 2 and abs(e.p) <= 7:
+            root = f"math.sqrt({self._print(b)})"
+            whole = abs(e.p) // 2
+            text = root if whole == 0 else f"({_binary_power(base, whole)}*{root})"
+            return f"(1.0/{text})" if e.p < 0 else text
+        if isinstance(e, sp.Integer) and 2 <= abs(int(e)) <= POWER_PRODUCT_MAX:
+            text = _binary_power(base, abs(int(e)))
+            return f"(1.0/{text})" if e < 0 else text
+        return super()._print_Pow(expr, rational=rational)
+
+
+def _printer() -> PythonCodePrinter:
+    return _KernelPrinter({"fully_qualified_modules": True})
+
+
+#: Functions a parameter constant may contain: those numpy evaluates as the kernels do.
+_CONSTANT_FUNCTIONS = (sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.atan2, sp.sinh,
+                       sp.cosh, sp.tanh, sp.exp, sp.log, sp.Abs)
+
+
+class _ParameterConstants:
+    """The parameter constants of one derivation: subexpressions of the kernels in the
+    parameters and numbers alone, each replaced by a symbol ``pc_<i>`` that the kernels load
+    from ``p[first + i]`` like a parameter. The kernel module's ``parameter_constants(p)``
+    (plain Python on numpy scalars, so the same IEEE results as the compiled kernels: a
+    division by zero gives inf, not an exception) fills those slots from the parameters;
+    ``LagrangianModel.complete_parameters`` calls it for every parameter vector."""
+
+    def __init__(self, params: dict[str, sp.Symbol], pindex: dict[str, int], first: int
+                 ) -> None:
+        self.params = params
+        self.pindex = pindex
+        self.symbols = set(params.values())
+        self.first = first
+        self.found: dict[Expr, sp.Symbol] = {}
+        self._pure: dict[Expr, bool] = {}
+
+    def is_constant(self, e: Expr) -> bool:
+        """Parameters and numbers only, in forms numpy evaluates."""
+        known = self._pure.get(e)
+        if known is None:
+            if e.is_Atom:
+                known = bool(e.is_number or e in self.symbols)
+            else:
+                known = bool((e.is_Add or e.is_Mul or e.is_Pow
+                              or isinstance(e, _CONSTANT_FUNCTIONS))
+                             and all(self.is_constant(a) for a in e.args))
+            self._pure[e] = known
+        return known
+
+    def _symbol(self, e: Expr) -> sp.Symbol:
+        if e not in self.found:
+            self.found[e] = sp.Symbol(f"pc_{len(self.found)}", real=True)
+        return self.found[e]
+
+    def hoist(self, e: Expr) -> Expr:
+        """``e`` with its largest constant subexpressions replaced by their symbols (the
+        constant terms of a sum, and factors of a product, taken together)."""
+        if e.is_Atom or not e.args:
+            return e
+        if self.is_constant(e):
+            return self._symbol(e) if e.free_symbols else e
+        if e.is_Add or e.is_Mul:
+            const = [a for a in e.args if self.is_constant(a)]
+            if len(const) >= 2 and any(a.free_symbols for a in const):
+                rest = [self.hoist(a) for a in e.args if not self.is_constant(a)]
+                return e.func(self._symbol(e.func(*const)), *rest)
+        return e.func(*[self.hoist(a) for a in e.args])
+
+    def loads(self) -> list[str]:
+        return [f"    {s.name} = p[{self.first + i}]" for i, s in enumerate(self.found.values())]
+
+    def source(self) -> str:
+        """``parameter_constants(p)``: fills p[first:] from the parameters, in place."""
+        pr = NumPyPrinter({"fully_qualified_modules": True})
+        lines = ["def parameter_constants(p):",
+                 '    """The parameter constants (``_ParameterConstants``) into p, in place."""',
+                 '    with numpy.errstate(all="ignore"):']
+        lines += [f"        {sym.name} = p[{self.pindex[name]}]"
+                  for name, sym in self.params.items()]
+        lines += [f"        p[{self.first + i}] = {pr.doprint(e)}"
+                  for i, e in enumerate(self.found)]
+        if not self.found:
+            lines[2:] = ["    return"]
+        return "\n".join(["import numpy", "", "", *lines, ""])
+
+
+def _emit(assign: list[tuple[str, Expr]], indent: str = "    ",
+          constants: _ParameterConstants | None = None) -> list[str]:
+    """Common-subexpression-eliminated assignments ``target = expr`` (with ``constants``:
+    after their parameter constants are taken out)."""
+    if not assign:
+        return []
+    pr = _printer()
+    targets = [a for a, _ in assign]
+    exprs = [sp.sympify(e) for _, e in assign]
+    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic")
+    if constants is not None:
+        # After cse, so what it shares stays shared (the damping power of dE and P_diss is
+        # one value: W_ext of an undriven system stays exactly 0); a shared subexpression
+        # in the parameters alone goes back into its users, to be taken out whole with them.
+        known: dict[sp.Symbol, Expr] = {}
+        kept: list[tuple[sp.Symbol, Expr]] = []
+        for sym, e in repl:
+            e = e.xreplace(known)
+            if constants.is_constant(e) and e.free_symbols:
+                known[sym] = e
+            else:
+                kept.append((sym, constants.hoist(e)))
+        repl = kept
+        reduced = [constants.hoist(e.xreplace(known)) for e in reduced]
+    lines = [f"{indent}{s} = {pr.doprint(e)}" for s, e in repl]
+    lines += [f"{indent}{tgt} = {pr.doprint(e)}" for tgt, e in zip(targets, reduced, strict=True)]
+    return lines
+
+
+#: Largest unconstrained system whose mass matrix is solved in generated scalar code (LDLᵀ:
+#: no array, no allocation per call); a larger one, or a constrained one (its saddle-point
+#: matrix is indefinite), goes through ``_solve`` (Gaussian elimination, partial pivoting).
+SCALAR_SOLVE_MAX = 8
+
+
+def _ldl_solve(M: sp.Matrix, f: list[Expr], x: list[str],
+               constants: _ParameterConstants | None = None) -> list[str]:
+    """Lines setting the scalars ``x`` to the solution of M x = f, M symmetric positive
+    definite (a mass matrix), by LDLᵀ without pivoting (stable for such M); entries of M that
+    are identically zero are left out of the arithmetic."""
+    n = len(x)
+    m = {(i, j): f"m_{i}_{j}" for i in range(n) for j in range(i + 1) if M[i, j] != 0}
+    lines = _emit([(name, M[i, j]) for (i, j), name in m.items()]
+                  + [(f"f_{i}", f[i]) for i in range(n)], constants=constants)
+    L: dict[tuple[int, int], str] = {}  # nonzero entries below the diagonal
+    for j in range(n):
+        terms = [f"{L[j, k]} * {L[j, k]} * d_{k}" for k in range(j) if (j, k) in L]
+        lines.append(f"    d_{j} = {m.get((j, j), '0.0')}" + "".join(f" - {t}" for t in terms))
+        for i in range(j + 1, n):
+            terms = [f"{L[i, k]} * {L[j, k]} * d_{k}" for k in range(j)
+                     if (i, k) in L and (j, k) in L]
+            if (i, j) in m or terms:
+                L[i, j] = f"l_{i}_{j}"
+                lines.append(f"    l_{i}_{j} = ({m.get((i, j), '0.0')}"
+                             + "".join(f" - {t}" for t in terms) + f") / d_{j}")
+    for i in range(n):  # L z = f, then Lᵀ x = z / d
+        lines.append(f"    z_{i} = f_{i}" + "".join(f" - {L[i, k]} * z_{k}" for k in range(i)
+                                                     if (i, k) in L))
+    for i in reversed(range(n)):
+        lines.append(f"    {x[i]} = z_{i} / d_{i}" + "".join(
+            f" - {L[k, i]} * {x[k]}" for k in range(i + 1, n) if (k, i) in L))
+    return lines
+
+
+def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
+             q_name: str = "y") -> list[str]:
+    lines = ["    t = t"]
+    n = len(d.q)
+    for i, qs in enumerate(d.q):
+        lines.append(f"    {qs.name} = {q_name}[{i}]")
+    if with_v:
+        for i, vs in enumerate(d.v):
+            lines.append(f"    {vs.name} = y[{n + i}]")
+        for i, ms in enumerate(d.mode_symbols):
+            lines.append(f"    {ms.name} = y[{2 * n + 2 + i}]")
+    for name, sym in d.params.items():
+        lines.append(f"    {sym.name} = p[{pindex[name]}]")
+    for i, u in enumerate(d.efforts):  # after the parameters: LagrangianModel.effort_slice
+        lines.append(f"    {u.name} = p[{len(pindex) + i}]")
+    return lines
+
+
+#: A load of one entry of an argument array into a local (what ``_prelude`` writes).
+_LOAD = re.compile(r"    (\w+) = [ypqz]\[\d+\]")
+
+
+def _func(name: str, args: str, body: list[str]) -> str:
+    """The source of kernel function ``name``: ``body`` without the loads of arguments it
+    never reads (every function starts from the same prelude; numba would type and lower each
+    dead load before LLVM drops it)."""
+    loads = [_LOAD.fullmatch(line) for line in body]
+    read = set(re.findall(r"\w+", "\n".join(
+        line for line, load in zip(body, loads, strict=True) if not load)))
+    kept = [line for line, load in zip(body, loads, strict=True)
+            if line != "    t = t" and (load is None or load.group(1) in read)]
+    return "\n".join([codegen.decorator(name), f"def {name}({args}):", *kept, "    return", ""])
+
+
+def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
+    """Hamilton's equations are generated (for Gauss–Legendre) when the system is unconstrained,
+    event-free, undriven, undamped, has no explicit time dependence and T is homogeneous
+    quadratic in the rates — then E = T + V equals h and is conserved, so the work terms stay
+    zero (a rotating-coordinate T with ω² terms, where the motor works, is excluded)."""
+    if d.constraints or d.events or d.modes or st.dissipative or st.driven or st.time_dependent:
+        return False
+    v = sp.Matrix(d.v)
+    M = sp.hessian(d.kinetic, d.v)
+    return sp.expand(d.kinetic - (v.T * M * v)[0, 0] / 2) == 0
+
+
+def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
+            ) -> tuple[str, tuple[str, ...], int]:
+    """The kernel module body, the contract functions it defines (those it leaves out are
+    no-ops: no constraints, not separable, no canonical form, no events, nothing to output)
+    and the number of parameter constants (in p after the efforts)."""
+    n, nc = len(d.q), len(d.constraints)
+    hoist = _ParameterConstants(d.params, pindex, len(pindex) + len(d.efforts))
+
+    def emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
+        return _emit(assign, indent, hoist)
+
+    def func(name: str, args: str, body: list[str]) -> str:
+        return _func(name, args, hoist.loads() + body)  # (loads it does not read are dropped)
+
+    t, q, v = d.t, sp.Matrix(d.q), sp.Matrix(d.v)
+    T, V, D = d.kinetic, d.potential, d.rayleigh
+    L = T - V + d.linear
+    dL_dv = sp.Matrix([sp.diff(L, vi) for vi in d.v])
+    M = sp.hessian(T, d.v)
+    forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
+    f0 = sp.Matrix([  # without the effort u (f = f0 + u)
+        sp.diff(L, d.q[i]) - sum(sp.diff(dL_dv[i], d.q[j]) * d.v[j] for j in range(n))
+        - sp.diff(dL_dv[i], t) - sp.diff(D, d.v[i]) + forces[i] for i in range(n)])
+    f = f0 + sp.Matrix(d.efforts)
+    g = sp.Matrix([c for _, c in d.constraints]) if nc else sp.zeros(0, 1)
+    G = g.jacobian(q) if nc else sp.zeros(0, n)
+    g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
+    gdot = (G * v + g_t) if nc else sp.zeros(0, 1)
+    gamma = (gdot.jacobian(q) * v + sp.diff(gdot, t)) if nc else sp.zeros(0, 1)
+    E = T + V
+    h = (v.T * dL_dv)[0, 0] - L
+    P_diss = sum(d.v[i] * sp.diff(D, d.v[i]) for i in range(n)) if D != 0 else sp.Integer(0)
+    a_syms = d.qdd
+    a_names = [a.name for a in a_syms]
+    dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * a_syms[i]
+                             for i in range(n))
+    lam = [d.multiplier(k) for k in range(nc)]
+    active = d.active
+    act = [active.get(k, sp.Integer(1)) for k in range(nc)]
+
+    out: list[str] = []
+    pre = _prelude(d, pindex)
+    # accel(t, y, p, a, lam): M a = f + Gᵀ λ, G a = −γ
+    body = list(pre)
+    diagonal = nc == 0 and M.is_diagonal()
+    accel_exprs: list[Expr] = []
+    if diagonal:
+        # simplify only small quotients: on large ones (rational functions of square roots)
+        # its cancel() step can take hours; cse in _emit still shares the work.
+        accel_exprs = [sp.simplify(f0[i] / M[i, i]) if sp.count_ops(f0[i] / M[i, i]) <= 40
+                       else f0[i] / M[i, i] for i in range(n)]
+        # The effort's share u/M is added apart (own cse pass), so without an effort every
+        # expression evaluates exactly as without the input (W_ext of a free or damped
+        # system stays exactly 0).
+        effort_accel = [d.efforts[i] / M[i, i] for i in range(n)]
+        body += emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
+        body += emit([(f"ua_{i}", effort_accel[i]) for i in range(n)])
+        body += [f"    a[{i}] += ua_{i}" for i in range(n)]
+    elif nc == 0 and n <= SCALAR_SOLVE_MAX:
+        body += _ldl_solve(M, [f[i] for i in range(n)], [f"x_{i}" for i in range(n)], hoist)
+        body += [f"    a[{i}] = x_{i}" for i in range(n)]
+    else:
+        m = n + nc
+        body.append(f"    A = _zero_matrix({m}, {m})")
+        body.append(f"    b = _vector({m})")
+        assign: list[tuple[str, Expr]] = []
+        for i in range(n):
+            for j in range(n):
+                if M[i, j] != 0:
+                    assign.append((f"A[{i}, {j}]", M[i, j]))
+            assign.append((f"b[{i}]", f[i]))
+        for k in range(nc):
+            for j in range(n):
+                if G[k, j] != 0:
+                    assign.append((f"A[{n + k}, {j}]", act[k] * G[k, j]))
+                    assign.append((f"A[{j}, {n + k}]", -act[k] * G[k, j]))
+            if k in active:  # released: the row reads λ_k = 0
+                assign.append((f"A[{n + k}, {n + k}]", 1 - act[k]))
+            assign.append((f"b[{n + k}]", -act[k] * gamma[k]))
+        body += emit(assign)
+        body.append("    x = _solve(A, b)")
+        body += [f"    a[{i}] = x[{i}]" for i in range(n)]
+        body += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
+    out.append(func("accel", "t, y, p, a, lam", body))
+
+    # rhs: without constraints the accelerations are written inline (no array allocation
+    # per call; a full mass matrix solved in scalars up to SCALAR_SOLVE_MAX coordinates);
+    # otherwise through accel's linear solve.
+    if diagonal:
+        dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
+        P_u = sum(sp.diff(E, d.v[i]) * effort_accel[i] for i in range(n))  # dE's effort part
+        body = list(pre) + emit([(a_names[i], accel_exprs[i]) for i in range(n)]
+                                + [("P_diss", P_diss), ("dE", dE_inline)])
+        body += emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
+        body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
+        external = "dE + P_diss + P_u"
+    elif nc == 0 and n <= SCALAR_SOLVE_MAX:
+        body = list(pre) + _ldl_solve(M, [f[i] for i in range(n)], a_names, hoist)
+        body += emit([("P_diss", P_diss), ("dE", dE)])
+        external = "dE + P_diss"
+    else:
+        body = [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
+                "    accel(t, y, p, acc, lam)"]
+        body += pre
+        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+        body += emit([("P_diss", P_diss), ("dE", dE)])
+        external = "dE + P_diss"
+    body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
+    body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
+    body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
+    out.append(func("rhs", "t, y, p, dy", body))
+
+    # project
+    if nc:
+        body = list(pre)
+        body[1:1 + n] = []  # q read inside the loop
+        body += [f"    G = _matrix({nc}, {n})", f"    r = _vector({nc})",
+                 f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
+        inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
+        inner += emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
+                      + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                         for j in range(n)],
+                      indent="        ")
+        inner += ["        _project_onto(G, r, qq)",
+                  "        if _all_below(r, 1e-15):", "            break"]
+        body += inner
+        body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
+        body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
+        body += emit([(f"r[{k}]", act[k] * gdot[k]) for k in range(nc)]
+                     + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                        for j in range(n)])
+        body += ["    _project_onto(G, r, vv)"]
+        out.append(func("project", "t, y, p", body))
+
+    # accel_q for separable systems
+    if st.separable:
+        Minv = M.inv()
+        gradV = sp.Matrix([sp.diff(V, qi) for qi in d.q])
+        acc = Minv * (-gradV)
+        body = _prelude(d, pindex, with_v=False, q_name="q")
+        body += emit([(f"a[{i}]", sp.simplify(acc[i])) for i in range(n)])
+        out.append(func("accel_q", "t, q, p, a", body))
+
+    # canonical form (conservative, unconstrained, no events): z = [q, p = ∂L/∂q̇, ...]
+    if _canonical_ok(d, st):
+        b0 = dL_dv.subs({vi: 0 for vi in d.v})
+        p_syms = [sp.Symbol(f"pm_{i}", real=True) for i in range(n)]
+        zpre = ["    t = t"] + [f"    {qs.name} = z[{i}]" for i, qs in enumerate(d.q)]
+        zpre += [f"    pm_{i} = z[{n + i}]" for i in range(n)]
+        zpre += [f"    {sym.name} = p[{pindex[name]}]" for name, sym in d.params.items()]
+        if M.is_diagonal():
+            vel = emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
+                        for i, vs in enumerate(d.v)])
+        else:
+            vel = [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
+            vel += emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
+                         if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
+            vel += ["    x = _solve(A, b)"] + [f"    {vs.name} = x[{i}]"
+                                                for i, vs in enumerate(d.v)]
+        body = list(pre) + emit([(f"z[{n + i}]", dL_dv[i]) for i in range(n)])
+        body += [f"    z[{i}] = y[{i}]" for i in range(n)]
+        body += [f"    for k in range({2 * n}, y.size):", "        z[k] = y[k]"]
+        out.append(func("to_momenta", "t, y, p, z", body))
+        body = list(zpre) + vel
+        body += [f"    y[{i}] = z[{i}]" for i in range(n)]
+        body += [f"    y[{n + i}] = {vs.name}" for i, vs in enumerate(d.v)]
+        body += [f"    for k in range({2 * n}, z.size):", "        y[k] = z[k]"]
+        out.append(func("from_momenta", "t, z, p, y", body))
+        dL_dq = [sp.diff(L, qi) for qi in d.q]
+        body = list(zpre) + vel + emit([(f"dz[{n + i}]", dL_dq[i]) for i in range(n)])
+        body += [f"    dz[{i}] = {vs.name}" for i, vs in enumerate(d.v)]
+        body += [f"    for k in range({2 * n}, z.size):", "        dz[k] = 0.0"]
+        out.append(func("canonical_rhs", "t, z, p, dz", body))
+
+    # energy
+    body = list(pre) + emit([("out[0]", T), ("out[1]", V), ("out[2]", h)])
+    out.append(func("energy", "t, y, p, out", body))
+
+    # invariants (declared ones, then constraint residuals)
+    inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(act, d.constraints,
+                                                                      strict=True)]
+    if inv:
+        body = list(pre) + emit([(f"out[{i}]", e) for i, e in enumerate(inv)])
+        out.append(func("invariants", "t, y, p, out", body))
+
+    # observables (may use the multipliers)
+    obs = [e for _, e in d.observables]
+    body = list(pre)
+    uses_lam = any(set(lam) & e.free_symbols for e in obs)
+    if uses_lam or any(set(a_syms) & e.free_symbols for e in obs):
+        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
+                 "    accel(t, y, p, acc, lam)"]
+        body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
+        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+    if obs:
+        body += emit([(f"out[{i}]", e) for i, e in enumerate(obs)])
+        out.append(func("observables", "t, y, p, out", body))
+
+    # events (may use the multipliers, like observables)
+    evx = [e for _, e in d.events]
+    body = list(pre)
+    if any((set(lam) | set(a_syms)) & e.free_symbols for e in evx):
+        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
+                 "    accel(t, y, p, acc, lam)"]
+        body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
+        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+    if evx:
+        body += emit([(f"out[{i}]", e) for i, e in enumerate(evx)])
+        out.append(func("event", "t, y, p, out", body))
+
+    # frames
+    assign = []
+    for k, fr in enumerate(d.frames):
+        for c, e in enumerate(fr.translation + fr.rotation):
+            assign.append((f"out[{k}, {c}]", e))
+    if assign:
+        out.append(func("frames", "t, y, p, out", list(pre) + emit(assign)))
+    functions = tuple(name for name in FUNCTIONS
+                      if any(text.startswith(f"{codegen.decorator(name)}\ndef {name}(")
+                             for text in out))
+    out.append(hoist.source())
+    return "\n\n".join(out), functions, len(hoist.found)
+
