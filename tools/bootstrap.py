@@ -13,11 +13,12 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
              CPU, from the source tree) so that the first run of a system only compiles that
              system's kernels; in the background from here on, in two processes, beside pip
              and the interface builds;
-5. pip       pip install -r requirements.txt;
-6. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
+5. pip       pip install -r requirements.txt (steps 3 and 5 without byte-compiling: see 6);
+6. bytecode  byte-compile the venv's packages on every core, in the background from here on;
+7. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
              .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
-7. project   pip install -e . --no-deps --no-build-isolation;
-8. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
+8. project   pip install -e . --no-deps --no-build-isolation;
+9. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/).
 
 Then, every time: Debian's `chromium` (the headless browser tests/test_live_viewer.py opens the
@@ -66,6 +67,8 @@ _SCRUB_ENV = (
     "PYTHONHOME",
     "VIRTUAL_ENV",
     "_ROS_WHEELS_BOOTSTRAP_COMPLETE",
+    # The set-up's own processes (the loops' imports) write the .pyc files they compile.
+    "PYTHONDONTWRITEBYTECODE",
 )
 
 
@@ -214,17 +217,31 @@ def numeric_pins() -> list[str]:
     return pins
 
 
+# pip installs without byte-compiling (--no-compile): compiling is half of its CPU and runs on
+# one core; step ``bytecode`` compiles the venv afterwards on every core, beside the interface
+# builds. It must not be left out: with PYTHONDONTWRITEBYTECODE set, as on some machines,
+# nothing else would write the .pyc files and every process would compile sympy, scipy and
+# numba from source (a cold test run took twice the CPU).
+PIP_INSTALL = ("-m", "pip", "install", "--no-compile")
+
+
 def step_numerics() -> None:
     say("pip install numpy, scipy, sympy, numba, pyyaml (for the loops, first)")
-    run_logged("numerics", [str(VENV_PY), "-m", "pip", "install", *numeric_pins()])
+    run_logged("numerics", [str(VENV_PY), *PIP_INSTALL, *numeric_pins()])
 
 
 def step_pip() -> None:
-    say("pip install -r requirements.txt (about a minute in a new venv)")
-    # Byte-compiled at install (half of this step's CPU): with PYTHONDONTWRITEBYTECODE set, as
-    # on some machines, nothing else would write the .pyc files and every process would
-    # compile sympy, scipy and numba from source (a cold test run took twice the CPU).
-    run_logged("pip", [str(VENV_PY), "-m", "pip", "install", "-r", str(REQUIREMENTS)])
+    say("pip install -r requirements.txt (about half a minute in a new venv)")
+    run_logged("pip", [str(VENV_PY), *PIP_INSTALL, "-r", str(REQUIREMENTS)])
+
+
+def step_bytecode() -> Pending:
+    say("byte-compiling the venv's packages (on every core, alongside the next steps)")
+    # compile_dir's result is ignored, as pip ignores its own: a package may ship a file that
+    # is not Python 3 (templates, examples), which nothing imports.
+    code = ("import compileall, sys, sysconfig; "
+            "compileall.compile_dir(sysconfig.get_paths()['purelib'], quiet=2, workers=0)")
+    return start_logged("bytecode", [str(VENV_PY), "-c", code])
 
 
 def venv_paths() -> dict[str, str]:
@@ -366,6 +383,7 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
         ("numerics", numerics_key[:16], step_numerics),
         ("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops),
         ("pip", pip_key, step_pip),
+        ("bytecode", pip_key, step_bytecode),
         ("cmake-paths", pip_key, step_cmake_paths),
         ("project", sha256_files([ROOT / "pyproject.toml", ROOT / "setup.cfg"], venv_key),
          step_project),
@@ -394,9 +412,10 @@ def bootstrap(force: bool = False) -> int:
             for name, key, action in steps:
                 if stamp.get(name) == key:
                     continue
-                # Not current until the step succeeds again; a pip run may restore the
-                # wheels' original cmake files, so it also invalidates the path rewrite.
-                for stale in (name, "cmake-paths") if name == "pip" else (name,):
+                # Not current until the step succeeds again; a pip run installs files not
+                # yet byte-compiled and may restore the wheels' original cmake files, so it
+                # also invalidates those two steps.
+                for stale in (name, "bytecode", "cmake-paths") if name == "pip" else (name,):
                     stamp.pop(stale, None)
                 if VENV.is_dir():
                     save_stamp(stamp)
