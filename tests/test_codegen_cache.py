@@ -82,15 +82,19 @@ def test_least_recently_used_modules_are_evicted(cache: Path,
 
 def test_cache_info_and_clear(cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
     codegen.load_module("clear_me", "k", lambda: "VALUE = 1\n")
+    codegen.remember("a_summary", {"coordinates": []})
+    assert codegen.recall("a_summary") == {"coordinates": []}
     cache.mkdir(parents=True, exist_ok=True)
     foreign = cache / "notes.txt"
     foreign.write_text("not ours")
     assert main(["cache", "info", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["path"] == str(cache) and info["modules"] == 1 and info["bytes"] > 0
+    assert info["summaries"] == 1
     assert main(["cache", "clear"]) == 0
     assert "removed 1 generated module" in capsys.readouterr().out
     assert not list((cache / "kernels").glob("mechsim_*"))
+    assert codegen.recall("a_summary") is None
     assert foreign.read_text() == "not ours"
     assert main(["cache", "info"]) == 0
     assert "modules: 0" in capsys.readouterr().out

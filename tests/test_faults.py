@@ -438,6 +438,22 @@ def _parameter(node: str, name: str) -> Any:
                 raise
 
 
+def _pause(node: str) -> None:
+    """Pause a simulator through its ``pause`` service, asked again while it is starting."""
+    from mechsim.errors import MechsimError
+    from mechsim.ros.graph import call_service
+
+    end = time.monotonic() + 300
+    while True:
+        try:
+            ok, message = call_service(node, "pause", "true", timeout=20)
+            assert ok, message
+            return
+        except MechsimError:
+            if time.monotonic() > end:
+                raise
+
+
 def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Path) -> None:
     """``run --processes`` passes --rate and --fast to its nodes (their parameters say so),
     stops at --duration by itself (exit 0) or on Ctrl-C (130), and exits with its children's
@@ -448,6 +464,7 @@ def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Pa
                              cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                              text=True)
     try:
+        _pause("/rated/simulator")  # a fast run would load the machine for the whole test
         assert _parameter("/rated/simulator", "publish_rate") == 40.0
         assert _parameter("/rated/simulator", "real_time_factor") == 0.0
         dup = subprocess.run([PY, "-m", "mechsim.cli", "run", "pendulum", "--processes",

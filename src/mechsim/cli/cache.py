@@ -68,6 +68,7 @@ def cmd_cache_info(a: argparse.Namespace) -> int:
     print(f"cache: {info['path']}\n"
           f"  modules: {info['modules']} (shared loops: {info['loops']}; at most "
           f"{info['limit']}, least recently used removed first)\n"
+          f"  model summaries: {info['summaries']} (set-up without sympy)\n"
           f"  size on disk: {_size(info['bytes'])}")
     return 0
 

@@ -17,9 +17,13 @@ needed, and the ``KernelSet`` the shared loops call them through. The shared loo
 module for every model (``load_module``), so the per-model cost is the derivation and the
 compilation of the small kernels a run needs (a run with ``yoshida8`` never compiles ``rhs``).
 
-The cache is bounded (``MAX_MODULES`` files; the least recently used are removed first) and
-``cache_info``/``cache_clear`` report and empty it (``mechsim cache info|clear``; ``mechsim
-cache warm`` fills it).
+Beside the modules, ``remember``/``recall`` keep small JSON records keyed on every input of
+what they hold: a Lagrangian model's summary and derivation key, so that a model derived before
+is set up without importing sympy (``mechsim.systems.lagrangian``).
+
+The cache is bounded (``MAX_MODULES`` modules, ``MAX_SUMMARIES`` records; the least recently
+used are removed first) and ``cache_info``/``cache_clear`` report and empty it (``mechsim cache
+info|clear``; ``mechsim cache warm`` fills it).
 """
 
 from __future__ import annotations
@@ -448,15 +452,18 @@ def cache_info() -> dict[str, Any]:
     """Where the cache is, how many generated modules it holds and their size on disk."""
     folder = _module_dir()
     entries = _entries(folder)
+    summaries = _summary_dir()
     return {"path": str(cache_dir()), "modules": len(entries),
             "loops": sum(1 for p in entries if p.stem.startswith(f"{_PREFIX}loops_")),
+            "summaries": sum(1 for _ in summaries.glob("*.json")) if summaries.is_dir() else 0,
             "bytes": _size(cache_dir()) if cache_dir().is_dir() else 0,
             "limit": MAX_MODULES}
 
 
 def cache_clear() -> int:
-    """Delete every generated module and compiled cache (and leftovers of older layouts);
-    returns how many modules were removed. Nothing else in the directory is touched."""
+    """Delete every generated module, compiled cache and recalled summary (and leftovers of
+    older layouts); returns how many modules were removed. Nothing else in the directory is
+    touched."""
     folder = _module_dir()
     removed = 0
     for path in _entries(folder):

@@ -26,6 +26,14 @@ that declaration sympy derives, once per declaration (the generated module is ca
   in a method ``on_<event name>(t, y) -> y`` (see ``mechsim.integrators``).
 
 No equation of motion is typed by hand, so no typo of the source documents can reach the code.
+
+Where things are: what a system declares, ``declaration.LagrangianBuilder``; the derivation and
+the kernel printing, ``lagrangian_kernels`` (imported only to derive); the model, here. A model
+reads its shape and structure (coordinates, invariants, frames, events, modes, separability,
+canonical form) and the derivation key of its kernels from a *summary*: made from the
+declaration the first time a class is built with these parameter values and this code, then
+recalled from the cache (``codegen.recall``), so that a model derived before is set up without
+importing sympy (``_symbolic``): a third of the CPU of a warm ``mechsim run``.
 """
 
 from __future__ import annotations
