@@ -437,27 +437,24 @@ def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
         out.append(func("invariants", "t, y, p, out", body))
 
     # observables (may use the multipliers)
+    def solved_first(exprs: list[Expr]) -> list[str]:
+        """Lines solving for λ and q̈ (through ``accel``) where ``exprs`` read them."""
+        if not any((set(lam) | set(a_syms)) & e.free_symbols for e in exprs):
+            return []
+        return [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
+                "    accel(t, y, p, acc, lam)", *[f"    lam_{k} = lam[{k}]" for k in range(nc)],
+                *[f"    {a_names[i]} = acc[{i}]" for i in range(n)]]
+
     obs = [e for _, e in d.observables]
-    body = list(pre)
-    uses_lam = any(set(lam) & e.free_symbols for e in obs)
-    if uses_lam or any(set(a_syms) & e.free_symbols for e in obs):
-        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
-                 "    accel(t, y, p, acc, lam)"]
-        body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
-        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
     if obs:
+        body = list(pre) + solved_first(obs)
         body += emit([(f"out[{i}]", e) for i, e in enumerate(obs)])
         out.append(func("observables", "t, y, p, out", body))
 
     # events (may use the multipliers, like observables)
     evx = [e for _, e in d.events]
-    body = list(pre)
-    if any((set(lam) | set(a_syms)) & e.free_symbols for e in evx):
-        body += [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
-                 "    accel(t, y, p, acc, lam)"]
-        body += [f"    lam_{k} = lam[{k}]" for k in range(nc)]
-        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
     if evx:
+        body = list(pre) + solved_first(evx)
         body += emit([(f"out[{i}]", e) for i, e in enumerate(evx)])
         out.append(func("event", "t, y, p, out", body))
 
