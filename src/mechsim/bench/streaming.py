@@ -312,8 +312,9 @@ def first_message_latency(repeats: int = 3, cold: tuple[str, ...] = COLD_SYSTEMS
                           ) -> dict[str, Any]:
     """Start-up to the first message in another process: ``mechsim run pendulum`` warm
     (``repeats`` times), and for each of ``cold`` its first run with the model not derived
-    yet (a copy of the kernel cache without that system's modules: the shared loops stay
-    compiled, as set-up leaves them) against the next two (warm)."""
+    yet (a copy of the kernel cache without that system's modules and without the model
+    summaries: the shared loops stay compiled, as set-up leaves them) against the next two
+    (warm)."""
     import glob
     import shutil
 
@@ -345,9 +346,11 @@ def first_message_latency(repeats: int = 3, cold: tuple[str, ...] = COLD_SYSTEMS
             with tempfile.TemporaryDirectory() as tmp:
                 cache = os.path.join(tmp, "cache")
                 shutil.copytree(cache_dir(), cache, symlinks=True)
+                # and every model summary (named by a hash, not by the system): the model is
+                # declared from scratch, as the first time on a machine
                 for pattern in (f"kernels/mechsim_{system}_*",
                                 f"kernels/__pycache__/mechsim_{system}_*",
-                                f"derived/{system}_*"):
+                                f"derived/{system}_*", "summaries/*.json"):
                     for f in glob.glob(os.path.join(cache, pattern)):
                         os.remove(f)
                 env = dict(os.environ, MECHSIM_CACHE_DIR=cache)
