@@ -295,8 +295,9 @@ def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
 
     bag = tmp_path / "killed"
     f = bag / "killed_0.mcap"
-    proc = subprocess.Popen([*MECHSIM, "record", "pendulum", "--duration", "1000", "--bag",
-                             str(bag)], env=ros_env, cwd=REPO, text=True,
+    # 10 Hz: the recorder runs as fast as it can until the kill; fewer messages to read back.
+    proc = subprocess.Popen([*MECHSIM, "record", "pendulum", "--duration", "1000", "--rate",
+                             "10", "--bag", str(bag)], env=ros_env, cwd=REPO, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         _wait_for_size(f, 20_000, proc, 60)
@@ -320,7 +321,7 @@ def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
     assert meta["custom_data"]["mechsim.scene"] == "pendulum"  # from the MCAP's first record
     assert meta["custom_data"]["mechsim.pendulum.system"] == "pendulum"  # from system_info
     stamps = [ts for t, _, ts, _ in _rosbags_messages(bag) if t == "/pendulum/state"]
-    assert stamps == [1_000_000_000 + 10_000_000 * k for k in range(len(stamps))]
+    assert stamps == [1_000_000_000 + 100_000_000 * k for k in range(len(stamps))]
     again = _cli("bag", "repair", str(bag), env=ros_env)  # idempotent on a complete bag
     assert again.returncode == 0 and "was complete" in again.stdout
     assert sum(_counts_from_file(bag).values()) == meta["message_count"]
