@@ -87,7 +87,7 @@ def test_paced_run_keeps_clock_monotone_and_stamps_on_the_sample_grid(ros_contex
     from mechsim.ros.launch import run_scene
     from mechsim.scene import parse_scene
 
-    scene = parse_scene({"name": "paced", "pacing": "realtime", "real_time_factor": 1.0,
+    scene = parse_scene({"name": "paced", "pacing": "realtime", "real_time_factor": 2.0,
                          "publish_rate": 100.0,
                          "systems": [{"system": "pendulum"},
                                      {"system": "rigid_body", "origin": [2.0, 0.0, 0.0]}]})
@@ -357,7 +357,7 @@ def test_paced_run_hands_sinks_whole_blocks_of_every_sample(ros_context: Any) ->
     from mechsim.ros.launch import run_scene
     from mechsim.scene import parse_scene
 
-    scene = parse_scene({"name": "blocks", "pacing": "realtime", "real_time_factor": 1.0,
+    scene = parse_scene({"name": "blocks", "pacing": "realtime", "real_time_factor": 2.0,
                          "publish_rate": 100.0,
                          "systems": [{"system": "pendulum"},
                                      {"system": "kepler", "origin": [2.0, 0.0, 0.0]}]})
@@ -375,7 +375,7 @@ def test_paced_run_hands_sinks_whole_blocks_of_every_sample(ros_context: Any) ->
         t: n for t, n in published.items() if t in sink.stamps}
     samples = sum(run.samples.values())
     assert samples == 2 * 201
-    # One hand-off per block of samples computed ahead (a quarter of a second: 25), plus
+    # One hand-off per block of samples computed ahead (``LOOKAHEAD`` wall seconds: 200), plus
     # the ones a diagnostics report or the end of the run makes: not one per tick.
     assert sink.handoffs <= samples / 10, sink.handoffs
 
@@ -390,7 +390,7 @@ def test_paced_recording_holds_every_sample_as_a_fast_one(tmp_path: Path) -> Non
     from mechsim.ros import record
     from mechsim.scene import parse_scene
 
-    scene = parse_scene({"name": "paced_bag", "pacing": "realtime", "real_time_factor": 1.0,
+    scene = parse_scene({"name": "paced_bag", "pacing": "realtime", "real_time_factor": 2.0,
                          "publish_rate": 100.0,
                          "systems": [{"system": "pendulum"},
                                      {"system": "rigid_body", "origin": [2.0, 0.0, 0.0]},
