@@ -99,7 +99,8 @@ class LagrangianModel(Model):
     def _recall_key(self) -> str | None:
         """Every input of the declaration and of its derivation key: this class, its
         parameter values, the source of every module of ``mechsim`` (where the class and all
-        the code it can call live) and the sympy version. None for a class defined outside
+        the code it can call live), and the versions of Python, numba, sympy, mpmath, numpy
+        and scipy (a declaration may bake in numbers they computed). None for a class outside
         ``mechsim.systems`` (a plug-in, a test): its code is not in that source, so it is
         always declared afresh."""
         cls = type(self)
@@ -108,7 +109,8 @@ class LagrangianModel(Model):
         return codegen.fingerprint(
             "recall", GENERATOR_VERSION, cls.__module__, cls.__qualname__,
             self.declaration_version, sorted((k, repr(v)) for k, v in self.values.items()),
-            codegen.package_fingerprint(), codegen.distribution_version("sympy"))
+            codegen.package_fingerprint(), codegen.RUNTIME,
+            [codegen.distribution_version(d) for d in ("sympy", "mpmath", "numpy", "scipy")])
 
     def _summarize(self) -> dict[str, Any]:
         """What the model's shape and structure are, from its declaration, as JSON values
