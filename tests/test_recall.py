@@ -112,6 +112,17 @@ def test_an_unreadable_summary_is_made_again(summaries: Path, content: str) -> N
     assert json.loads(path.read_text())["coordinates"]  # and remembered again
 
 
+def test_an_oversized_summary_is_not_read(summaries: Path) -> None:
+    """A summary file far larger than any model's (here a valid one padded with blanks) is
+    not ours: it is not read, and the model is declared afresh."""
+    shape = _shape(_model("double_pendulum", "angles"))
+    (path,) = summaries.iterdir()
+    path.write_text(path.read_text() + " " * 1_100_000)
+    again = _model("double_pendulum", "angles")
+    assert _shape(again) == shape
+    assert "declaration" in again.__dict__
+
+
 def test_system_modules_import_without_sympy() -> None:
     code = ("import importlib, sys\n"
             f"for name in {sorted(SYSTEMS.values())!r}:\n"

@@ -59,6 +59,8 @@ __all__ = ["FUNCTIONS", "HOT", "SIZES", "Kernels", "KernelSource", "build", "cac
 MAX_MODULES = 400
 #: At most this many recalled model summaries (``recall``, a few hundred bytes each) are kept.
 MAX_SUMMARIES = 2000
+#: A recalled summary larger than this is not read (the largest model's is a few kB).
+_SUMMARY_BYTES = 1_000_000
 #: A module used within this many seconds is never evicted (another process may load it).
 _EVICT_GRACE = 600.0
 _PREFIX = "mechsim_"
@@ -351,6 +353,8 @@ def recall(key: str) -> dict[str, Any] | None:
     None when there is nothing, or nothing readable (then the caller makes it again)."""
     path = _summary_dir() / f"{key}.json"
     try:
+        if path.stat().st_size > _SUMMARY_BYTES:  # not one of ours: never read it whole
+            return None
         value = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
