@@ -423,35 +423,32 @@ def test_processes_die_with_their_parent(ros_env: dict[str, str], tmp_path: Path
             proc.kill()
 
 
-def _parameter(node: str, name: str) -> Any:
-    """A node's parameter, asked again while the node is still starting (a request sent the
-    moment its service is discovered can lose its response)."""
+def _answered(ask: Callable[[], Any]) -> Any:
+    """``ask()`` (a call to a node's services), asked again while the node is still starting
+    (a request sent the moment its service is discovered can lose its response)."""
     from mechsim.errors import MechsimError
-    from mechsim.ros.graph import get_parameter
 
     end = time.monotonic() + 300
     while True:
         try:
-            return get_parameter(node, name, timeout=20)
+            return ask()
         except MechsimError:
             if time.monotonic() > end:
                 raise
+
+
+def _parameter(node: str, name: str) -> Any:
+    from mechsim.ros.graph import get_parameter
+
+    return _answered(lambda: get_parameter(node, name, timeout=20))
 
 
 def _pause(node: str) -> None:
-    """Pause a simulator through its ``pause`` service, asked again while it is starting."""
-    from mechsim.errors import MechsimError
+    """Pause a simulator through its ``pause`` service."""
     from mechsim.ros.graph import call_service
 
-    end = time.monotonic() + 300
-    while True:
-        try:
-            ok, message = call_service(node, "pause", "true", timeout=20)
-            assert ok, message
-            return
-        except MechsimError:
-            if time.monotonic() > end:
-                raise
+    ok, message = _answered(lambda: call_service(node, "pause", "true", timeout=20))
+    assert ok, message
 
 
 def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Path) -> None:

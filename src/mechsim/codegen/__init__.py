@@ -372,16 +372,9 @@ def remember(key: str, value: dict[str, Any]) -> None:
         write_atomic(folder / f"{key}.json", json.dumps(value, sort_keys=True))
         entries = sorted(folder.glob("*.json"))
         if len(entries) > MAX_SUMMARIES:
-            for path in sorted(entries, key=_mtime)[: len(entries) - MAX_SUMMARIES]:
+            for path in sorted(entries, key=_last_use)[: len(entries) - MAX_SUMMARIES]:
                 with contextlib.suppress(OSError):
                     path.unlink()
-
-
-def _mtime(path: Path) -> float:
-    try:
-        return path.stat().st_mtime
-    except OSError:
-        return 0.0
 
 
 def _touch_file(path: Path) -> None:

@@ -115,7 +115,10 @@ class LagrangianModel(Model):
     def _summarize(self) -> dict[str, Any]:
         """What the model's shape and structure are, from its declaration, as JSON values
         (``_summary``): each list entry holds a dataclass's fields in order."""
+        from mechsim.systems.lagrangian_kernels import _canonical_ok
+
         d = self.declaration
+        st = self._structure_of(d)
         rows = dataclasses.astuple
         return {
             "coordinates": [rows(q) for q in d.coords],
@@ -125,8 +128,8 @@ class LagrangianModel(Model):
             "frames": [rows(f.spec) for f in d.frames],
             "events": [rows(e) for e, _ in d.events],
             "modes": [rows(q) for q in d.modes],
-            "structure": rows(self._structure_of(d)),
-            "canonical": self._canonical_of(d),
+            "structure": rows(st),
+            "canonical": _canonical_ok(d, st),
             "energy_function_conserved": self._energy_function_conserved_of(d),
         }
 
@@ -181,11 +184,6 @@ class LagrangianModel(Model):
                      and (len(d.q) <= 4 or M.is_diagonal()))
         return Structure(separable=separable, n_constraints=len(d.constraints),
                          dissipative=dissipative, driven=driven, time_dependent=time_dep)
-
-    def _canonical_of(self, d: LagrangianBuilder) -> bool:
-        from mechsim.systems.lagrangian_kernels import _canonical_ok
-
-        return _canonical_ok(d, self._structure_of(d))
 
     @staticmethod
     def _energy_function_conserved_of(d: LagrangianBuilder) -> bool:
@@ -249,7 +247,7 @@ class LagrangianModel(Model):
         from mechsim.systems.lagrangian_kernels import _derive
 
         d = self.declaration
-        body, functions, n_constants = _derive(d, self._param_index(), self._structure_of(d))
+        body, functions, n_constants = _derive(d, self._param_index(), self.structure)
         n = len(d.q)
         return codegen.KernelSource(
             name=f"{self.id}_{self.formulation}", functions=functions, body=body, constants={
