@@ -4,6 +4,11 @@ launch files, no sleeps. The numbers are checked against physics, not against th
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -52,3 +57,43 @@ def test_a_timeout_reports_what_arrived_by_the_deadline(mechsim_graph: Any) -> N
     first = str(failed.value).splitlines()[0]
     assert f"{len(states.messages)} message(s)" in first and "predicate=given: not met" in first
     assert states.messages  # the pendulum published meanwhile: the count is not 0
+
+
+def test_workers_get_their_own_domain_and_a_nested_run_keeps_it(tmp_path: Path) -> None:
+    """Two xdist workers: two ROS domains; a pytest run started by a test of a worker (it
+    inherits ``PYTEST_XDIST_WORKER`` and the worker's domain id) stays on that worker's
+    domain. Moved again, the nested run of worker gw1 landed on worker gw2's graph, where a
+    pendulum of that nested run made another test's refused ``--processes`` run fail."""
+    (tmp_path / "test_outer.py").write_text(textwrap.dedent("""\
+        import os, subprocess, sys
+        import pytest
+
+        INNER = "import os\\ndef test_in():\\n    " \\
+            "open(os.environ['SEEN'], 'w').write(os.environ['ROS_DOMAIN_ID'])\\n"
+
+        @pytest.mark.parametrize("k", range(4))
+        def test_outer(k, tmp_path):
+            seen = os.path.abspath("seen")
+            with open(f"{seen}/outer-{k}", "w") as f:
+                f.write(os.environ["PYTEST_XDIST_WORKER"] + " " + os.environ["ROS_DOMAIN_ID"])
+            (tmp_path / "test_in.py").write_text(INNER)
+            env = dict(os.environ, SEEN=f"{seen}/inner-{k}")
+            done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p",
+                                   "no:cacheprovider", "test_in.py"], cwd=tmp_path, env=env)
+            assert done.returncode == 0
+        """))
+    (tmp_path / "seen").mkdir()
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTEST_XDIST_WORKER", "PYTEST_XDIST_WORKER_COUNT",
+                        "_MECHSIM_DOMAIN_SET_BY", "PYTEST_ADDOPTS")}
+    env["ROS_DOMAIN_ID"] = "7"
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                          "-n", "2", "test_outer.py"], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    outer = {k: (tmp_path / "seen" / f"outer-{k}").read_text().split() for k in range(4)}
+    domains = {worker: domain for worker, domain in outer.values()}
+    assert set(domains) == {"gw0", "gw1"} or len(domains) == 1, outer
+    assert len(set(domains.values())) == len(domains), domains  # one domain per worker
+    for k, (_worker, domain) in outer.items():
+        assert (tmp_path / "seen" / f"inner-{k}").read_text() == domain, (k, domain)

@@ -52,9 +52,12 @@ _DOMAIN_IDS = [*range(1, 102), *range(215, 233)]
 DEFAULT_TIMEOUT = 120.0
 
 
-def session_domain_id() -> int:
-    """ROS_DOMAIN_ID if set (checked), else one from the process id; an xdist worker gwK is
-    moved K·41 places along the valid ids, so parallel workers never share a graph."""
+def session_domain_id(worker: str | None = None) -> int:
+    """ROS_DOMAIN_ID if set (checked), else one from the process id; xdist worker ``gwK``
+    (``worker``) is moved K·41 places along the valid ids, so parallel workers never share a
+    graph. Only a real worker moves: a pytest run started by a test inherits the worker's
+    ``PYTEST_XDIST_WORKER`` and already-moved id, and must stay on that id (moved again, the
+    nested run of worker gw1 landed on worker gw2's graph)."""
     raw = os.environ.get("ROS_DOMAIN_ID", "").strip()
     if raw:
         if not raw.isdigit() or not valid_domain_id(int(raw)):
@@ -62,8 +65,8 @@ def session_domain_id() -> int:
         domain_id = int(raw)
     else:
         domain_id = _DOMAIN_IDS[os.getpid() % 101]
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
-    if worker.startswith("gw") and worker[2:].isdigit() and domain_id in _DOMAIN_IDS:
+    if worker and worker.startswith("gw") and worker[2:].isdigit() \
+            and domain_id in _DOMAIN_IDS:
         k = int(worker[2:])
         domain_id = _DOMAIN_IDS[(_DOMAIN_IDS.index(domain_id) + 41 * k) % len(_DOMAIN_IDS)]
     return domain_id
@@ -74,7 +77,9 @@ def pytest_configure(config: pytest.Config) -> None:
     the session's domain id, also for child processes started with ``os.environ``."""
     if os.environ.get("_MECHSIM_DOMAIN_SET_BY") == str(os.getpid()):
         return  # this process is configured already (the plugin loaded twice)
-    configure_ros_environment(session_domain_id())
+    # ``workerinput`` exists only in a pytest-xdist worker process.
+    worker = getattr(config, "workerinput", {}).get("workerid")
+    configure_ros_environment(session_domain_id(worker))
     os.environ["_MECHSIM_DOMAIN_SET_BY"] = str(os.getpid())
 
 
