@@ -7,17 +7,20 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
 2. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
              with (skipped, with a note, where node or npm is missing; that test then skips);
              in the background from here on;
-3. numerics  pip install the pins of numpy, scipy, sympy, numba and pyyaml from
+3. installer pip install the pinned uv (requirements.txt), which installs the rest: it
+             downloads in parallel and unpacks in native code, in a third of pip's time;
+   numerics  install the pins of numpy, scipy, sympy, numba and pyyaml from
              requirements.txt: what the next step imports;
 4. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
              CPU, from the source tree) so that the first run of a system only compiles that
              system's kernels; in the background from here on, in two processes, beside pip
              and the interface builds;
-5. pip       pip install -r requirements.txt (steps 3 and 5 without byte-compiling: see 6);
-6. bytecode  byte-compile the venv's packages on every core, in the background from here on;
+5. pip       install -r requirements.txt (steps 3 and 5 without byte-compiling: see 6);
+6. bytecode  byte-compile the venv's packages (not their own test suites) on every core, in
+             the background from here on;
 7. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
              .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
-8. project   pip install -e . --no-deps --no-build-isolation;
+8. project   install -e . --no-deps --no-build-isolation;
 9. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/).
 
@@ -207,40 +210,68 @@ def step_venv() -> None:
 NUMERICS = ("numpy", "scipy", "sympy", "numba", "pyyaml")
 
 
-def numeric_pins() -> list[str]:
-    """The requirements.txt lines that pin ``NUMERICS``."""
-    pins = []
+def pins() -> dict[str, str]:
+    """requirements.txt's lines by (lower-case) package name."""
+    found = {}
     for line in REQUIREMENTS.read_text().splitlines():
         name = re.split(r"[=<>!~\[; ]", line.strip(), maxsplit=1)[0].lower()
-        if name in NUMERICS:
-            pins.append(line.strip())
-    return pins
+        if name and not name.startswith("#"):
+            found[name] = line.strip()
+    return found
 
 
-# pip installs without byte-compiling (--no-compile): compiling is half of its CPU and runs on
-# one core; step ``bytecode`` compiles the venv afterwards on every core, beside the interface
-# builds. It must not be left out: with PYTHONDONTWRITEBYTECODE set, as on some machines,
-# nothing else would write the .pyc files and every process would compile sympy, scipy and
-# numba from source (a cold test run took twice the CPU).
-PIP_INSTALL = ("-m", "pip", "install", "--no-compile")
+def numeric_pins() -> list[str]:
+    """The requirements.txt lines that pin ``NUMERICS``."""
+    return [line for name, line in pins().items() if name in NUMERICS]
+
+
+def requirement_pin(name: str) -> str:
+    """The requirements.txt line that pins ``name``."""
+    line = pins().get(name)
+    if line is None:
+        raise StepFailed(f"requirements.txt pins no {name}")
+    return line
+
+
+UV = VENV / "bin" / "uv"
+
+
+def installer() -> list[str]:
+    """The command that installs into the venv: uv's pip interface. Neither uv nor pip
+    byte-compiles here: compiling is half of pip's CPU and runs on one core; step ``bytecode``
+    compiles the venv afterwards on every core, beside the interface builds. It must not be
+    left out: with PYTHONDONTWRITEBYTECODE set, as on some machines, nothing else would write
+    the .pyc files and every process would compile sympy, scipy and numba from source (a cold
+    test run took twice the CPU). Files are copied out of uv's cache, not hard-linked: step
+    ``cmake-paths`` edits installed files, which must not change the cache's copies."""
+    return [str(UV), "pip", "install", "--python", str(VENV_PY), "--link-mode", "copy"]
+
+
+def step_installer() -> None:
+    say("pip install uv (the installer of the next steps)")
+    run_logged("installer", [str(VENV_PY), "-m", "pip", "install", "--no-compile",
+                             requirement_pin("uv")])
 
 
 def step_numerics() -> None:
-    say("pip install numpy, scipy, sympy, numba, pyyaml (for the loops, first)")
-    run_logged("numerics", [str(VENV_PY), *PIP_INSTALL, *numeric_pins()])
+    say("uv pip install numpy, scipy, sympy, numba, pyyaml (for the loops, first)")
+    run_logged("numerics", [*installer(), *numeric_pins()])
 
 
 def step_pip() -> None:
-    say("pip install -r requirements.txt (about half a minute in a new venv)")
-    run_logged("pip", [str(VENV_PY), *PIP_INSTALL, "-r", str(REQUIREMENTS)])
+    say("uv pip install -r requirements.txt (about 10 s in a new venv)")
+    run_logged("pip", [*installer(), "-r", str(REQUIREMENTS)])
 
 
 def step_bytecode() -> Pending:
     say("byte-compiling the venv's packages (on every core, alongside the next steps)")
     # compile_dir's result is ignored, as pip ignores its own: a package may ship a file that
-    # is not Python 3 (templates, examples), which nothing imports.
-    code = ("import compileall, sys, sysconfig; "
-            "compileall.compile_dir(sysconfig.get_paths()['purelib'], quiet=2, workers=0)")
+    # is not Python 3 (templates, examples), which nothing imports. The packages' own test
+    # suites (a third of the files: sympy's, scipy's, numpy's...) are left out: nothing
+    # imports them, and they were half of this step's CPU.
+    code = ("import compileall, re, sysconfig; "
+            "compileall.compile_dir(sysconfig.get_paths()['purelib'], quiet=2, workers=0, "
+            r"rx=re.compile(r'[/\\]tests?[/\\]'))")
     return start_logged("bytecode", [str(VENV_PY), "-c", code])
 
 
@@ -274,15 +305,17 @@ def step_cmake_paths() -> None:
             continue
         for old, new in repl:
             text = text.replace(old, new)
-        f.write_text(text)
+        tmp = f.with_name(f".{f.name}.tmp")  # a new file: never write through a shared inode
+        tmp.unlink(missing_ok=True)
+        tmp.write_text(text)
+        tmp.replace(f)
         changed += 1
     say(f"rewrote {WHEEL_BUILD_PYTHON} include paths in {changed} cmake files")
 
 
 def step_project() -> None:
-    say("pip install -e . (mechsim, no deps)")
-    run_logged("project", [str(VENV_PY), "-m", "pip", "install", "--no-deps",
-                           "--no-build-isolation", "-e", str(ROOT)])
+    say("uv pip install -e . (mechsim, no deps)")
+    run_logged("project", [*installer(), "--no-deps", "--no-build-isolation", "-e", str(ROOT)])
 
 
 def step_loops() -> Pending:
@@ -373,13 +406,16 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
         if re.match(r"\s*(ros-|catkin|setuptools)", ln, re.IGNORECASE)
     )
     build_key = hashlib.sha256(f"{venv_key}|{build_reqs}".encode()).hexdigest()[:16]
-    numerics_key = hashlib.sha256("|".join([venv_key, *numeric_pins()]).encode()).hexdigest()
+    numerics_key = hashlib.sha256("|".join([venv_key, requirement_pin("uv"), *numeric_pins()])
+                                  .encode()).hexdigest()
     # Background steps (npm, the loops) run beside the ones after them: npm from the start,
     # the loops once the numerical packages are in, while pip installs the rest.
     steps: list[tuple[str, str, Callable[[], Pending | None]]] = [
         ("venv", venv_key, step_venv),
         ("foxglove", sha256_files([FOXGLOVE / "package.json", FOXGLOVE / "package-lock.json"]),
          step_foxglove),
+        ("installer", hashlib.sha256(f"{venv_key}|{requirement_pin('uv')}".encode())
+         .hexdigest()[:16], step_installer),
         ("numerics", numerics_key[:16], step_numerics),
         ("loops", sha256_files([ROOT / f for f in LOOP_SOURCES], pip_key), step_loops),
         ("pip", pip_key, step_pip),
@@ -399,7 +435,7 @@ def bootstrap(force: bool = False) -> int:
     stamp = {} if force or not VENV_PY.exists() else load_stamp()
     try:
         steps = plan()
-    except OSError as e:
+    except (OSError, StepFailed) as e:
         print(f"bootstrap: FAILED: cannot read inputs: {e}", file=sys.stderr, flush=True)
         return 1
     if all(stamp.get(name) == key for name, key, _ in steps):
