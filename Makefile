@@ -4,10 +4,12 @@
 PYTHON3 ?= python3
 VENV    := .venv
 PROFILE := $(CURDIR)/src/mechsim/data/fastdds_loopback.xml
-# Two workers: three were faster on the process-heavy tests (177 s against 226 s) but, on a
-# loaded machine, left DDS discovery slower than the graph check's wait (duplicate-name and
-# cross-host tests failed in 2 of 2 clean runs).
-PYTEST_ARGS ?= -n 2
+# Three workers on two cores: a third of the suite's time is spent waiting (DDS discovery,
+# real-time runs, timeouts under test), which the third worker fills (cold suite 290 s against
+# 253 s). The tests that expect a start refused give the graph check a long discovery window
+# (MECHSIM_GRAPH_WAIT), which a conflict ends at once: a loaded machine's slow discovery made
+# them fail with three workers before.
+PYTEST_ARGS ?= -n 3
 
 # A guard variable of the ros-wheels .pth (it re-execs python with LD_LIBRARY_PATH set): when
 # inherited from another environment it would stop this venv's python from doing so.

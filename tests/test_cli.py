@@ -14,9 +14,10 @@ import pytest
 MECHSIM = [sys.executable, "-m", "mechsim.cli"]
 
 
-def run(args: list[str], env: dict[str, str], timeout: float = 120) -> subprocess.CompletedProcess:
+def run(args: list[str], env: dict[str, str], timeout: float = 120,
+        cwd: Path | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([*MECHSIM, *args], env=env, capture_output=True, text=True,
-                          timeout=timeout)
+                          timeout=timeout, cwd=cwd)
 
 
 @pytest.mark.parametrize("args, expected", [
@@ -151,3 +152,14 @@ def test_output_into_a_closed_pipe_is_quiet(ros_env: dict[str, str]) -> None:
     proc.stdout.close()  # like `mechsim systems | head -1`
     _, err = proc.communicate(timeout=120)
     assert "Traceback" not in err and proc.returncode == 0
+
+
+@pytest.mark.parametrize("args", [["run", "pendulum"], ["run", "pendulum", "--processes"],
+                                  ["record", "pendulum"]])
+def test_bad_discovery_window_is_one_line(args: list[str], ros_env: dict[str, str],
+                                          tmp_path: Path) -> None:
+    r = run([*args, "--duration", "0.1"], dict(ros_env, MECHSIM_GRAPH_WAIT="soon"),
+            cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("mechsim: error: MECHSIM_GRAPH_WAIT:"), lines

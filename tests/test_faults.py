@@ -464,9 +464,11 @@ def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Pa
         _pause("/rated/simulator")  # a fast run would load the machine for the whole test
         assert _parameter("/rated/simulator", "publish_rate") == 40.0
         assert _parameter("/rated/simulator", "real_time_factor") == 0.0
+        # A discovery window long enough for a loaded machine: refused once seen.
         dup = subprocess.run([PY, "-m", "mechsim.cli", "run", "pendulum", "--processes",
-                              "--name", "rated", "--fast", "--duration", "1"], env=ros_env,
-                             cwd=tmp_path, capture_output=True, text=True, timeout=300)
+                              "--name", "rated", "--fast", "--duration", "1"],
+                             env=dict(ros_env, MECHSIM_GRAPH_WAIT="120"), cwd=tmp_path,
+                             capture_output=True, text=True, timeout=300)
         assert dup.returncode == 2, dup.stderr
         assert "/rated/simulator is already running" in dup.stderr
     finally:

@@ -52,7 +52,15 @@ def _scene(name: str) -> Any:
                         "publish_rate": 20.0, "systems": [{"system": "kepler", "name": name}]})
 
 
-def test_second_node_with_the_same_name_refused(ros_context: Any, tmp_path: Path) -> None:
+@pytest.fixture
+def patient(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A discovery window long enough for a loaded machine: the conflict refuses the start
+    as soon as it is seen, so the window is a deadline, not a wait."""
+    monkeypatch.setenv("MECHSIM_GRAPH_WAIT", "120")
+
+
+def test_second_node_with_the_same_name_refused(ros_context: Any, tmp_path: Path,
+                                                patient: None) -> None:
     from mechsim.ros.record import run_with_outputs
 
     with running(ros_context, "twin"):
@@ -66,7 +74,7 @@ def test_second_node_with_the_same_name_refused(ros_context: Any, tmp_path: Path
         assert not (tmp_path / "b").exists()
 
 
-def test_second_clock_refused(ros_context: Any) -> None:
+def test_second_clock_refused(ros_context: Any, patient: None) -> None:
     with running(ros_context, "clocky", clock=True):
         with pytest.raises(MechsimError, match="/clock is already published .* by "
                            "/clocky/simulator"):
@@ -83,3 +91,22 @@ def test_a_name_that_no_longer_answers_does_not_block(ros_context: Any) -> None:
         assert run.samples == {"ghost": 5} and not run.failures
     finally:
         frozen.destroy_node()
+
+
+@pytest.mark.parametrize("raw", ["-1", "nan", "inf", "601", "two", "1e400"])
+def test_a_bad_discovery_window_is_one_line(raw: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MECHSIM_GRAPH_WAIT", raw)
+    with pytest.raises(MechsimError) as err:
+        run_scene(_scene("windowed"))
+    text = str(err.value)
+    assert text.startswith("MECHSIM_GRAPH_WAIT: ") and "0 … 600" in text and "\n" not in text
+
+
+def test_a_window_of_zero_starts_without_looking(ros_context: Any,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """``MECHSIM_GRAPH_WAIT=0``: no graph check (a run on a domain of its own), so a second
+    node of the same name is not refused."""
+    monkeypatch.setenv("MECHSIM_GRAPH_WAIT", "0")
+    with running(ros_context, "unchecked"):
+        run = run_scene(_scene("unchecked"))
+    assert run.samples == {"unchecked": 5} and not run.failures

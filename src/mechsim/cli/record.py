@@ -18,10 +18,11 @@ def cmd_record(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
     from mechsim.cli.common import check_duration, check_rate
     from mechsim.errors import ParameterError
-    from mechsim.ros.launch import join_graph
+    from mechsim.ros.launch import discovery_window, join_graph
     from mechsim.ros.record import bag_path, run_with_outputs
     from mechsim.scene import scene_from_target
 
+    discovery_window()  # a bad MECHSIM_GRAPH_WAIT is refused before anything starts
     join_graph()  # discovery runs while the scene is read
     scene = scene_from_target(a.target, a.set, a.name)
     if a.rate is not None:

@@ -15,11 +15,11 @@ def cmd_run(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
     from mechsim.cli.common import check_duration, check_rate
     from mechsim.errors import ParameterError
+    from mechsim.ros.launch import discovery_window, join_graph
     from mechsim.scene import scene_from_target
 
+    discovery_window()  # a bad MECHSIM_GRAPH_WAIT is refused before anything starts
     if a.only is None and not a.processes:
-        from mechsim.ros.launch import join_graph
-
         join_graph()  # discovery runs while the scene is read
     scene = scene_from_target(a.target, a.set, a.name)
     if a.rate is not None:

@@ -2,7 +2,8 @@
 per node (``--processes``). Used by ``mechsim run`` and ``mechsim record``.
 
 Graph hygiene. Before its simulator nodes exist, a scene looks at the graph (after a bounded
-discovery wait, ``GRAPH_WAIT``, overlapped with loading the models): an instance whose node
+discovery wait, ``GRAPH_WAIT`` or ``MECHSIM_GRAPH_WAIT`` seconds, 0 for no check, overlapped
+with loading the models; a conflict seen sooner refuses at once): an instance whose node
 ``/<name>/simulator`` already runs elsewhere on the ROS domain, or a ``/clock`` already
 published by another live node, stops the start with one line naming the running node (one
 clock per graph: sim-time consumers would see time jump). A name left in the graph by a killed
@@ -57,6 +58,10 @@ if TYPE_CHECKING:
 #: probe found a running node within 0.8 s in 8 of 8 tries on a quiet machine; 2 s leaves
 #: room for a loaded one).
 GRAPH_WAIT = 2.0
+#: Environment variable that sets the discovery window instead (seconds, 0 … 600): a loaded
+#: machine or a slow network may need more. A conflict seen earlier refuses at once, so a long
+#: window costs only a start that has none.
+GRAPH_WAIT_VARIABLE = "MECHSIM_GRAPH_WAIT"
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go;
 #: ``simulator._BLOCK`` at most). Measured on the slowest systems to record: 1000 against 500
 #: took the median real-time factor of three runs from 1029 to 1462 (cr3bp), 1270 to 1345
@@ -204,11 +209,27 @@ def _alive(node: Any, executor: Any, full_name: str, timeout: float) -> bool:
         node.destroy_client(client)
 
 
+def discovery_window() -> float:
+    """The discovery window of the graph check: ``MECHSIM_GRAPH_WAIT`` seconds if set (a
+    ParameterError naming it if it is not a number in 0 … 600), else ``GRAPH_WAIT``."""
+    raw = os.environ.get(GRAPH_WAIT_VARIABLE, "").strip()
+    if not raw:
+        return GRAPH_WAIT
+    try:
+        seconds = float(raw)
+    except ValueError:
+        seconds = math.nan
+    if not 0.0 <= seconds <= 600.0:
+        raise ParameterError(GRAPH_WAIT_VARIABLE, f"{raw[:20]!r} is not a number of seconds "
+                             "in 0 … 600")
+    return seconds
+
+
 class GraphCheck:
     """Refuse (MechsimError, one line) to start simulator nodes whose names a live node of
     the domain already uses, or a second /clock. Made before the models are built, so that
     discovery (which starts with this probe's participant) runs meanwhile; :meth:`check` waits
-    for the rest of ``GRAPH_WAIT``, then looks."""
+    for the rest of the discovery window, refusing as soon as it sees a conflict."""
 
     def __init__(self, context: Any, started: float | None = None) -> None:
         """``started``: when ``context`` joined the graph (discovery began), if earlier."""
@@ -222,25 +243,41 @@ class GraphCheck:
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.probe)
 
-    def check(self, names: list[str], clock: bool, wait: float = GRAPH_WAIT) -> None:
+    def check(self, names: list[str], clock: bool, wait: float | None = None) -> None:
+        """Refuse as soon as a live conflict is seen; start once ``wait`` seconds (from
+        joining; default: ``discovery_window()``) passed without one."""
+        end = self.started + (discovery_window() if wait is None else wait)
+        gone: set[str] = set()  # found in the graph, did not answer: not asked again
+        while True:
+            self._refuse_conflict(names, clock, gone)
+            left = end - time.monotonic()
+            if left <= 0:
+                return
+            self.executor.spin_once(timeout_sec=min(0.05, left))
+
+    def _refuse_conflict(self, names: list[str], clock: bool, gone: set[str]) -> None:
         probe, executor = self.probe, self.executor
         domain = self.context.get_domain_id()
-        while time.monotonic() < self.started + wait:
-            executor.spin_once(timeout_sec=min(0.05, max(0.0, self.started + wait
-                                                         - time.monotonic())))
+
+        def alive(full: str) -> bool:
+            if full in gone:
+                return False
+            if _alive(probe, executor, full, LIVENESS_TIMEOUT):
+                return True
+            gone.add(full)
+            return False
+
         present = {(ns, n) for n, ns in probe.get_node_names_and_namespaces()}
         for name in names:
             full = f"/{name}/simulator"
-            if (f"/{name}", "simulator") in present and _alive(probe, executor, full,
-                                                                LIVENESS_TIMEOUT):
+            if (f"/{name}", "simulator") in present and alive(full):
                 raise MechsimError(f"instance {name!r}: {full} is already running on ROS "
                                    f"domain {domain}; stop it or give this instance another "
                                    "name (--name, or `name:` in the scene)")
         if clock:
             for info in probe.get_publishers_info_by_topic("/clock"):
-                ns = info.node_namespace.rstrip("/")
-                full = f"{ns}/{info.node_name}"
-                if _alive(probe, executor, full, LIVENESS_TIMEOUT):
+                full = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                if alive(full):
                     raise MechsimError(f"/clock is already published on ROS domain {domain} "
                                        f"by {full}: one clock per graph (stop that scene, run "
                                        "the systems in one scene, or use another "
@@ -258,7 +295,8 @@ _joined: tuple[Any, float] | None = None
 def join_graph() -> None:
     """Join the ROS graph now: a command calls this first thing, so that discovery runs while
     it imports the systems and parses its scene (over a second), and its run then waits only
-    for what is left of ``GRAPH_WAIT``. The next ``run_scene`` without a context takes it."""
+    for what is left of the discovery window. The next ``run_scene`` without a context takes
+    it."""
     global _joined
     from mechsim.environment import import_rclpy
 
@@ -290,7 +328,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     """Run every system of ``scene`` in this process until ``duration`` (simulated seconds)
     or Ctrl-C / SIGTERM. ``fast``: as fast as possible instead of the scene's pacing.
     ``graph_wait``: discovery seconds before the graph check (0: no check); by default
-    ``GRAPH_WAIT`` when this call makes its own context (a command), none with a caller's
+    ``discovery_window()`` when this call makes its own context (a command), none with a caller's
     context (the caller, e.g. a test or a host application, owns its graph).
     ``lossless``: every reliable subscriber gets every sample (the run waits for the slowest);
     ``before_first_message``: called with each simulator node before it publishes."""
@@ -312,7 +350,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
         assert _joined is not None
         (context, joined_at), _joined = _joined, None
     if graph_wait is None:
-        graph_wait = GRAPH_WAIT if own_context else 0.0
+        graph_wait = discovery_window() if own_context else 0.0
     fast = (scene.pacing == "fast" or scene.real_time_factor == 0) if fast is None else fast
     duration = duration if duration is not None else scene.duration
     sinks = list(sinks or [])
@@ -660,12 +698,15 @@ def run_single_node(scene: Scene, which: str | None, *, fast: bool = False,
             if which not in names:
                 raise ParameterError("--node", f"no instance {which!r} in the scene")
             idx = names.index(which)
-            graph = GraphCheck(context)
+            window = discovery_window()
+            graph = GraphCheck(context) if window > 0 else None
             try:
                 _warm(scene)
-                graph.check([which], idx == 0)
+                if graph is not None:
+                    graph.check([which], idx == 0, window)
             finally:
-                graph.close()
+                if graph is not None:
+                    graph.close()
             rtf = 0.0 if fast or scene.pacing == "fast" else scene.real_time_factor
             waits = bool(readers or recorder)
             late: list[str] = []
