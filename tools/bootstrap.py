@@ -8,7 +8,8 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
              with (skipped, with a note, where node or npm is missing; that test then skips);
              in the background from here on;
 3. installer pip install the pinned uv (requirements.txt), which installs the rest: it
-             downloads in parallel and unpacks in native code, in a third of pip's time;
+             downloads in parallel and unpacks in native code, in a third of pip's time
+             (pip does, where uv cannot be installed or fails);
    numerics  install the pins of numpy, scipy, sympy, numba and pyyaml from
              requirements.txt: what the next step imports;
 4. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
@@ -236,31 +237,46 @@ def requirement_pin(name: str) -> str:
 UV = VENV / "bin" / "uv"
 
 
-def installer() -> list[str]:
-    """The command that installs into the venv: uv's pip interface. Neither uv nor pip
-    byte-compiles here: compiling is half of pip's CPU and runs on one core; step ``bytecode``
-    compiles the venv afterwards on every core, beside the interface builds. It must not be
-    left out: with PYTHONDONTWRITEBYTECODE set, as on some machines, nothing else would write
-    the .pyc files and every process would compile sympy, scipy and numba from source (a cold
-    test run took twice the CPU). Files are copied out of uv's cache, not hard-linked: step
-    ``cmake-paths`` edits installed files, which must not change the cache's copies."""
-    return [str(UV), "pip", "install", "--python", str(VENV_PY), "--link-mode", "copy"]
+def install(step: str, args: list[str]) -> None:
+    """Install ``args`` (pip's arguments after ``install``) into the venv with uv's pip
+    interface, or with pip where uv is missing or fails (uv reads none of pip's settings: an
+    index or certificate configured for pip alone), saying so.
+
+    Neither byte-compiles here: compiling is half of pip's CPU and runs on one core; step
+    ``bytecode`` compiles the venv afterwards on every core, beside the interface builds. It
+    must not be left out: with PYTHONDONTWRITEBYTECODE set, as on some machines, nothing else
+    would write the .pyc files and every process would compile sympy, scipy and numba from
+    source (a cold test run took twice the CPU). uv copies files out of its cache rather than
+    hard-linking them: step ``cmake-paths`` edits installed files, which must not change the
+    cache's copies."""
+    if UV.exists():
+        try:
+            run_logged(step, [str(UV), "pip", "install", "--python", str(VENV_PY),
+                              "--link-mode", "copy", *args])
+            return
+        except StepFailed as e:
+            say(f"uv failed ({e.reason}); installing with pip instead")
+    run_logged(step, [str(VENV_PY), "-m", "pip", "install", "--no-compile", *args],
+               append=UV.exists())
 
 
 def step_installer() -> None:
     say("pip install uv (the installer of the next steps)")
-    run_logged("installer", [str(VENV_PY), "-m", "pip", "install", "--no-compile",
-                             requirement_pin("uv")])
+    try:
+        run_logged("installer", [str(VENV_PY), "-m", "pip", "install", "--no-compile",
+                                 requirement_pin("uv")])
+    except StepFailed as e:
+        say(f"no uv ({e.reason}): pip installs the rest")
 
 
 def step_numerics() -> None:
-    say("uv pip install numpy, scipy, sympy, numba, pyyaml (for the loops, first)")
-    run_logged("numerics", [*installer(), *numeric_pins()])
+    say("install numpy, scipy, sympy, numba, pyyaml (for the loops, first)")
+    install("numerics", numeric_pins())
 
 
 def step_pip() -> None:
-    say("uv pip install -r requirements.txt (about 10 s in a new venv)")
-    run_logged("pip", [*installer(), "-r", str(REQUIREMENTS)])
+    say("install -r requirements.txt (about 10 s with uv in a new venv, 30 s with pip)")
+    install("pip", ["-r", str(REQUIREMENTS)])
 
 
 def step_bytecode() -> Pending:
@@ -314,8 +330,8 @@ def step_cmake_paths() -> None:
 
 
 def step_project() -> None:
-    say("uv pip install -e . (mechsim, no deps)")
-    run_logged("project", [*installer(), "--no-deps", "--no-build-isolation", "-e", str(ROOT)])
+    say("install -e . (mechsim, no deps)")
+    install("project", ["--no-deps", "--no-build-isolation", "-e", str(ROOT)])
 
 
 def step_loops() -> Pending:
