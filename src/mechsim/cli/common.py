@@ -6,6 +6,13 @@ from __future__ import annotations
 import sys
 from typing import Any
 
+#: What a verb that starts nodes reads from the environment (the end of its --help).
+NODE_ENVIRONMENT = (
+    "environment: ROS_DOMAIN_ID (the graph); MECHSIM_GRAPH_WAIT (seconds of DDS discovery in "
+    "which a start is refused if its instance name or /clock is in use; default 2, 0: no "
+    "check); MECHSIM_DDS_INTERFACE and MECHSIM_DDS_PEERS (several hosts, opt-in); "
+    "MECHSIM_CACHE_DIR (the generated kernels)")
+
 
 def check_duration(value: float) -> float:
     """``--duration``: simulated seconds, in the range scenes and nodes accept."""

@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from mechsim.cli.common import print_summary, progress_bar, say
+from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
 from mechsim.ros.process import stop_on_sigterm
 from mechsim.ros.record import DEFAULT_BAG
 
@@ -52,7 +52,7 @@ def cmd_record(a: argparse.Namespace) -> int:
 
 def add_parser(sub: Any) -> None:
     r = sub.add_parser("record", help="run a scene as fast as possible and record every "
-                       "message to a rosbag2 (MCAP) bag")
+                       "message to a rosbag2 (MCAP) bag", epilog=NODE_ENVIRONMENT)
     r.add_argument("target", help="scene YAML file or system id")
     r.add_argument("--duration", type=float, help="simulated seconds (default: the scene's)")
     r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",

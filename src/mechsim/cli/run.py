@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from mechsim.cli.common import print_summary, progress_bar, say
+from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
 from mechsim.outputs.rerun_live import DEFAULT_CONNECT
 from mechsim.ros.process import stop_on_sigterm
 
@@ -141,7 +141,8 @@ def _live_view(a: argparse.Namespace) -> tuple[Any, str | None]:
 
 
 def add_parser(sub: Any) -> None:
-    r = sub.add_parser("run", help="run a scene file or a single system")
+    r = sub.add_parser("run", help="run a scene file or a single system",
+                       epilog=NODE_ENVIRONMENT)
     r.add_argument("target", help="scene YAML file or system id")
     r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="parameter override; INSTANCE:NAME=VALUE for one instance")
