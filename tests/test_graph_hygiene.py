@@ -4,6 +4,7 @@ longer answers (a killed process) does not block a start."""
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -110,3 +111,92 @@ def test_a_window_of_zero_starts_without_looking(ros_context: Any,
     with running(ros_context, "unchecked"):
         run = run_scene(_scene("unchecked"))
     assert run.samples == {"unchecked": 5} and not run.failures
+
+
+class _Future:
+    def __init__(self) -> None:
+        self.answered = False
+
+    def done(self) -> bool:
+        return self.answered
+
+
+class _Client:
+    """A parameter-service client whose service is discovered at ``ready_at`` and answers
+    requests if ``answers``."""
+
+    def __init__(self, clock: list[float], ready_at: float, answers: bool) -> None:
+        self.clock, self.ready_at, self.answers = clock, ready_at, answers
+        self.asked: list[_Future] = []
+
+    def service_is_ready(self) -> bool:
+        return self.clock[0] >= self.ready_at
+
+    def call_async(self, request: Any) -> _Future:
+        future = _Future()
+        future.answered = self.answers
+        self.asked.append(future)
+        return future
+
+
+class _Node:
+    def __init__(self, client: _Client) -> None:
+        self.client = client
+
+    def create_client(self, kind: Any, name: str) -> _Client:
+        assert name == "/twin/simulator/list_parameters"
+        return self.client
+
+
+def _polls(client: _Client, seen: float, end: float, until: float) -> list[tuple[float, Any]]:
+    """(time, answer) of a liveness probe polled every 50 ms from ``seen`` to ``until``."""
+    from mechsim.ros.launch import _Liveness
+
+    clock = client.clock
+    clock[0] = seen
+    probe = _Liveness(_Node(client), "/twin/simulator", seen)
+    answers = []
+    while clock[0] <= until:
+        answers.append((clock[0], probe.poll(clock[0], end)))
+        clock[0] = round(clock[0] + 0.05, 10)
+    return answers
+
+
+def test_a_node_whose_service_is_discovered_late_still_counts() -> None:
+    """Found in the graph at 1 s, its parameter service discovered only at 6 s (a loaded
+    machine), inside a 120 s window: undecided until then, then alive (it was given up as
+    gone after 2 s before, and a second node of its name started)."""
+    client = _Client([0.0], ready_at=6.0, answers=True)
+    answers = _polls(client, seen=1.0, end=120.0, until=6.5)
+    assert all(a is None for t, a in answers if t < 6.0)
+    assert any(a is True for t, a in answers if t >= 6.0)
+
+
+def test_a_node_that_never_answers_is_gone_after_the_liveness_timeout() -> None:
+    """Its service discovered but silent (a frozen node, a killed process's entry): asked
+    again every 0.5 s, gone 2 s after the first request, within a long window too."""
+    from mechsim.ros.launch import ASK_AGAIN, LIVENESS_TIMEOUT
+
+    client = _Client([0.0], ready_at=0.0, answers=False)
+    answers = _polls(client, seen=1.0, end=120.0, until=4.0)
+    assert all(a is None for t, a in answers if t < 1.0 + LIVENESS_TIMEOUT)
+    assert all(a is False for t, a in answers if t >= 1.0 + LIVENESS_TIMEOUT)
+    assert len(client.asked) == round(LIVENESS_TIMEOUT / ASK_AGAIN)  # then no more
+
+
+def test_a_node_never_reachable_is_gone_at_the_end_of_the_window() -> None:
+    """Never discovered: undecided until the window ends, or the liveness timeout after it
+    was seen, whichever is later; then gone (the start goes ahead)."""
+    client = _Client([0.0], ready_at=1e9, answers=True)
+    answers = _polls(client, seen=0.5, end=2.0, until=3.0)
+    assert all(a is None for t, a in answers if t < 2.5)
+    assert all(a is False for t, a in answers if t >= 2.5)
+    assert not client.asked
+
+
+@pytest.mark.parametrize("seconds", [math.inf, math.nan, -0.5, 601.0])
+def test_a_bad_graph_wait_argument_is_refused(seconds: float) -> None:
+    """``run_scene(graph_wait=inf)`` looped for ever without a conflict; nan skipped the
+    check without a word."""
+    with pytest.raises(MechsimError, match="^graph_wait: .* 0 … 600$"):
+        run_scene(_scene("argued"), graph_wait=seconds)

@@ -60,16 +60,24 @@ def test_a_timeout_reports_what_arrived_by_the_deadline(mechsim_graph: Any) -> N
 
 
 def test_workers_get_their_own_domain_and_a_nested_run_keeps_it(tmp_path: Path) -> None:
-    """Two xdist workers: two ROS domains; a pytest run started by a test of a worker (it
+    """Two xdist workers: two ROS domains. A pytest run started by a test of a worker (it
     inherits ``PYTEST_XDIST_WORKER`` and the worker's domain id) stays on that worker's
-    domain. Moved again, the nested run of worker gw1 landed on worker gw2's graph, where a
-    pendulum of that nested run made another test's refused ``--processes`` run fail."""
+    domain; moved again, the nested run of worker gw1 landed on worker gw2's graph, where a
+    pendulum of that nested run made another test's refused ``--processes`` run fail. A nested
+    run with workers of its own: its gw0 on the worker's domain, its gw1 on none of the outer
+    workers' domains (moved as a top-level gw1, the nested gw1 of outer gw0 landed on outer
+    gw1's graph)."""
     (tmp_path / "test_outer.py").write_text(textwrap.dedent("""\
         import os, subprocess, sys
         import pytest
 
-        INNER = "import os\\ndef test_in():\\n    " \\
-            "open(os.environ['SEEN'], 'w').write(os.environ['ROS_DOMAIN_ID'])\\n"
+        INNER = (
+            "import os, pytest\\n"
+            "@pytest.mark.parametrize('j', range(2))\\n"
+            "def test_in(j):\\n"
+            "    with open(os.environ['SEEN'] + f'-{j}', 'w') as f:\\n"
+            "        f.write(os.environ.get('PYTEST_XDIST_WORKER', '-') + ' '\\n"
+            "                + os.environ['ROS_DOMAIN_ID'])\\n")
 
         @pytest.mark.parametrize("k", range(4))
         def test_outer(k, tmp_path):
@@ -78,22 +86,38 @@ def test_workers_get_their_own_domain_and_a_nested_run_keeps_it(tmp_path: Path) 
                 f.write(os.environ["PYTEST_XDIST_WORKER"] + " " + os.environ["ROS_DOMAIN_ID"])
             (tmp_path / "test_in.py").write_text(INNER)
             env = dict(os.environ, SEEN=f"{seen}/inner-{k}")
+            workers = ["-n", "2"] if k in (1, 2) else []
             done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p",
-                                   "no:cacheprovider", "test_in.py"], cwd=tmp_path, env=env)
+                                   "no:cacheprovider", *workers, "test_in.py"],
+                                  cwd=tmp_path, env=env)
             assert done.returncode == 0
         """))
     (tmp_path / "seen").mkdir()
     env = {k: v for k, v in os.environ.items()
            if k not in ("PYTEST_XDIST_WORKER", "PYTEST_XDIST_WORKER_COUNT",
-                        "_MECHSIM_DOMAIN_SET_BY", "PYTEST_ADDOPTS")}
+                        "_MECHSIM_DOMAIN_SET_BY", "_MECHSIM_TAKEN_DOMAINS", "PYTEST_ADDOPTS")}
     env["ROS_DOMAIN_ID"] = "7"
     run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
                           "-n", "2", "test_outer.py"], cwd=tmp_path, env=env,
                          capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
-    outer = {k: (tmp_path / "seen" / f"outer-{k}").read_text().split() for k in range(4)}
-    domains = {worker: domain for worker, domain in outer.values()}
-    assert set(domains) == {"gw0", "gw1"} or len(domains) == 1, outer
-    assert len(set(domains.values())) == len(domains), domains  # one domain per worker
+
+    def seen(name: str) -> tuple[str, str]:
+        worker, domain = (tmp_path / "seen" / name).read_text().split()
+        return worker, domain
+
+    outer = {k: seen(f"outer-{k}") for k in range(4)}
+    domains = dict(outer.values())
+    assert set(domains) == {"gw0", "gw1"}, outer  # xdist hands 4 tests to 2 workers 2 / 2
+    assert len(set(domains.values())) == 2, domains  # one domain per worker
+    # Tests 1 and 2 (nested runs with workers) went to different workers, in chunks or in turn.
+    assert {outer[1][0], outer[2][0]} == {"gw0", "gw1"}, outer
     for k, (_worker, domain) in outer.items():
-        assert (tmp_path / "seen" / f"inner-{k}").read_text() == domain, (k, domain)
+        inner = [seen(f"inner-{k}-{j}") for j in range(2)]
+        if k in (0, 3):  # a plain nested run: on its worker's domain
+            assert all(d == domain for _, d in inner), (k, outer, inner)
+        else:  # a nested run with two workers (one test each), in either outer worker
+            mine = dict(inner)
+            assert set(mine) == {"gw0", "gw1"}, inner
+            assert mine["gw0"] == domain and mine["gw1"] not in domains.values(), (
+                outer, inner)

@@ -256,8 +256,15 @@ def install(step: str, args: list[str]) -> None:
             return
         except StepFailed as e:
             say(f"uv failed ({e.reason}); installing with pip instead")
-    run_logged(step, [str(VENV_PY), "-m", "pip", "install", "--no-compile", *args],
-               append=UV.exists())
+    else:
+        say("no uv in the venv: installing with pip")
+    # A log of its own: a failure names pip's error, not uv's.
+    run_logged(f"{step}-pip", [str(VENV_PY), "-m", "pip", "install", "--no-compile", *args])
+
+
+class NotDone(Exception):
+    """A step that failed without stopping the set-up: not recorded as done, so the next
+    run tries it again."""
 
 
 def step_installer() -> None:
@@ -267,6 +274,7 @@ def step_installer() -> None:
                                  requirement_pin("uv")])
     except StepFailed as e:
         say(f"no uv ({e.reason}): pip installs the rest")
+        raise NotDone from e
 
 
 def step_numerics() -> None:
@@ -285,9 +293,11 @@ def step_bytecode() -> Pending:
     # is not Python 3 (templates, examples), which nothing imports. The packages' own test
     # suites (a third of the files: sympy's, scipy's, numpy's...) are left out: nothing
     # imports them, and they were half of this step's CPU.
-    code = ("import compileall, re, sysconfig; "
-            "compileall.compile_dir(sysconfig.get_paths()['purelib'], quiet=2, workers=0, "
-            r"rx=re.compile(r'[/\\]tests?[/\\]'))")
+    # The pattern is matched against whole paths: anchored at site-packages, so that a
+    # checkout under a directory named tests is still compiled.
+    code = ("import compileall, re, sysconfig; p = sysconfig.get_paths()['purelib']; "
+            "compileall.compile_dir(p, quiet=2, workers=0, "
+            r"rx=re.compile(re.escape(p) + r'[/\\](.*[/\\])?tests?[/\\]'))")
     return start_logged("bytecode", [str(VENV_PY), "-c", code])
 
 
@@ -471,7 +481,10 @@ def bootstrap(force: bool = False) -> int:
                     stamp.pop(stale, None)
                 if VENV.is_dir():
                     save_stamp(stamp)
-                running = action()
+                try:
+                    running = action()
+                except NotDone:
+                    continue
                 if running is not None:  # stamped once it has finished
                     pending.append((name, key, running))
                     continue

@@ -52,24 +52,54 @@ _DOMAIN_IDS = [*range(1, 102), *range(215, 233)]
 DEFAULT_TIMEOUT = 120.0
 
 
-def session_domain_id(worker: str | None = None) -> int:
-    """ROS_DOMAIN_ID if set (checked), else one from the process id; xdist worker ``gwK``
-    (``worker``) is moved K·41 places along the valid ids, so parallel workers never share a
-    graph. Only a real worker moves: a pytest run started by a test inherits the worker's
-    ``PYTEST_XDIST_WORKER`` and already-moved id, and must stay on that id (moved again, the
-    nested run of worker gw1 landed on worker gw2's graph)."""
+#: The domain ids of the xdist workers around a nested session (set by each worker for the
+#: pytest runs its tests start).
+_TAKEN = "_MECHSIM_TAKEN_DOMAINS"
+
+
+def _requested_domain_id() -> int:
+    """ROS_DOMAIN_ID if set (checked), else one from the process id."""
     raw = os.environ.get("ROS_DOMAIN_ID", "").strip()
     if raw:
         if not raw.isdigit() or not valid_domain_id(int(raw)):
             raise pytest.UsageError(f"ROS_DOMAIN_ID={raw[:20]!r}: not in 0..101 or 215..232")
-        domain_id = int(raw)
-    else:
-        domain_id = _DOMAIN_IDS[os.getpid() % 101]
-    if worker and worker.startswith("gw") and worker[2:].isdigit() \
-            and domain_id in _DOMAIN_IDS:
-        k = int(worker[2:])
-        domain_id = _DOMAIN_IDS[(_DOMAIN_IDS.index(domain_id) + 41 * k) % len(_DOMAIN_IDS)]
-    return domain_id
+        return int(raw)
+    return _DOMAIN_IDS[os.getpid() % 101]
+
+
+def worker_domain_ids(base: int, count: int, taken: set[int]) -> list[int]:
+    """The domain ids of xdist workers gw0 … gw(count−1) of a session asked to run on
+    ``base``, all different: gw0 keeps ``base``; gwK moves K·41 places along the valid ids.
+    In a session started by a test of another session's worker (``taken``: the ids of the
+    workers around it), gw0 keeps ``base`` (the worker that started it waits for it) and the
+    others take the next valid ids that no worker around uses."""
+    n = len(_DOMAIN_IDS)
+    start = _DOMAIN_IDS.index(base) if base in _DOMAIN_IDS else 0
+    if not taken:
+        return [base, *(_DOMAIN_IDS[(start + 41 * k) % n] for k in range(1, count))]
+    ids = [base]
+    for step in range(1, n):
+        if len(ids) == count:
+            break
+        candidate = _DOMAIN_IDS[(start + step) % n]
+        if candidate not in taken and candidate not in ids:
+            ids.append(candidate)
+    return ids + [ids[-1]] * (count - len(ids))  # more workers than free ids: shared
+
+
+def session_domain_id(worker: str | None = None, count: int = 1) -> int:
+    """The session's domain id: ROS_DOMAIN_ID if set (checked), else one from the process
+    id; as xdist worker ``worker`` (``gwK``) of ``count``, its own (``worker_domain_ids``).
+    Only a real worker moves: a pytest run started by a test inherits the worker's
+    ``PYTEST_XDIST_WORKER`` and moved id, and stays on it (moved again, the nested run of
+    worker gw1 landed on worker gw2's graph)."""
+    base = _requested_domain_id()
+    if not (worker and worker.startswith("gw") and worker[2:].isdigit()):
+        return base
+    taken = {int(t) for t in os.environ.get(_TAKEN, "").split(",") if t.isdigit()}
+    ids = worker_domain_ids(base, max(count, int(worker[2:]) + 1), taken)
+    os.environ[_TAKEN] = ",".join(str(i) for i in sorted(taken | set(ids)))
+    return ids[int(worker[2:])]
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -78,8 +108,9 @@ def pytest_configure(config: pytest.Config) -> None:
     if os.environ.get("_MECHSIM_DOMAIN_SET_BY") == str(os.getpid()):
         return  # this process is configured already (the plugin loaded twice)
     # ``workerinput`` exists only in a pytest-xdist worker process.
-    worker = getattr(config, "workerinput", {}).get("workerid")
-    configure_ros_environment(session_domain_id(worker))
+    workerinput = getattr(config, "workerinput", {})
+    configure_ros_environment(session_domain_id(workerinput.get("workerid"),
+                                                int(workerinput.get("workercount", 1))))
     os.environ["_MECHSIM_DOMAIN_SET_BY"] = str(os.getpid())
 
 

@@ -188,25 +188,52 @@ class DiagnosticsFeed:
 
 
 # --- graph hygiene ------------------------------------------------------------------------
-def _alive(node: Any, executor: Any, full_name: str, timeout: float) -> bool:
-    """Does the node ``full_name`` answer on its parameter service within ``timeout``?"""
-    from rcl_interfaces.srv import ListParameters
+#: Seconds between requests to a node found in the graph (a request sent the moment its
+#: service is discovered can lose its response).
+ASK_AGAIN = 0.5
 
-    client = node.create_client(ListParameters, f"{full_name}/list_parameters")
-    try:
-        end = time.monotonic() + timeout
-        while not client.service_is_ready():
-            if time.monotonic() >= end:
+
+class _Liveness:
+    """Does one node found in the graph answer on its parameter service? One client for the
+    whole check, asked again every ``ASK_AGAIN`` s, polled without blocking."""
+
+    def __init__(self, node: Any, full_name: str, now: float) -> None:
+        from rcl_interfaces.srv import ListParameters
+
+        self.request = ListParameters.Request(depth=1)
+        self.client = node.create_client(ListParameters, f"{full_name}/list_parameters")
+        self.seen = now
+        self.first_asked: float | None = None
+        self.last_asked = 0.0
+        self.futures: list[Any] = []
+
+    def poll(self, now: float, end: float) -> bool | None:
+        """True: it answered. False: gone (asked for ``LIVENESS_TIMEOUT`` s without an
+        answer, a frozen node or a killed process's entry; or its service never reachable by
+        the end of the window and ``LIVENESS_TIMEOUT`` s after it was seen). None: not known
+        yet (its service not discovered yet, or asked less than ``LIVENESS_TIMEOUT`` s ago)."""
+        if any(f.done() for f in self.futures):
+            return True
+        if self.client.service_is_ready():
+            if self.first_asked is None:
+                self.first_asked = now
+            elif now - self.first_asked >= LIVENESS_TIMEOUT:
                 return False
-            executor.spin_once(timeout_sec=0.05)
-        future = client.call_async(ListParameters.Request(depth=1))
-        while not future.done():
-            if time.monotonic() >= end:
-                return False
-            executor.spin_once(timeout_sec=0.05)
-        return True
-    finally:
-        node.destroy_client(client)
+            elif now - self.last_asked < ASK_AGAIN:
+                return None
+            self.futures.append(self.client.call_async(self.request))
+            self.last_asked = now
+            return None
+        return False if now >= max(end, self.seen + LIVENESS_TIMEOUT) else None
+
+
+def _window(seconds: float, field: str, given: str | None = None) -> float:
+    """``seconds`` if it is a discovery window (0 … 600 s), else a ParameterError naming
+    ``field`` and what was ``given`` (default: ``seconds``)."""
+    if not 0.0 <= seconds <= 600.0:
+        shown = str(seconds) if given is None else given
+        raise ParameterError(field, f"{shown[:20]!r} is not a number of seconds in 0 … 600")
+    return seconds
 
 
 def discovery_window() -> float:
@@ -219,10 +246,7 @@ def discovery_window() -> float:
         seconds = float(raw)
     except ValueError:
         seconds = math.nan
-    if not 0.0 <= seconds <= 600.0:
-        raise ParameterError(GRAPH_WAIT_VARIABLE, f"{raw[:20]!r} is not a number of seconds "
-                             "in 0 … 600")
-    return seconds
+    return _window(seconds, GRAPH_WAIT_VARIABLE, raw)
 
 
 class GraphCheck:
@@ -242,48 +266,49 @@ class GraphCheck:
                           start_parameter_services=False)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.probe)
+        self._liveness: dict[str, _Liveness] = {}
 
     def check(self, names: list[str], clock: bool, wait: float | None = None) -> None:
-        """Refuse as soon as a live conflict is seen; start once ``wait`` seconds (from
-        joining; default: ``discovery_window()``) passed without one."""
+        """Refuse as soon as a node in the way answers; start once ``wait`` seconds (from
+        joining; default: ``discovery_window()``) passed and every node found in the way
+        is known to be gone."""
         end = self.started + (discovery_window() if wait is None else wait)
-        gone: set[str] = set()  # found in the graph, did not answer: not asked again
         while True:
-            self._refuse_conflict(names, clock, gone)
-            left = end - time.monotonic()
-            if left <= 0:
+            now = time.monotonic()
+            undecided = False
+            for full, conflict in self._in_the_way(names, clock):
+                liveness = self._liveness.get(full)
+                if liveness is None:
+                    liveness = self._liveness[full] = _Liveness(self.probe, full, now)
+                answer = liveness.poll(now, end)
+                if answer:
+                    raise MechsimError(conflict)
+                undecided = undecided or answer is None
+            if now >= end and not undecided:
                 return
-            self.executor.spin_once(timeout_sec=min(0.05, left))
+            self.executor.spin_once(timeout_sec=0.05)
 
-    def _refuse_conflict(self, names: list[str], clock: bool, gone: set[str]) -> None:
-        probe, executor = self.probe, self.executor
+    def _in_the_way(self, names: list[str], clock: bool) -> Iterator[tuple[str, str]]:
+        """(full node name, the refusal if it is alive) for every node in the graph now that
+        an instance name or the clock would clash with."""
         domain = self.context.get_domain_id()
-
-        def alive(full: str) -> bool:
-            if full in gone:
-                return False
-            if _alive(probe, executor, full, LIVENESS_TIMEOUT):
-                return True
-            gone.add(full)
-            return False
-
-        present = {(ns, n) for n, ns in probe.get_node_names_and_namespaces()}
+        present = {(ns, n) for n, ns in self.probe.get_node_names_and_namespaces()}
         for name in names:
             full = f"/{name}/simulator"
-            if (f"/{name}", "simulator") in present and alive(full):
-                raise MechsimError(f"instance {name!r}: {full} is already running on ROS "
-                                   f"domain {domain}; stop it or give this instance another "
-                                   "name (--name, or `name:` in the scene)")
+            if (f"/{name}", "simulator") in present:
+                yield full, (f"instance {name!r}: {full} is already running on ROS domain "
+                             f"{domain}; stop it or give this instance another name "
+                             "(--name, or `name:` in the scene)")
         if clock:
-            for info in probe.get_publishers_info_by_topic("/clock"):
+            for info in self.probe.get_publishers_info_by_topic("/clock"):
                 full = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-                if alive(full):
-                    raise MechsimError(f"/clock is already published on ROS domain {domain} "
-                                       f"by {full}: one clock per graph (stop that scene, run "
-                                       "the systems in one scene, or use another "
-                                       "ROS_DOMAIN_ID)")
+                yield full, (f"/clock is already published on ROS domain {domain} by {full}: "
+                             "one clock per graph (stop that scene, run the systems in one "
+                             "scene, or use another ROS_DOMAIN_ID)")
 
     def close(self) -> None:
+        for liveness in self._liveness.values():
+            self.probe.destroy_client(liveness.client)
         self.executor.shutdown()
         self.probe.destroy_node()
 
@@ -344,13 +369,16 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
 
     global _joined
     own_context = context is None
+    # Before this call makes a context: a refused window must not leave one behind.
+    if graph_wait is None:
+        graph_wait = discovery_window() if own_context else 0.0
+    else:
+        graph_wait = _window(float(graph_wait), "graph_wait")
     joined_at = None
     if own_context:
         join_graph()  # unless the command already did
         assert _joined is not None
         (context, joined_at), _joined = _joined, None
-    if graph_wait is None:
-        graph_wait = discovery_window() if own_context else 0.0
     fast = (scene.pacing == "fast" or scene.real_time_factor == 0) if fast is None else fast
     duration = duration if duration is not None else scene.duration
     sinks = list(sinks or [])
