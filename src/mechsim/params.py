@@ -225,6 +225,11 @@ ERROR_DRIFT = Parameter("error_drift", 1e-3, "",
 # Stamps are simulation time + an offset in builtin_interfaces/Time, whose seconds are int32.
 DURATION = Parameter("duration", 10.0, "s", "simulated seconds", minimum=0.0, maximum=1e9,
                      exclusive_minimum=True)
+# The graph check before a command's nodes start (``mechsim.ros.launch``); 2 s: see there.
+DISCOVERY_WINDOW = Parameter("graph_wait", 2.0, "s",
+                             "seconds of DDS discovery in which a start is refused if its "
+                             "instance name or /clock is in use (0: no check)",
+                             minimum=0.0, maximum=600.0)
 # The effort input of a simulator node (``<ns>/effort``, see ``mechsim.ros.simulator``).
 EFFORT_TIMEOUT = Parameter("effort_timeout", 0.5, "s",
                            "simulated seconds an effort command is held after it takes effect; "

@@ -69,22 +69,20 @@ def _requested_domain_id() -> int:
 
 def worker_domain_ids(base: int, count: int, taken: set[int]) -> list[int]:
     """The domain ids of xdist workers gw0 … gw(count−1) of a session asked to run on
-    ``base``, all different: gw0 keeps ``base``; gwK moves K·41 places along the valid ids.
-    In a session started by a test of another session's worker (``taken``: the ids of the
-    workers around it), gw0 keeps ``base`` (the worker that started it waits for it) and the
-    others take the next valid ids that no worker around uses."""
+    ``base``: gw0 keeps ``base``; gwK takes the first valid id from K·41 places along that
+    neither an earlier worker nor a worker around the session uses (``taken``: in a session
+    started by a test of another session's worker, that session's workers; gw0 may share its
+    own worker's id, which waits for it)."""
     n = len(_DOMAIN_IDS)
     start = _DOMAIN_IDS.index(base) if base in _DOMAIN_IDS else 0
-    if not taken:
-        return [base, *(_DOMAIN_IDS[(start + 41 * k) % n] for k in range(1, count))]
     ids = [base]
-    for step in range(1, n):
-        if len(ids) == count:
-            break
-        candidate = _DOMAIN_IDS[(start + step) % n]
-        if candidate not in taken and candidate not in ids:
-            ids.append(candidate)
-    return ids + [ids[-1]] * (count - len(ids))  # more workers than free ids: shared
+    for k in range(1, count):
+        for step in range(n):  # all taken (more workers than ids): the last one, shared
+            candidate = _DOMAIN_IDS[(start + 41 * k + step) % n]
+            if candidate not in taken and candidate not in ids:
+                break
+        ids.append(candidate)
+    return ids
 
 
 def session_domain_id(worker: str | None = None, count: int = 1) -> int:

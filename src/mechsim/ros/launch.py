@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mechsim.errors import MechsimError, ParameterError
+from mechsim.params import DISCOVERY_WINDOW
 from mechsim.ros.process import (
     NOTHING_PUBLISHED,
     die_with_parent,
@@ -56,8 +57,8 @@ if TYPE_CHECKING:
 #: participant learns of the running ones from their periodic announcements, every 0.5 s with
 #: the project's profile (Fast DDS's default, 3 s, made discovery take 0.1-3.0 s; with 0.5 s a
 #: probe found a running node within 0.8 s in 8 of 8 tries on a quiet machine; 2 s leaves
-#: room for a loaded one).
-GRAPH_WAIT = 2.0
+#: room for a loaded one). Its range: ``params.DISCOVERY_WINDOW``.
+GRAPH_WAIT = float(DISCOVERY_WINDOW.default)
 #: Environment variable that sets the discovery window instead (seconds, 0 … 600): a loaded
 #: machine or a slow network may need more. A conflict seen earlier refuses at once, so a long
 #: window costs only a start that has none.
@@ -227,26 +228,22 @@ class _Liveness:
         return False if now >= max(end, self.seen + LIVENESS_TIMEOUT) else None
 
 
-def _window(seconds: float, field: str, given: str | None = None) -> float:
-    """``seconds`` if it is a discovery window (0 … 600 s), else a ParameterError naming
-    ``field`` and what was ``given`` (default: ``seconds``)."""
-    if not 0.0 <= seconds <= 600.0:
-        shown = str(seconds) if given is None else given
-        raise ParameterError(field, f"{shown[:20]!r} is not a number of seconds in 0 … 600")
-    return seconds
+def _window(value: Any, field: str) -> float:
+    """``value`` (seconds, a number or its text) as a discovery window, else a ParameterError
+    naming ``field`` and the range."""
+    try:
+        return float(DISCOVERY_WINDOW.check(value, field))
+    except ParameterError:
+        raise ParameterError(field, f"{str(value)[:20]!r} is not a number of seconds in "
+                             f"{DISCOVERY_WINDOW.minimum:g} … {DISCOVERY_WINDOW.maximum:g}"
+                             ) from None
 
 
 def discovery_window() -> float:
     """The discovery window of the graph check: ``MECHSIM_GRAPH_WAIT`` seconds if set (a
     ParameterError naming it if it is not a number in 0 … 600), else ``GRAPH_WAIT``."""
     raw = os.environ.get(GRAPH_WAIT_VARIABLE, "").strip()
-    if not raw:
-        return GRAPH_WAIT
-    try:
-        seconds = float(raw)
-    except ValueError:
-        seconds = math.nan
-    return _window(seconds, GRAPH_WAIT_VARIABLE, raw)
+    return _window(raw, GRAPH_WAIT_VARIABLE) if raw else GRAPH_WAIT
 
 
 class GraphCheck:
@@ -268,11 +265,10 @@ class GraphCheck:
         self.executor.add_node(self.probe)
         self._liveness: dict[str, _Liveness] = {}
 
-    def check(self, names: list[str], clock: bool, wait: float | None = None) -> None:
+    def check(self, names: list[str], clock: bool, wait: float) -> None:
         """Refuse as soon as a node in the way answers; start once ``wait`` seconds (from
-        joining; default: ``discovery_window()``) passed and every node found in the way
-        is known to be gone."""
-        end = self.started + (discovery_window() if wait is None else wait)
+        joining) passed and every node found in the way is known to be gone."""
+        end = self.started + wait
         while True:
             now = time.monotonic()
             undecided = False
@@ -373,7 +369,7 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     if graph_wait is None:
         graph_wait = discovery_window() if own_context else 0.0
     else:
-        graph_wait = _window(float(graph_wait), "graph_wait")
+        graph_wait = _window(graph_wait, "graph_wait")
     joined_at = None
     if own_context:
         join_graph()  # unless the command already did

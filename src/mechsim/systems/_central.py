@@ -20,7 +20,6 @@ if TYPE_CHECKING:
     from sympy import Expr
 
 
-
 def declare_orbit_quantities(b: LagrangianBuilder, mu: Expr, x: Expr, y: Expr, dx: Expr,
                              dy: Expr, k: Expr | None = None, conserved: bool = True,
                              radius: Expr | None = None, angular_momentum: Expr | None = None

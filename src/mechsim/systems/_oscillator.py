@@ -21,7 +21,6 @@ if TYPE_CHECKING:
     from sympy import Expr
 
 
-
 def regime(omega0: float, beta: float, rtol: float = 1e-12) -> str:
     """"underdamped" (β < ω₀, includes β = 0), "critical" (β = ω₀) or "overdamped"."""
     if abs(beta - omega0) <= rtol * max(omega0, beta):

@@ -16,7 +16,6 @@ if TYPE_CHECKING:
     from sympy import Expr
 
 
-
 def kinetic(m: Expr, l: Expr, th: Expr, dth: Expr, dphi: Expr) -> Expr:
     """T = ½ m l² (θ̇² + sin²θ φ̇²)."""
     return m * l**2 * (dth**2 + sp.sin(th) ** 2 * dphi**2) / 2
