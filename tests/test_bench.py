@@ -80,6 +80,19 @@ def test_schema(quick_run: tuple[dict, Path, str]) -> None:
     assert "## Summary" in md and "## pendulum" in md and "## Targets" in md
 
 
+def test_a_quick_run_judges_no_target(quick_run: tuple[dict, Path, str]) -> None:
+    """Its problems are shortened and each run timed once: a PASS or MISS there would be read
+    as the benchmark's verdict (a new user saw MISS against a README that says met)."""
+    res, out, _ = quick_run
+    assert res["targets"] and all(t["passed"] is None for t in res["targets"])
+    # Every system's two speed targets would have had a verdict: kept as a figure, not judged.
+    withheld = {(t["system"], t["target"]) for t in res["targets"]
+                if t["detail"].startswith("not judged: --quick")}
+    assert len(withheld) >= 2 * len(res["systems"]), res["targets"]
+    md = (out / "results.md").read_text()
+    assert "**MISS**" not in md and "**PASS**" not in md
+
+
 def test_mechsim_methods_follow_the_integrators() -> None:
     from mechsim.integrators import METHODS
 

@@ -383,9 +383,24 @@ NOT_MEASURED_HERE = (
 )
 
 
-def targets(systems: dict[str, Any]) -> list[dict[str, Any]]:
+#: Why a ``--quick`` run judges no target: its figures stay, its verdicts would mislead.
+QUICK_NOT_JUDGED = ("not judged: --quick shortens the problems and times each run once (a "
+                    "check that everything runs); the targets are judged on a full run")
+
+
+def targets(systems: dict[str, Any], quick: bool = False) -> list[dict[str, Any]]:
     """Issue 11's benchmark targets, met (True), missed (False) or not judged (None), with
-    the figures; issue 6's comparison with MuJoCo and Drake at equal time is kept."""
+    the figures; issue 6's comparison with MuJoCo and Drake at equal time is kept. A
+    ``quick`` run's problems are not the benchmark's: every verdict is None there."""
+    out = _targets(systems)
+    if quick:
+        for t in out:
+            if t["passed"] is not None:
+                t["passed"], t["detail"] = None, f"{QUICK_NOT_JUDGED} ({t['detail']})"
+    return out
+
+
+def _targets(systems: dict[str, Any]) -> list[dict[str, Any]]:
     out: list[dict[str, Any]] = []
     for name, s in systems.items():
         rows = s["runs"]
@@ -530,7 +545,7 @@ def run_bench(systems: list[str], out: Path, quick: bool = False, repeats: int =
                            "peers": report, "systems": {}}
     for sid in systems:
         res["systems"][sid] = bench_system(sid, quick, repeats, budget, families, cold, report)
-    res["targets"] = targets(res["systems"])
+    res["targets"] = targets(res["systems"], quick)
     res["host"]["loadavg_end"] = list(os.getloadavg())
     out.mkdir(parents=True, exist_ok=True)
     (out / "results.json").write_text(json.dumps(_finite(res), indent=1,
