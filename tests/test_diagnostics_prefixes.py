@@ -23,7 +23,7 @@ from mechsim.ros.diagnostics import (  # noqa: E402
     track,
     track_prefixes,
 )
-from mechsim.ros.launch import DiagnosticsFeed  # noqa: E402
+from mechsim.ros.feed import DiagnosticsFeed  # noqa: E402
 from mechsim.systems.base import Law  # noqa: E402
 from mechsim_msgs.msg import SystemInfo  # noqa: E402
 
