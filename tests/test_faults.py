@@ -572,8 +572,8 @@ def test_consumers_of_a_refused_run_do_not_drain(tmp_path: Path) -> None:
     ``NOTHING_PUBLISHED`` beside its consumers' reports, and a consumer then stops without
     draining: what it still receives comes from another graph's nodes of the same names
     (seen: a refused ``run --processes`` waited the full drain limit for them)."""
-    from mechsim.ros.processes import _published_any
     from mechsim.ros.process import NOTHING_PUBLISHED, drain
+    from mechsim.ros.processes import _published_any
 
     class Executor:
         spins = 0

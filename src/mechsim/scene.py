@@ -206,7 +206,8 @@ def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) 
         model = cls(**flat)  # validates every parameter now, with the field named
     except ParameterError as e:
         o = applied.get(e.field)
-        field_name = f"--set {shown(o.key)}" if o else f"{where}.parameters.{e.field}"
+        field_name = f"--set {o.key if len(o.key) <= 60 else shown(o.key)}" if o \
+            else f"{where}.parameters.{e.field}"
         raise ParameterError(field_name, e.reason) from None
     method = data.get("method", "auto")
     if not isinstance(method, str) or method not in METHODS:

@@ -25,6 +25,8 @@ EXIT_INTERRUPTED = 130
 #: The verbs, in the order ``mechsim --help`` lists them: one module each in this package.
 VERBS = ("systems", "run", "record", "bag", "replay", "topic", "node", "param", "service",
          "view", "convert", "bench", "stress", "cache")
+#: The node processes' verbs (``executables``), not listed by ``mechsim --help``.
+NODE_VERBS = ("simulator", "diagnostics", "recorder")
 
 
 def build_parser() -> argparse.ArgumentParser:

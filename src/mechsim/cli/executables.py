@@ -60,8 +60,12 @@ def cmd_recorder(a: argparse.Namespace) -> int:
 
 def add_parsers(sub: Any) -> None:
     """The three node verbs (no ``help``: unlisted)."""
-    for kind, func in (("simulator", cmd_simulator), ("diagnostics", cmd_diagnostics),
-                       ("recorder", cmd_recorder)):
+    from mechsim.cli import NODE_VERBS
+
+    commands = {"simulator": cmd_simulator, "diagnostics": cmd_diagnostics,
+                "recorder": cmd_recorder}
+    for kind in NODE_VERBS:
+        func = commands[kind]
         p = sub.add_parser(kind, description=f"The {kind} node of a scene, in this process "
                            "(what `mechsim run --processes` starts).")
         p.add_argument("--scene", required=True, metavar="FILE",

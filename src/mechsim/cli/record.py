@@ -7,8 +7,8 @@ import sys
 from typing import Any
 
 from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
-from mechsim.runcore.stops import stop_on_sigterm
 from mechsim.ros.record import DEFAULT_BAG
+from mechsim.runcore.stops import stop_on_sigterm
 
 #: Exit status of a recording stopped by Ctrl-C / SIGTERM (128 + SIGINT, as shells report).
 EXIT_INTERRUPTED = 130
