@@ -222,7 +222,10 @@ def read_scene(path: str) -> Scene:
         raise ParameterError("--scene", f"{path}: cannot read ({e.strerror or e})") from None
     except ValueError:
         raise ParameterError("--scene", f"{path}: not JSON") from None
-    return scene_from_data(data)
+    try:
+        return scene_from_data(data)
+    except ParameterError as e:
+        raise ParameterError("--scene", f"{path}: {e.reason}") from None
 
 
 def _wait_for(ready: Callable[[], bool], spin: Callable[[], None]) -> bool:
@@ -246,12 +249,12 @@ def _pubs(node: Any) -> list[Any]:
 def diagnostics_process(scene: Scene, report: str | None = None) -> int:
     """The diagnostics node of ``scene`` until SIGINT/SIGTERM, then it drains what is in
     flight. ``report``: a JSON file of what it did, for the parent. Exit status 0."""
+    context = start_context()
     from rclpy.executors import SingleThreadedExecutor
 
     from mechsim.ros.diagnostics import DiagnosticsNode
     from mechsim.ros.outlet import wait_acked
 
-    context = start_context()
     executor = SingleThreadedExecutor(context=context)
     node = None
     try:
@@ -285,14 +288,14 @@ def simulator_process(scene: Scene, name: str, *, readers: int = 0, recorder: bo
     subscriptions, with ``recorder``) and lets them acknowledge everything before it exits.
     ``report``: a JSON file of what it did, for the parent. Exit status 1 if the system
     failed, else 0."""
-    from rclpy.executors import SingleThreadedExecutor
-
     names = [i.name for i in scene.systems]
     if name not in names:
         raise ParameterError("--instance", f"no instance {name!r} in the scene (instances: "
                              f"{', '.join(names)})")
     window = discovery_window()  # refused before joining the graph
     context = start_context()
+    from rclpy.executors import SingleThreadedExecutor
+
     executor = SingleThreadedExecutor(context=context)
     start = time.monotonic()
     sim = _Simulator(scene, names.index(name), context, executor, readers, recorder)
