@@ -49,9 +49,9 @@ def exit_process(code: int) -> None:
     """End a command's process with ``code`` without tearing the interpreter down.
 
     By the time a command returns, its outputs are complete and its ROS contexts shut down;
-    what a normal exit adds is the interpreter's finalization, about 0.3 s of CPU with sympy,
-    numba and rclpy loaded, on every command. Exit handlers still run. If a thread that a
-    normal exit would wait for is still alive, the process exits normally instead."""
+    what a normal exit adds is the interpreter's finalization, a noticeable share of a short
+    command's CPU with sympy, numba and rclpy loaded. Exit handlers still run. If a thread
+    that a normal exit would wait for is still alive, the process exits normally instead."""
     import atexit
     import sys
 
