@@ -205,9 +205,9 @@ def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) 
     try:
         model = cls(**flat)  # validates every parameter now, with the field named
     except ParameterError as e:
-        o = applied.get(e.field)
-        field_name = f"--set {o.key if len(o.key) <= 60 else shown(o.key)}" if o \
-            else f"{where}.parameters.{e.field}"
+        given_by = applied.get(e.field)  # a --set: named as the user wrote it
+        field_name = f"{where}.parameters.{e.field}" if given_by is None else \
+            f"--set {given_by.key if len(given_by.key) <= 60 else shown(given_by.key)}"
         raise ParameterError(field_name, e.reason) from None
     method = data.get("method", "auto")
     if not isinstance(method, str) or method not in METHODS:
