@@ -264,7 +264,13 @@ def parse_scene(data: Any, default_name: str = "scene",
         scene.duration = setting(DURATION, "duration", data["duration"])
     if "publish_rate" in data:
         scene.publish_rate = setting(PUBLISH_RATE, "publish_rate", data["publish_rate"])
-    diag = data.get("diagnostics") or {}
+    _diagnostics(scene, data.get("diagnostics") or {})
+    _outputs(scene, data.get("outputs") or {})
+    return scene
+
+
+def _diagnostics(scene: Scene, diag: Any) -> None:
+    """The scene's ``diagnostics:`` thresholds."""
     if not isinstance(diag, dict):
         raise ParameterError("diagnostics", "must be a mapping")
     _keys("diagnostics", diag, {"warn_drift", "error_drift"})
@@ -274,7 +280,10 @@ def parse_scene(data: Any, default_name: str = "scene",
                                 diag.get("error_drift", Law.ERROR_DRIFT))
     if scene.warn_drift >= scene.error_drift:
         raise ParameterError("diagnostics.warn_drift", "must be smaller than error_drift")
-    outputs = data.get("outputs") or {}
+
+
+def _outputs(scene: Scene, outputs: Any) -> None:
+    """The scene's ``outputs:`` paths (checked as text; as paths when a run opens them)."""
     if not isinstance(outputs, dict):
         raise ParameterError("outputs", "must be a mapping")
     _keys("outputs", outputs, {"bag", "rrd"})
@@ -282,7 +291,6 @@ def parse_scene(data: Any, default_name: str = "scene",
         if outputs.get(key) is not None:
             check_text(f"outputs.{key}", outputs[key])
     scene.bag, scene.rrd = outputs.get("bag"), outputs.get("rrd")
-    return scene
 
 
 def _check_overrides(instances: list[Instance], overrides: list[Override] | tuple[Override, ...]
