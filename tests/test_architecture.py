@@ -21,10 +21,11 @@ LAYERS: dict[str, int] = {
     "systems": 1,
     "integrators": 2,
     "simulate": 3, "scene": 3, "mechsim": 3,  # "mechsim": the package's public API
-    "outputs": 4,
-    "ros": 5,
-    "bench": 6, "stress": 6, "experiments": 6, "testing": 6,
-    "cli": 7,
+    "runcore": 4,  # one system run sample by sample, without ROS
+    "outputs": 5,
+    "ros": 6,
+    "bench": 7, "stress": 7, "experiments": 7, "testing": 7,
+    "cli": 8,
 }
 #: Rooms that must not see each other although the ranks would allow it.
 FORBIDDEN = {("integrators", "systems")}  # stepping sees a model only through its protocol

@@ -47,6 +47,22 @@ def _spin_until(ex: Any, cond: Callable[[], bool], timeout: float) -> bool:
     return cond()
 
 
+def _scene_file(tmp_path: Path, data: dict[str, Any]) -> str:
+    """The scene as its node processes receive it from ``run --processes``."""
+    import json
+
+    from mechsim.scene import parse_scene, scene_data
+
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene_data(parse_scene(data))))
+    return str(path)
+
+
+def _node(which: str) -> list[str]:
+    """The verb and arguments of a node process of ``run --processes``."""
+    return ["diagnostics"] if which == "diagnostics" else ["simulator", "--instance", which]
+
+
 def test_sigkill_one_node_of_a_multiprocess_scene(ros_context: Any, ros_env: dict[str, str],
                                                   tmp_path: Path) -> None:
     from diagnostic_msgs.msg import DiagnosticArray
@@ -54,11 +70,10 @@ def test_sigkill_one_node_of_a_multiprocess_scene(ros_context: Any, ros_env: dic
     from rclpy.node import Node
     from sensor_msgs.msg import JointState
 
-    scene = tmp_path / "two.yaml"
-    scene.write_text(yaml.safe_dump({"name": "two", "publish_rate": 20.0, "systems": [
+    scene = _scene_file(tmp_path, {"name": "two", "publish_rate": 20.0, "systems": [
         {"system": "pendulum", "name": "alive"}, {"system": "harmonic_oscillator",
-                                                  "name": "victim"}]}))
-    procs = {w: subprocess.Popen([PY, "-m", "mechsim.ros.launch", str(scene), "--node", w],
+                                                  "name": "victim"}]})
+    procs = {w: subprocess.Popen([PY, "-m", "mechsim.cli", *_node(w), "--scene", scene],
                                  env=ros_env, stdout=subprocess.DEVNULL,
                                  stderr=subprocess.PIPE)
              for w in ("alive", "victim", "diagnostics")}
@@ -500,8 +515,10 @@ def test_node_process_stopped_while_starting_is_quiet(ros_env: dict[str, str],
     its imports included, or once running, exits without a traceback."""
     from mechsim.ros.graph import node_names
 
-    proc = subprocess.Popen([PY, "-m", "mechsim.ros.launch", "pendulum", "--node", "quiet",
-                             "--name", "quiet"], env=ros_env, cwd=tmp_path,
+    scene = _scene_file(tmp_path, {"name": "quiet", "systems": [{"system": "pendulum",
+                                                                  "name": "quiet"}]})
+    proc = subprocess.Popen([PY, "-m", "mechsim.cli", *_node("quiet"), "--scene", scene],
+                            env=ros_env, cwd=tmp_path,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     needle = {"numpy": "numpy", "librcl": "librcl"}.get(stage)
     if needle is not None:
@@ -519,8 +536,8 @@ def test_a_stop_wrapped_by_compiled_code_stops_the_run(ros_context: Any,
     """A Ctrl-C landing inside a compiled call surfaces as ``SystemError: ... returned a result
     with an exception set`` caused by the KeyboardInterrupt (seen in CI). It must end the run as
     an interruption, never mark the system failed and run on."""
-    from mechsim.ros import simulator
     from mechsim.ros.launch import run_scene
+    from mechsim.runcore import run as simulator
     from mechsim.scene import single_system_scene
 
     real = simulator.make_stepper
@@ -555,8 +572,8 @@ def test_consumers_of_a_refused_run_do_not_drain(tmp_path: Path) -> None:
     ``NOTHING_PUBLISHED`` beside its consumers' reports, and a consumer then stops without
     draining: what it still receives comes from another graph's nodes of the same names
     (seen: a refused ``run --processes`` waited the full drain limit for them)."""
-    from mechsim.ros.launch import _published_any
     from mechsim.ros.process import NOTHING_PUBLISHED, drain
+    from mechsim.ros.processes import _published_any
 
     class Executor:
         spins = 0

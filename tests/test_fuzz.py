@@ -197,12 +197,11 @@ def test_yaml_alias_bomb_refused(tmp_path: Path, where: str) -> None:
 def test_alias_in_a_set_value_is_not_expanded() -> None:
     """``--set mass=<alias bomb>``: the value is not read as YAML (aliases refused), so it is
     the text itself that is refused as a number."""
-    from mechsim.scene import apply_overrides, single_system_scene
+    from mechsim.scene import scene_from_target
 
     lines = _alias_bomb().splitlines()
     bomb = "[" + ", ".join(line.split(": ", 1)[1] for line in lines) + ", *l8]"
-    scene = single_system_scene("pendulum")
-    err = only_mechsim_errors(lambda: apply_overrides(scene, [f"mass={bomb}"]))
+    err = only_mechsim_errors(lambda: scene_from_target("pendulum", [f"mass={bomb}"]))
     assert isinstance(err, MechsimError) and "must be a number (got '[&l0" in str(err), err
 
 

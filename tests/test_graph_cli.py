@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from mechsim.cli import VERBS, build_parser
+from mechsim.cli import NODE_VERBS, VERBS, build_parser
 
 MECHSIM = [sys.executable, "-m", "mechsim.cli"]
 NODE = "/pendulum/simulator"
@@ -40,7 +40,16 @@ def _subcommands() -> list[list[str]]:
 
 
 def test_the_parser_knows_every_verb() -> None:
-    assert {c[0] for c in _subcommands() if c} == set(VERBS)
+    assert {c[0] for c in _subcommands() if c} == set(VERBS) | set(NODE_VERBS)
+
+
+def test_help_lists_only_the_verbs_users_run(ros_env: dict[str, str]) -> None:
+    import re
+
+    r = mechsim(["--help"], ros_env)
+    usage = re.search(r"\{([a-z,]+)\}", r.stdout)
+    assert usage is not None and usage.group(1).split(",") == list(VERBS), r.stdout
+    assert set(re.findall(r"^    (\w+)", r.stdout, re.MULTILINE)) == set(VERBS), r.stdout
 
 
 @pytest.mark.parametrize("argv", _subcommands(), ids=lambda c: " ".join(c) or "mechsim")

@@ -150,7 +150,7 @@ class _Node:
 
 def _polls(client: _Client, seen: float, end: float, until: float) -> list[tuple[float, Any]]:
     """(time, answer) of a liveness probe polled every 50 ms from ``seen`` to ``until``."""
-    from mechsim.ros.launch import _Liveness
+    from mechsim.ros.graph_check import _Liveness
 
     clock = client.clock
     clock[0] = seen
@@ -175,7 +175,7 @@ def test_a_node_whose_service_is_discovered_late_still_counts() -> None:
 def test_a_node_that_never_answers_is_gone_after_the_liveness_timeout() -> None:
     """Its service discovered but silent (a frozen node, a killed process's entry): asked
     again every 0.5 s, gone 2 s after the first request, within a long window too."""
-    from mechsim.ros.launch import ASK_AGAIN, LIVENESS_TIMEOUT
+    from mechsim.ros.graph_check import ASK_AGAIN, LIVENESS_TIMEOUT
 
     client = _Client([0.0], ready_at=0.0, answers=False)
     answers = _polls(client, seen=1.0, end=120.0, until=4.0)

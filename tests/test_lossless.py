@@ -65,7 +65,8 @@ def test_a_lossless_fast_run_reaches_a_live_subscriber_with_every_sample(
             from rclpy.executors import SingleThreadedExecutor
 
             ex = SingleThreadedExecutor(context=ros_context)
-            pubs = [node.outlet.channels[t].publisher for t in (node.t_state, node.t_energy)]
+            pubs = [node.outlet.channels[t].publisher
+                    for t in (node.topics.t_state, node.topics.t_energy)]
             try:
                 assert wait_until(ex, lambda: all(p.get_subscription_count() for p in pubs),
                                   120.0), "the counter never matched"

@@ -40,3 +40,8 @@ class UnknownSystemError(MechsimError, KeyError):
 
 class IntegrationError(MechsimError, RuntimeError):
     """The integrator stopped: non-finite state, step-size underflow or too many steps."""
+
+
+class RosStartError(MechsimError):
+    """ROS cannot start in this environment (rclpy's start-up failed, an unusable domain id):
+    the environment's problem, said in one line."""

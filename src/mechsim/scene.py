@@ -45,7 +45,7 @@ from mechsim.params import (
     shown,
 )
 from mechsim.systems import system_class
-from mechsim.systems.base import Law
+from mechsim.systems.base import Law, Model
 
 #: Instance names: ROS namespaces, short enough for every topic name built on them.
 MAX_NAME = 64
@@ -59,12 +59,29 @@ MAX_SET_CHARS = 10_000
 
 @dataclass
 class Instance:
+    """One system of a scene: its id, instance name (ROS namespace), parameters (as given),
+    method, tolerance and where its world-rooted frames sit."""
+
     system: str
     name: str
     parameters: dict[str, Any] = field(default_factory=dict)
     method: str = "auto"
     tolerance: float = 1e-10
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: The model built from (system, parameters) and those inputs: built once, when the
+    #: instance is parsed (every check of the model), and handed on to its run.
+    _built: tuple[str, dict[str, Any], Model] | None = field(default=None, init=False,
+                                                             repr=False, compare=False)
+
+    def build(self) -> Model:
+        """This instance's model: the one built when it was parsed if system and parameters
+        are still the ones it was built from, else a new one (validated: ParameterError)."""
+        built = self._built
+        if built is not None and built[0] == self.system and built[1] == self.parameters:
+            return built[2]
+        model = system_class(self.system)(**self.parameters)
+        self._built = (self.system, dict(self.parameters), model)
+        return model
 
 
 @dataclass
@@ -132,7 +149,38 @@ def _keys(where: str, data: dict[str, Any], allowed: set[str]) -> None:
                                  f"unknown key (allowed: {', '.join(sorted(allowed))})")
 
 
-def parse_instance(data: Any, index: int) -> Instance:
+@dataclass(frozen=True)
+class Override:
+    """One ``--set``: ``name=value`` for every instance that has the parameter,
+    ``instance:name=value`` for one."""
+
+    key: str  # as given, before the "=" (named in messages)
+    instance: str  # "" for every instance
+    name: str
+    value: Any
+
+
+def parse_sets(sets: list[str]) -> list[Override]:
+    """The ``--set`` items, each read once (its value as YAML where that parses, without
+    aliases; else the text itself)."""
+    out = []
+    for item in sets:
+        check_text("--set", item, MAX_SET_CHARS)
+        if "=" not in item:
+            raise ParameterError("--set", f"expected name=value (got {shown(item)})")
+        key, raw = item.split("=", 1)
+        instance, _, name = key.rpartition(":")
+        try:
+            value = load_yaml(raw, f"--set {shown(key)}", MAX_SET_CHARS)
+        except MechsimError:
+            value = raw
+        out.append(Override(key, instance, name, value))
+    return out
+
+
+def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) -> Instance:
+    """One entry of a scene's ``systems`` with the ``overrides`` that concern it applied,
+    validated (its model built: every check) once."""
     where = f"systems[{index}]"
     if not isinstance(data, dict):
         raise ParameterError(where, "must be a mapping with at least `system`")
@@ -147,11 +195,20 @@ def parse_instance(data: Any, index: int) -> Instance:
     params = data.get("parameters", {}) or {}
     if not isinstance(params, dict):
         raise ParameterError(f"{where}.parameters", "must be a mapping name: value")
+    flat = _parameters(where, params)
+    given = {p.name for p in cls.parameter_spec()}
+    applied: dict[str, Override] = {}
+    for o in overrides:
+        if o.name in given and o.instance in ("", name):
+            flat[o.name] = o.value
+            applied[o.name] = o
     try:
-        flat = flatten(params)
-        cls(**flat)  # validates every parameter now, with the field named
+        model = cls(**flat)  # validates every parameter now, with the field named
     except ParameterError as e:
-        raise ParameterError(f"{where}.parameters.{e.field}", e.reason) from None
+        given_by = applied.get(e.field)  # a --set: named as the user wrote it
+        field_name = f"{where}.parameters.{e.field}" if given_by is None else \
+            f"--set {given_by.key if len(given_by.key) <= 60 else shown(given_by.key)}"
+        raise ParameterError(field_name, e.reason) from None
     method = data.get("method", "auto")
     if not isinstance(method, str) or method not in METHODS:
         raise ParameterError(f"{where}.method", f"must be one of {', '.join(METHODS)} "
@@ -161,10 +218,24 @@ def parse_instance(data: Any, index: int) -> Instance:
     if not (isinstance(origin, list | tuple) and len(origin) == 3):
         raise ParameterError(f"{where}.origin", "must be a list of three numbers [x, y, z]")
     org = tuple(positive_number(f"{where}.origin", v, positive=False) for v in origin)
-    return Instance(system, name, flat, method, tol, org)  # type: ignore[arg-type]
+    inst = Instance(system, name, flat, method, tol, org)  # type: ignore[arg-type]
+    inst._built = (system, dict(flat), model)
+    return inst
 
 
-def parse_scene(data: Any, default_name: str = "scene") -> Scene:
+def _parameters(where: str, params: dict[str, Any]) -> dict[str, Any]:
+    """A scene entry's parameters as flat ``name: value`` (``initial: {angle: 1}`` is
+    ``initial.angle``)."""
+    try:
+        return flatten(params)
+    except ParameterError as e:
+        raise ParameterError(f"{where}.parameters.{e.field}", e.reason) from None
+
+
+def parse_scene(data: Any, default_name: str = "scene",
+                overrides: list[Override] | tuple[Override, ...] = ()) -> Scene:
+    """The scene of ``data`` (a scene file's YAML) with ``overrides`` (``--set``) applied,
+    every field validated once (ParameterError naming it)."""
     if not isinstance(data, dict):
         raise ParameterError("scene", "must be a YAML mapping with a `systems` list")
     _keys("", data, {"name", "pacing", "real_time_factor", "duration", "publish_rate",
@@ -172,7 +243,8 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
     systems = data.get("systems")
     if not isinstance(systems, list) or not systems:
         raise ParameterError("systems", "must be a non-empty list of system instances")
-    instances = [parse_instance(s, i) for i, s in enumerate(systems)]
+    instances = [parse_instance(s, i, tuple(overrides)) for i, s in enumerate(systems)]
+    _check_overrides(instances, overrides)
     names = [i.name for i in instances]
     for n in names:
         if names.count(n) > 1:
@@ -192,7 +264,13 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
         scene.duration = setting(DURATION, "duration", data["duration"])
     if "publish_rate" in data:
         scene.publish_rate = setting(PUBLISH_RATE, "publish_rate", data["publish_rate"])
-    diag = data.get("diagnostics") or {}
+    _diagnostics(scene, data.get("diagnostics") or {})
+    _outputs(scene, data.get("outputs") or {})
+    return scene
+
+
+def _diagnostics(scene: Scene, diag: Any) -> None:
+    """The scene's ``diagnostics:`` thresholds."""
     if not isinstance(diag, dict):
         raise ParameterError("diagnostics", "must be a mapping")
     _keys("diagnostics", diag, {"warn_drift", "error_drift"})
@@ -202,7 +280,10 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
                                 diag.get("error_drift", Law.ERROR_DRIFT))
     if scene.warn_drift >= scene.error_drift:
         raise ParameterError("diagnostics.warn_drift", "must be smaller than error_drift")
-    outputs = data.get("outputs") or {}
+
+
+def _outputs(scene: Scene, outputs: Any) -> None:
+    """The scene's ``outputs:`` paths (checked as text; as paths when a run opens them)."""
     if not isinstance(outputs, dict):
         raise ParameterError("outputs", "must be a mapping")
     _keys("outputs", outputs, {"bag", "rrd"})
@@ -210,13 +291,24 @@ def parse_scene(data: Any, default_name: str = "scene") -> Scene:
         if outputs.get(key) is not None:
             check_text(f"outputs.{key}", outputs[key])
     scene.bag, scene.rrd = outputs.get("bag"), outputs.get("rrd")
-    return scene
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file (MechsimError with a one-line reason on any problem): a
-    regular file of at most ``MAX_SCENE_BYTES`` of UTF-8, YAML without aliases
-    (``mechsim.files``)."""
+def _check_overrides(instances: list[Instance], overrides: list[Override] | tuple[Override, ...]
+                     ) -> None:
+    """Every ``--set`` names a parameter of an instance it is meant for."""
+    for o in overrides:
+        if not any(o.instance in ("", inst.name) and o.name in
+                   {p.name for p in system_class(inst.system).parameter_spec()}
+                   for inst in instances):
+            where = f"instance {shown(o.instance)}" if o.instance else "any system of the scene"
+            raise ParameterError(f"--set {shown(o.name)}", f"not a parameter of {where}")
+
+
+def load_scene(path: str | Path, overrides: list[Override] | tuple[Override, ...] = ()
+               ) -> Scene:
+    """Read and validate a scene file with ``overrides`` (``--set``) applied (MechsimError
+    with a one-line reason on any problem): a regular file of at most ``MAX_SCENE_BYTES`` of
+    UTF-8, YAML without aliases (``mechsim.files``)."""
     p = Path(check_text("scene", str(path)))
     try:
         raw = read_bounded(p, MAX_SCENE_BYTES)
@@ -224,55 +316,30 @@ def load_scene(path: str | Path) -> Scene:
         raise MechsimError(f"scene {p}: cannot read ({e.strerror or e})") from None
     data = load_yaml(raw, f"scene {p}", MAX_SCENE_BYTES)
     try:
-        scene = parse_scene(data, default_name=p.stem)
+        scene = parse_scene(data, default_name=p.stem, overrides=overrides)
     except ParameterError as e:
+        if e.field.startswith("--set"):
+            raise
         raise ParameterError(f"scene {p}: {e.field}", e.reason) from None
     scene.source = p
     return scene
 
 
 def single_system_scene(system: str, parameters: dict[str, Any] | None = None,
-                        name: str | None = None) -> Scene:
+                        name: str | None = None,
+                        overrides: list[Override] | tuple[Override, ...] = ()) -> Scene:
     """The scene `mechsim run SYSTEM` uses: one instance with default settings, named
     ``name`` (default: the system id)."""
     inst = name or system
     return parse_scene({"name": inst, "systems": [{"system": system, "name": inst,
-                                                   "parameters": parameters or {}}]})
-
-
-def apply_overrides(scene: Scene, sets: list[str]) -> None:
-    """``name=value`` for every instance that has the parameter, ``inst:name=value`` for one."""
-    for item in sets:
-        check_text("--set", item, MAX_SET_CHARS)
-        if "=" not in item:
-            raise ParameterError("--set", f"expected name=value (got {shown(item)})")
-        key, raw = item.split("=", 1)
-        target, _, name = key.rpartition(":")
-        try:
-            value = load_yaml(raw, f"--set {shown(key)}", MAX_SET_CHARS)
-        except MechsimError:
-            value = raw
-        hit = False
-        for idx, inst in enumerate(scene.systems):
-            if target and inst.name != target:
-                continue
-            names = {p.name for p in system_class(inst.system).parameter_spec()}
-            if name in names:
-                params = dict(inst.parameters)
-                params[name] = value
-                scene.systems[idx] = parse_instance(
-                    {"system": inst.system, "name": inst.name, "parameters": params,
-                     "method": inst.method, "tolerance": inst.tolerance,
-                     "origin": list(inst.origin)}, idx)
-                hit = True
-        if not hit:
-            where = f"instance {shown(target)}" if target else "any system of the scene"
-            raise ParameterError(f"--set {shown(name)}", f"not a parameter of {where}")
+                                                   "parameters": parameters or {}}]},
+                       overrides=overrides)
 
 
 def scene_from_target(target: str, sets: list[str], name: str | None = None) -> Scene:
     """The scene a command names: a scene file, or a system id run with its default scene
-    (its one instance named ``name``, default the id); then the ``--set`` overrides."""
+    (its one instance named ``name``, default the id); with the ``--set`` overrides applied
+    as it is parsed, once."""
     from mechsim.systems import system_ids
 
     check_text("target", target)
@@ -282,10 +349,55 @@ def scene_from_target(target: str, sets: list[str], name: str | None = None) -> 
         if name is not None:
             raise ParameterError("--name", "only with a SYSTEM target (a scene file names its "
                                  "instances)")
-        scene = load_scene(target)
-    elif target in system_ids():
-        scene = single_system_scene(target, name=name)
-    else:
-        raise UnknownSystemError(target, system_ids())
-    apply_overrides(scene, sets)
-    return scene
+        return load_scene(target, parse_sets(sets))
+    if target in system_ids():
+        return single_system_scene(target, name=name, overrides=parse_sets(sets))
+    raise UnknownSystemError(target, system_ids())
+
+
+#: Format of a scene as data (``scene_data``).
+SCENE_FORMAT = "mechsim-scene/1"
+
+
+def scene_data(scene: Scene) -> dict[str, Any]:
+    """The scene as plain data (JSON), exactly as parsed and with the run's settings it holds:
+    what the processes of a multi-process run receive (:func:`scene_from_data`) instead of
+    the command line to parse again."""
+    return {"format": SCENE_FORMAT, "name": scene.name, "pacing": scene.pacing,
+            "real_time_factor": scene.real_time_factor, "duration": scene.duration,
+            "publish_rate": scene.publish_rate, "warn_drift": scene.warn_drift,
+            "error_drift": scene.error_drift, "bag": scene.bag, "rrd": scene.rrd,
+            "source": None if scene.source is None else str(scene.source),
+            "systems": [{"system": i.system, "name": i.name, "parameters": i.parameters,
+                         "method": i.method, "tolerance": i.tolerance,
+                         "origin": list(i.origin)} for i in scene.systems]}
+
+
+def _optional(value: Any, kind: type) -> Any:
+    if value is not None and not isinstance(value, kind):
+        raise TypeError(value)
+    return value
+
+
+def scene_from_data(data: Any) -> Scene:
+    """The scene :func:`scene_data` wrote (not parsed again: its models run their own checks
+    when they are built); ParameterError if ``data`` is not such a scene."""
+    try:
+        if data.get("format") != SCENE_FORMAT:
+            raise TypeError(data.get("format"))
+        systems = [Instance(str(d["system"]), str(d["name"]), dict(d["parameters"]),
+                            str(d["method"]), float(d["tolerance"]),
+                            tuple(float(x) for x in d["origin"]))  # type: ignore[arg-type]
+                   for d in data["systems"]]
+        source = _optional(data["source"], str)
+        return Scene(name=str(data["name"]), systems=systems, pacing=str(data["pacing"]),
+                     real_time_factor=float(data["real_time_factor"]),
+                     duration=_optional(data["duration"], float),
+                     publish_rate=float(data["publish_rate"]),
+                     warn_drift=float(data["warn_drift"]),
+                     error_drift=float(data["error_drift"]),
+                     bag=_optional(data["bag"], str), rrd=_optional(data["rrd"], str),
+                     source=None if source is None else Path(source))
+    except (AttributeError, KeyError, TypeError, ValueError):
+        raise ParameterError("scene", f"not a scene written by mechsim ({SCENE_FORMAT})"
+                             ) from None

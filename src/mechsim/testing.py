@@ -216,7 +216,7 @@ class Graph:
         self._probe_ex.add_node(self.probe)
         # One thread: rclpy's multi-threaded executor spins hot while a timer is due whose
         # callback group is busy (a paced node's tick running long), holding the interpreter
-        # lock from that very tick: a closed loop's 10 ms tick then ran every 150-200 ms.
+        # lock from that very tick: a closed loop's ticks then came many periods late.
         self._node_ex = SingleThreadedExecutor(context=context)
         self._spinner: threading.Thread | None = None
         self._stop_spinning = threading.Event()

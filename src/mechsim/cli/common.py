@@ -28,6 +28,33 @@ def check_rate(value: float) -> float:
     return float(PUBLISH_RATE.check(value, "--rate"))
 
 
+def scene_of(a: Any, *, fast: bool = False) -> Any:
+    """The scene a running verb names (``target``, ``--set``, ``--name``), parsed and
+    validated once, with the run's ``--rate``, ``--duration`` and ``fast`` (as fast as
+    possible) set on it: the one scene object handed on to the nodes."""
+    from mechsim.scene import scene_from_target
+
+    scene = scene_from_target(a.target, a.set, a.name)
+    if a.rate is not None:
+        scene.publish_rate = check_rate(a.rate)
+    if a.duration is not None:
+        scene.duration = check_duration(a.duration)
+    if fast:
+        scene.pacing = "fast"
+    return scene
+
+
+def check_outputs(scene: Any, bag: str | None, rrd: str | None) -> None:
+    """The output paths of a run, refused before anything starts if they are no paths."""
+    from mechsim.params import check_text
+    from mechsim.ros.record import bag_path
+
+    if bag is not None:
+        bag_path(bag, scene)
+    if rrd is not None:
+        check_text("--rrd", rrd)
+
+
 def progress_bar(enabled: bool) -> Any:
     """A one-line progress bar on a terminal; nothing otherwise."""
     if not enabled:
@@ -59,7 +86,6 @@ def print_summary(run: Any) -> None:
         print(f"  {system:<{w1}}  {law:<{w2}}  {drift:>18.3e}  {LEVEL_NAMES[level]}")
     for name, reason in run.failures.items():
         print(f"  {name}: integration stopped: {reason}")
-
 
 
 def say(text: str) -> None:

@@ -7,8 +7,8 @@ import sys
 from typing import Any
 
 from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
-from mechsim.ros.process import stop_on_sigterm
 from mechsim.ros.record import DEFAULT_BAG
+from mechsim.runcore.stops import stop_on_sigterm
 
 #: Exit status of a recording stopped by Ctrl-C / SIGTERM (128 + SIGINT, as shells report).
 EXIT_INTERRUPTED = 130
@@ -16,30 +16,25 @@ EXIT_INTERRUPTED = 130
 
 def cmd_record(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
-    from mechsim.cli.common import check_duration, check_rate
+    from mechsim.cli.common import check_outputs, scene_of
     from mechsim.errors import ParameterError
-    from mechsim.ros.launch import discovery_window, join_graph
-    from mechsim.ros.record import bag_path, run_with_outputs
-    from mechsim.scene import scene_from_target
+    from mechsim.ros.graph_check import discovery_window, join_graph
+    from mechsim.ros.record import run_with_outputs
 
     discovery_window()  # a bad MECHSIM_GRAPH_WAIT is refused before anything starts
-    join_graph()  # discovery runs while the scene is read
-    scene = scene_from_target(a.target, a.set, a.name)
-    if a.rate is not None:
-        scene.publish_rate = check_rate(a.rate)
-    d = a.duration if a.duration is not None else scene.duration
-    if d is None:
+    scene = scene_of(a, fast=True)
+    if scene.duration is None:
         raise ParameterError("--duration", "required (the scene sets no duration and a "
                              "recording runs as fast as possible)")
-    duration = check_duration(d)
     bag = a.bag or scene.bag or DEFAULT_BAG
-    bag_path(bag, scene)  # a bad path is refused before anything starts
+    rrd = a.rrd or scene.rrd
+    check_outputs(scene, bag, rrd)  # a bad path is refused before anything starts
     show = progress_bar(sys.stderr.isatty())
-    say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {duration:g} s "
+    say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {scene.duration:g} s "
         f"simulated, as fast as possible)")
-    run, lines = run_with_outputs(scene, fast=True, duration=duration, bag=bag,
-                                  rrd=a.rrd or scene.rrd, progress=show,
-                                  lossless=a.lossless)
+    join_graph()  # everything validated: discovery runs while the models load
+    run, lines = run_with_outputs(scene, fast=True, duration=scene.duration, bag=bag, rrd=rrd,
+                                  progress=show, lossless=a.lossless)
     if run.interrupted:
         say(f"interrupted at t = {run.sim_time:g} s; outputs completed up to there")
     print_summary(run)

@@ -8,81 +8,108 @@ from typing import Any
 
 from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
 from mechsim.outputs.rerun_live import DEFAULT_CONNECT
-from mechsim.ros.process import stop_on_sigterm
+from mechsim.runcore.stops import stop_on_sigterm
 
 
 def cmd_run(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
-    from mechsim.cli.common import check_duration, check_rate
-    from mechsim.errors import ParameterError
-    from mechsim.ros.launch import discovery_window, join_graph
-    from mechsim.scene import scene_from_target
+    from mechsim.cli.common import check_outputs, scene_of
+    from mechsim.ros.graph_check import discovery_window
 
     discovery_window()  # a bad MECHSIM_GRAPH_WAIT is refused before anything starts
-    if a.only is None and not a.processes:
-        join_graph()  # discovery runs while the scene is read
-    scene = scene_from_target(a.target, a.set, a.name)
-    if a.rate is not None:
-        scene.publish_rate = check_rate(a.rate)
-    duration = check_duration(a.duration) if a.duration is not None else scene.duration
+    scene = scene_of(a, fast=a.fast)
     bag = a.bag or scene.bag
     rrd = a.rrd or scene.rrd
+    check_outputs(scene, bag, rrd)
     if a.only is not None:  # one node of the scene, e.g. one per host
-        from mechsim.ros.launch import run_single_node
-
-        if a.lossless:
-            raise ParameterError("--lossless", "not with --only (a lone simulator waits for "
-                                 "its recorder with --wait-for recorder)")
-        names = [i.name for i in scene.systems]
-        if a.only not in ("diagnostics", "recorder") and a.only not in names:
-            raise ParameterError("--only", f"no instance {a.only!r} in the scene (instances: "
-                                 f"{', '.join(names)}; or diagnostics, recorder)")
-        for flag, given in (("--processes", a.processes), ("--viewer", a.viewer),
-                            ("--connect", a.connect)):
-            if given:
-                raise ParameterError(flag, "not available with --only")
-        if a.only == "recorder" and a.only not in names:
-            if bag is None and rrd is None:
-                raise ParameterError("--only", "recorder needs --bag and/or --rrd")
-            from mechsim.ros.recorder import run_recorder
-
-            say(f"recording scene {scene.name!r} from the graph (Ctrl-C stops and completes "
-                "the outputs)")
-            for line in run_recorder(scene, bag, rrd):
-                print(f"  outputs: {line}")
-            return 0
-        for flag, given in (("--bag", a.bag), ("--rrd", a.rrd)):
-            if given:
-                raise ParameterError(flag, "only with --only recorder")
-        waits = a.wait_for or []
-        if waits and a.only in ("diagnostics",):
-            raise ParameterError("--wait-for", "only for a simulator")
-        say(f"running {'the diagnostics node' if a.only == 'diagnostics' else a.only} of "
-            f"scene {scene.name!r} (Ctrl-C stops it)")
-        return run_single_node(scene, None if a.only == "diagnostics" else a.only,
-                               fast=a.fast, duration=duration, readers=len(set(waits)),
-                               recorder="recorder" in waits)
+        return _only(a, scene, bag, rrd)
     if a.processes:
-        for flag, given in (("--viewer", a.viewer), ("--connect", a.connect),
-                            ("--lossless", a.lossless)):
-            if given:
-                raise ParameterError(flag, "not available with --processes (view in-process)")
-        from mechsim.ros.launch import run_processes
-        consumers = "a diagnostics process" + (" and a recorder process"
-                                               if bag is not None or rrd is not None else "")
-        say(f"{len(scene.systems)} simulator processes, {consumers} (Ctrl-C stops them)")
-        run, lines, status = run_processes(a.target, scene, a.set, duration, rate=a.rate,
-                                           fast=a.fast, name=a.name, bag=bag, rrd=rrd)
-        if status == 2:  # a refused start: its process said why
-            return status
-        print_summary(run)
-        for line in lines:
+        return _processes(a, scene, bag, rrd)
+    return _in_process(a, scene, bag, rrd)
+
+
+def _check_only(a: argparse.Namespace, names: list[str], bag: str | None,
+                rrd: str | None) -> None:
+    from mechsim.errors import ParameterError
+
+    if a.lossless:
+        raise ParameterError("--lossless", "not with --only (a lone simulator waits for "
+                             "its recorder with --wait-for recorder)")
+    if a.only not in ("diagnostics", "recorder") and a.only not in names:
+        raise ParameterError("--only", f"no instance {a.only!r} in the scene (instances: "
+                             f"{', '.join(names)}; or diagnostics, recorder)")
+    for flag, given in (("--processes", a.processes), ("--viewer", a.viewer),
+                        ("--connect", a.connect)):
+        if given:
+            raise ParameterError(flag, "not available with --only")
+    if a.only == "recorder" and a.only not in names:
+        if bag is None and rrd is None:
+            raise ParameterError("--only", "recorder needs --bag and/or --rrd")
+        return
+    for flag, given in (("--bag", a.bag), ("--rrd", a.rrd)):
+        if given:
+            raise ParameterError(flag, "only with --only recorder")
+    if a.wait_for and a.only == "diagnostics":
+        raise ParameterError("--wait-for", "only for a simulator")
+
+
+def _only(a: argparse.Namespace, scene: Any, bag: str | None, rrd: str | None) -> int:
+    """One node of the scene in this process: the same function as a node process of
+    ``--processes`` runs."""
+    names = [i.name for i in scene.systems]
+    _check_only(a, names, bag, rrd)
+    from mechsim.environment import import_rclpy
+
+    import_rclpy()  # the ROS environment set before the nodes import rclpy
+    if a.only == "recorder" and a.only not in names:
+        from mechsim.ros.recorder import run_recorder
+
+        say(f"recording scene {scene.name!r} from the graph (Ctrl-C stops and completes "
+            "the outputs)")
+        for line in run_recorder(scene, bag, rrd):
             print(f"  outputs: {line}")
-        if run.interrupted:
-            return 130  # stopped by Ctrl-C / SIGTERM: not a success (as every command)
-        return status or (1 if run.failures else 0)
+        return 0
+    from mechsim.ros.processes import diagnostics_process, simulator_process
+
+    say(f"running {'the diagnostics node' if a.only == 'diagnostics' else a.only} of "
+        f"scene {scene.name!r} (Ctrl-C stops it)")
+    if a.only == "diagnostics":
+        return diagnostics_process(scene)
+    waits = a.wait_for or []
+    return simulator_process(scene, a.only, readers=len(set(waits)),
+                             recorder="recorder" in waits)
+
+
+def _processes(a: argparse.Namespace, scene: Any, bag: str | None, rrd: str | None) -> int:
+    """One process per node."""
+    from mechsim.errors import ParameterError
+
+    for flag, given in (("--viewer", a.viewer), ("--connect", a.connect),
+                        ("--lossless", a.lossless)):
+        if given:
+            raise ParameterError(flag, "not available with --processes (view in-process)")
+    from mechsim.ros.processes import run_processes
+
+    consumers = "a diagnostics process" + (" and a recorder process"
+                                           if bag is not None or rrd is not None else "")
+    say(f"{len(scene.systems)} simulator processes, {consumers} (Ctrl-C stops them)")
+    run, lines, status = run_processes(scene, bag=bag, rrd=rrd)
+    if status == 2:  # a refused start: its process said why
+        return status
+    print_summary(run)
+    for line in lines:
+        print(f"  outputs: {line}")
+    if run.interrupted:
+        return 130  # stopped by Ctrl-C / SIGTERM: not a success (as every command)
+    return status or (1 if run.failures else 0)
+
+
+def _in_process(a: argparse.Namespace, scene: Any, bag: str | None, rrd: str | None) -> int:
+    """Every node in this process, stepped by one loop."""
+    from mechsim.ros.graph_check import join_graph
     from mechsim.ros.launch import run_scene
 
+    duration = scene.duration
     fast = True if a.fast else None
     show = progress_bar(sys.stderr.isatty() and duration is not None)
     pace = "as fast as possible" if (fast or scene.pacing == "fast") else "real time"
@@ -91,6 +118,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     lines: list[str] = []
     server, live = _live_view(a)
     try:
+        join_graph()  # everything validated: discovery runs while the models load
         if bag is not None or rrd is not None or live is not None:
             from mechsim.ros.record import run_with_outputs
             run, lines = run_with_outputs(scene, fast=fast, duration=duration, bag=bag,
@@ -103,19 +131,23 @@ def cmd_run(a: argparse.Namespace) -> int:
         for line in lines:
             print(f"  outputs: {line}")
         if server is not None and not run.interrupted:
-            sys.stdout.flush()
-            say(f"the run has ended; the live view stays at {server.web_url} until Ctrl-C")
-            try:
-                server.wait()
-                say("Rerun's server has exited")
-            except KeyboardInterrupt:
-                pass  # the user has seen enough: the run's own result stands
+            _keep_viewer(server)
     finally:
         if server is not None:
             server.stop()
     if run.interrupted:
         return 130
     return 1 if run.failures else 0
+
+
+def _keep_viewer(server: Any) -> None:
+    sys.stdout.flush()
+    say(f"the run has ended; the live view stays at {server.web_url} until Ctrl-C")
+    try:
+        server.wait()
+        say("Rerun's server has exited")
+    except KeyboardInterrupt:
+        pass  # the user has seen enough: the run's own result stands
 
 
 def _live_view(a: argparse.Namespace) -> tuple[Any, str | None]:

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from mechsim.errors import MechsimError, one_line
-from mechsim.ros.process import held_signals
+from mechsim.runcore.stops import held_signals
 
 DEFAULT_BAG = "runs/{scene}_%Y%m%d-%H%M%S"
 

@@ -1,4 +1,5 @@
-"""The recorder node: a scene's messages recorded from the ROS graph, in a process of its own.
+"""The recorder node: a scene's messages recorded from the ROS graph, in a process of its own
+(``mechsim recorder``, started by ``mechsim run --processes``; ``mechsim run --only recorder``).
 
 In-process runs record through the nodes' outlets (every message, by construction). When the
 nodes run in other processes (``mechsim run --processes``) or on other hosts (``mechsim run
@@ -16,10 +17,8 @@ its acknowledgments); the counts received are reported next to what was publishe
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import signal
-import sys
 import threading
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -28,16 +27,12 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from mechsim.errors import MechsimError, ParameterError
+from mechsim.errors import MechsimError
 from mechsim.outputs.bag import message_class
+from mechsim.ros.graph_check import start_context
 from mechsim.ros.outlet import subscription_qos
-from mechsim.ros.process import (
-    die_with_parent,
-    drain,
-    held_signals,
-    stop_on_sigterm,
-    write_report,
-)
+from mechsim.ros.process import drain, write_report
+from mechsim.runcore.stops import held_signals
 
 #: Topics outside the instances' namespaces that a scene's nodes publish.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock", "/diagnostics")
@@ -144,18 +139,18 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None,
                  report: str | None = None) -> list[str]:
     """The scene's topics from the graph into ``bag`` / ``rrd`` until SIGINT/SIGTERM, then
     what is in flight, then the outputs completed. Returns the lines describing them."""
-    from mechsim.environment import import_rclpy
-
-    rclpy = import_rclpy()
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
 
     from mechsim.ros.record import open_outputs
 
     with held_signals():
         out = open_outputs(scene, bag, rrd)
-    context = rclpy.context.Context()
-    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        context = start_context()
+    except BaseException:
+        with held_signals():
+            out.finish_after_error()
+        raise
     executor = SingleThreadedExecutor(context=context)
     node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
     executor.add_node(node)
@@ -184,36 +179,3 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None,
         node.destroy_node()
         context.try_shutdown()
     return lines
-
-
-def _main(argv: list[str]) -> int:
-    """``python -m mechsim.ros.recorder TARGET [--bag DIR] [--rrd FILE] ...``: the recorder
-    process of ``mechsim run --processes`` (same scene arguments as its other processes)."""
-    stop_on_sigterm()
-    try:
-        ap = argparse.ArgumentParser(prog="python -m mechsim.ros.recorder")
-        ap.add_argument("target", help="scene file or system id")
-        ap.add_argument("--set", action="append", default=[])
-        ap.add_argument("--name")
-        ap.add_argument("--bag")
-        ap.add_argument("--rrd")
-        ap.add_argument("--report", help="JSON file of what was recorded, for the parent")
-        ap.add_argument("--parent", type=int, help="die with this process")
-        a, _ = ap.parse_known_args(argv)  # the scene's pacing options concern the simulators
-        if a.parent is not None:
-            die_with_parent(a.parent)
-        if a.bag is None and a.rrd is None:
-            raise ParameterError("--bag", "give --bag and/or --rrd")
-        from mechsim.scene import scene_from_target
-
-        run_recorder(scene_from_target(a.target, a.set, a.name), a.bag, a.rrd, a.report)
-        return 0
-    except MechsimError as e:
-        print(f"mechsim: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
-
-
-if __name__ == "__main__":
-    sys.exit(_main(sys.argv[1:]))

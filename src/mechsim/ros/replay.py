@@ -39,10 +39,9 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
            context: Any = None) -> ReplayStats:
     from mechsim.environment import import_rclpy
 
-    rclpy = import_rclpy()
+    import_rclpy()
     from rclpy.node import Node
     from rclpy.serialization import deserialize_message
-    from rclpy.signals import SignalHandlerOptions
     from rosgraph_msgs.msg import Clock
 
     from mechsim.outputs import messages
@@ -63,8 +62,9 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
 
     own_context = context is None
     if own_context:
-        context = rclpy.context.Context()
-        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+        from mechsim.ros.graph_check import start_context
+
+        context = start_context()
     node = Node("mechsim_replay", namespace="mechsim", context=context)
     stats = ReplayStats()
     start = 0.0

@@ -1,5 +1,5 @@
 """Services, parameter sets and subscriptions of a scene's nodes served from their own thread,
-so the loop that steps the nodes never builds a wait set (for 37 nodes one costs milliseconds).
+so the loop that steps the nodes never builds a wait set (costly for a scene of many nodes).
 
 Callbacks run one at a time holding ``lock``, the lock the stepping loop holds while it steps:
 a callback always sees a node between two chunks of samples, never inside one. The loop lets a

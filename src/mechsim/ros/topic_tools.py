@@ -31,15 +31,12 @@ DISCOVERY_WAIT = 1.0
 
 @contextmanager
 def graph_node(name: str) -> Iterator[Any]:
-    from mechsim.environment import import_rclpy
+    from mechsim.ros.graph_check import start_context
 
-    rclpy = import_rclpy()
+    ctx = start_context()
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
 
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, signal_handler_options=SignalHandlerOptions.NO)
     node = Node(name, namespace="mechsim", context=ctx, start_parameter_services=False)
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)

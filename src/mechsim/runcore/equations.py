@@ -1,13 +1,14 @@
-"""Build and compile a model in a child process, with a time limit.
+"""New equations of motion, derived and compiled in a child process with a time limit.
 
 A runtime change of a structural parameter (a formulation, the bead's ``shape`` or ``curve``, a
 number of masses) needs new equations of motion: sympy derivation and numba compilation, seconds
-of work that would otherwise run inside the node's executor with no bound. The node hands the
-candidate to :func:`prepare_model`, which builds it in ``python -m mechsim.ros.prepare``: the
-model is constructed (every check), its kernels generated and compiled (numba's disk cache
-keeps them for the node, which then loads them in milliseconds), and one tiny step taken with
-the requested method. A child that fails or outlives ``timeout`` (then killed) turns into a
-MechsimError with one line, and the change is rejected with that reason.
+of work that would otherwise run inside the node's executor with no bound. A parameter change
+(``mechsim.runcore.change``) hands the candidate to :func:`prepare_model`, which builds it in
+``python -m mechsim.runcore.equations``: the model is constructed (every check), its kernels
+generated and compiled (numba's disk cache keeps them for the run, which then loads them in
+milliseconds), and one tiny step taken with the requested method. A child that fails or
+outlives ``timeout`` (then killed) turns into a MechsimError with one line, and the change is
+rejected with that reason.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ def prepare_model(system: str, values: dict[str, Any], method: str, tolerance: f
     payload = json.dumps({"system": system, "values": values, "method": method,
                           "tolerance": tolerance, "parent": os.getpid()})
     try:
-        r = subprocess.run([sys.executable, "-m", "mechsim.ros.prepare"], input=payload,
+        r = subprocess.run([sys.executable, "-m", "mechsim.runcore.equations"], input=payload,
                            capture_output=True, text=True, timeout=timeout,
                            env=dict(os.environ))
     except subprocess.TimeoutExpired:
@@ -63,7 +64,10 @@ def _build(request: dict[str, Any]) -> None:
 
 
 def _main() -> int:
-    from mechsim.ros.process import die_with_parent
+    """A child's whole life: a request on stdin, exit status 0 (built), 2 (refused with a
+    one-line reason) or 3 (failed: the reason the change is rejected, never a traceback:
+    the values come from a peer, so no traceback file is written either)."""
+    from mechsim.runcore.stops import die_with_parent
 
     try:
         request = json.loads(sys.stdin.read())

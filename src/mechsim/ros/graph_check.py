@@ -1,0 +1,201 @@
+"""Joining the ROS graph, and checking it before a start.
+
+Before its simulator nodes exist, a start looks at the graph (after a bounded discovery wait,
+``GRAPH_WAIT`` or ``MECHSIM_GRAPH_WAIT`` seconds, 0 for no check, overlapped with loading the
+models; a conflict seen sooner refuses at once): an instance whose node ``/<name>/simulator``
+already runs elsewhere on the ROS domain, or a ``/clock`` already published by another live
+node, stops the start with one line naming the running node (one clock per graph: sim-time
+consumers would see time jump). A name left in the graph by a killed process (no answer from
+its parameter service) does not count.
+
+A command joins the graph (:func:`join_graph`) once its input is validated, so that discovery
+runs while it loads the models; the next :func:`joined_context` takes that context. Every
+context of a command starts through :func:`start_context`: a ROS that cannot start in this
+environment is one line (``RosStartError``), never a traceback.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+from typing import Any
+
+from mechsim.errors import MechsimError, ParameterError, RosStartError
+from mechsim.params import DISCOVERY_WINDOW
+
+#: Seconds of discovery before the graph is checked for duplicate names and /clock. A new
+#: participant learns of the running ones from their periodic announcements (every 0.5 s with
+#: the project's profile); the window leaves room for a loaded machine. Its range:
+#: ``params.DISCOVERY_WINDOW``.
+GRAPH_WAIT = float(DISCOVERY_WINDOW.default)
+#: Environment variable that sets the discovery window instead (seconds, 0 … 600): a loaded
+#: machine or a slow network may need more. A conflict seen earlier refuses at once, so a long
+#: window costs only a start that has none.
+GRAPH_WAIT_VARIABLE = "MECHSIM_GRAPH_WAIT"
+#: Seconds a node found in the graph has to answer before it counts as gone (killed).
+LIVENESS_TIMEOUT = 2.0
+
+
+#: Seconds between requests to a node found in the graph (a request sent the moment its
+#: service is discovered can lose its response).
+ASK_AGAIN = 0.5
+
+
+class _Liveness:
+    """Does one node found in the graph answer on its parameter service? One client for the
+    whole check, asked again every ``ASK_AGAIN`` s, polled without blocking."""
+
+    def __init__(self, node: Any, full_name: str, now: float) -> None:
+        from rcl_interfaces.srv import ListParameters
+
+        self.request = ListParameters.Request(depth=1)
+        self.client = node.create_client(ListParameters, f"{full_name}/list_parameters")
+        self.seen = now
+        self.first_asked: float | None = None
+        self.last_asked = 0.0
+        self.futures: list[Any] = []
+
+    def poll(self, now: float, end: float) -> bool | None:
+        """True: it answered. False: gone (asked for ``LIVENESS_TIMEOUT`` s without an
+        answer, a frozen node or a killed process's entry; or its service never reachable by
+        the end of the window and ``LIVENESS_TIMEOUT`` s after it was seen). None: not known
+        yet (its service not discovered yet, or asked less than ``LIVENESS_TIMEOUT`` s ago)."""
+        if any(f.done() for f in self.futures):
+            return True
+        if self.client.service_is_ready():
+            if self.first_asked is None:
+                self.first_asked = now
+            elif now - self.first_asked >= LIVENESS_TIMEOUT:
+                return False
+            elif now - self.last_asked < ASK_AGAIN:
+                return None
+            self.futures.append(self.client.call_async(self.request))
+            self.last_asked = now
+            return None
+        return False if now >= max(end, self.seen + LIVENESS_TIMEOUT) else None
+
+
+def window_setting(value: Any, field: str) -> float:
+    """``value`` (seconds, a number or its text) as a discovery window, else a ParameterError
+    naming ``field`` and the range."""
+    try:
+        return float(DISCOVERY_WINDOW.check(value, field))
+    except ParameterError:
+        raise ParameterError(field, f"{str(value)[:20]!r} is not a number of seconds in "
+                             f"{DISCOVERY_WINDOW.minimum:g} … {DISCOVERY_WINDOW.maximum:g}"
+                             ) from None
+
+
+def discovery_window() -> float:
+    """The discovery window of the graph check: ``MECHSIM_GRAPH_WAIT`` seconds if set (a
+    ParameterError naming it if it is not a number in 0 … 600), else ``GRAPH_WAIT``."""
+    raw = os.environ.get(GRAPH_WAIT_VARIABLE, "").strip()
+    return window_setting(raw, GRAPH_WAIT_VARIABLE) if raw else GRAPH_WAIT
+
+
+class GraphCheck:
+    """Refuse (MechsimError, one line) to start simulator nodes whose names a live node of
+    the domain already uses, or a second /clock. Made before the models are built, so that
+    discovery (which starts with this probe's participant) runs meanwhile; :meth:`check` waits
+    for the rest of the discovery window, refusing as soon as it sees a conflict."""
+
+    def __init__(self, context: Any, started: float | None = None) -> None:
+        """``started``: when ``context`` joined the graph (discovery began), if earlier."""
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        self.context = context
+        self.started = time.monotonic() if started is None else started
+        self.probe = Node(f"graph_check_{os.getpid()}", namespace="/mechsim", context=context,
+                          start_parameter_services=False)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.probe)
+        self._liveness: dict[str, _Liveness] = {}
+
+    def check(self, names: list[str], clock: bool, wait: float) -> None:
+        """Refuse as soon as a node in the way answers; start once ``wait`` seconds (from
+        joining) passed and every node found in the way is known to be gone."""
+        end = self.started + wait
+        while True:
+            now = time.monotonic()
+            undecided = False
+            for full, conflict in self._in_the_way(names, clock):
+                liveness = self._liveness.get(full)
+                if liveness is None:
+                    liveness = self._liveness[full] = _Liveness(self.probe, full, now)
+                answer = liveness.poll(now, end)
+                if answer:
+                    raise MechsimError(conflict)
+                undecided = undecided or answer is None
+            if now >= end and not undecided:
+                return
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def _in_the_way(self, names: list[str], clock: bool) -> Iterator[tuple[str, str]]:
+        """(full node name, the refusal if it is alive) for every node in the graph now that
+        an instance name or the clock would clash with."""
+        domain = self.context.get_domain_id()
+        present = {(ns, n) for n, ns in self.probe.get_node_names_and_namespaces()}
+        for name in names:
+            full = f"/{name}/simulator"
+            if (f"/{name}", "simulator") in present:
+                yield full, (f"instance {name!r}: {full} is already running on ROS domain "
+                             f"{domain}; stop it or give this instance another name "
+                             "(--name, or `name:` in the scene)")
+        if clock:
+            for info in self.probe.get_publishers_info_by_topic("/clock"):
+                full = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                yield full, (f"/clock is already published on ROS domain {domain} by {full}: "
+                             "one clock per graph (stop that scene, run the systems in one "
+                             "scene, or use another ROS_DOMAIN_ID)")
+
+    def close(self) -> None:
+        for liveness in self._liveness.values():
+            self.probe.destroy_client(liveness.client)
+        self.executor.shutdown()
+        self.probe.destroy_node()
+
+
+def start_context() -> Any:
+    """A new rclpy context, initialised (ROS's own signal handlers off: a command handles its
+    stops). A ``ROS_DOMAIN_ID`` that no participant can use, or an rclpy that cannot start in
+    this environment, is a RosStartError (one line)."""
+    from mechsim.environment import import_rclpy, valid_domain_id
+
+    raw = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if raw and not (raw.isdigit() and valid_domain_id(int(raw))):
+        raise RosStartError(f"ROS_DOMAIN_ID={raw[:20]!r}: not a domain id in 0 … 101 or "
+                            "215 … 232")
+    rclpy = import_rclpy()
+    from rclpy.signals import SignalHandlerOptions
+
+    context = rclpy.context.Context()
+    try:
+        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    except RuntimeError as e:  # rclpy's own start-up failures (RCLError)
+        raise RosStartError((str(e).splitlines() or [type(e).__name__])[0]) from None
+    return context
+
+
+#: A context that joined the graph early (``join_graph``) and when, for the next start.
+_joined: tuple[Any, float] | None = None
+
+
+def join_graph() -> None:
+    """Join the ROS graph now: a command calls this once its input is validated, so that
+    discovery runs while it loads its models, and its start then waits only for what is left
+    of the discovery window. The next :func:`joined_context` takes it."""
+    global _joined
+    if _joined is None:
+        _joined = (start_context(), time.monotonic())
+
+
+def joined_context() -> tuple[Any, float]:
+    """The context of :func:`join_graph` (joining now if nothing did) and when it joined;
+    the next call joins again."""
+    global _joined
+    join_graph()
+    assert _joined is not None
+    joined, _joined = _joined, None
+    return joined
