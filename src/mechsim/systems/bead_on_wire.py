@@ -200,8 +200,9 @@ def _numeric(expr: sp.Expr) -> Callable[[float], float]:
 class BeadOnWire(LagrangianModel):
     id = "bead_on_wire"
     title = "Bead on a wire: line, parabola, cycloid (brachistochrone/tautochrone), any z = f(x)"
-    source = ("seed 000 S2 (Bead on a Wire), seed 001 §2.12 (brachistochrone), "
-              "seed 003 ch. 2 (calculus of variations)")
+    source = ("“Dynamical Systems and Constraints: Part 2 – Bead on a Wire” (blog post); "
+              "Introduction to analytical mechanics, “Brachistochrone problem – shortest time "
+              "problem”; PHYS0500 – Advanced Classical Mechanics, ch. 2 (Calculus of Variations)")
     formulations = ("reduced", "multiplier", "naive")
     oracles = ("line: uniform acceleration −gs/(1+s²), chord time √((π²+4)a/g); parabola: exact "
                "period by quadrature, √(2gc) small; cycloid: π√(a/g) to the bottom from any "

@@ -58,8 +58,10 @@ POTENTIALS = ("kepler", "inverse_cube", "harmonic", "spring")
 class CentralForce(LagrangianModel):
     id = "central_force"
     title = "Two-body central-force problem (Kepler, −a/r³, harmonic, spring)"
-    source = ("seed 003 ch. 4: Central Force Motion; seed 001 §2.16–2.20; seed 002 §3 "
-              "(central-force particle)")
+    source = ("PHYS0500 – Advanced Classical Mechanics, ch. 4 (Central Force Motion, §4.1–4.6); "
+              "Introduction to analytical mechanics, “Central force problem – with two body” and "
+              "“Classification of the orbits”; Lecture 10: The Methods of Lagrange Revisited, "
+              "central force (eq. 10.19)")
     formulations = ("cartesian", "polar")
     oracles = ("turning points E = V_eff(r); Kepler ε, r_min/r_max, period, conic class, LRL "
                "|A| = μkε; harmonic period 2π√(μ/k); CM uniform; −a/r³ barrier r* and fall time")

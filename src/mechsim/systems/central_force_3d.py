@@ -52,8 +52,9 @@ POLE_MARGIN = math.radians(5.0)
 class CentralForce3D(LagrangianModel):
     id = "central_force_3d"
     title = "Central-force motion in three dimensions (spherical coordinates)"
-    source = ("seed 002 §3: central-force particle in spherical coordinates (L121–124, "
-              "eq. 10.19); seed 001 §1.1 (spherical polar coordinates)")
+    source = ("Lecture 10: The Methods of Lagrange Revisited, central force in spherical "
+              "coordinates (eqs. 10.14–10.19); Introduction to analytical mechanics, “Generalized "
+              "coordinates” (spherical polar coordinates)")
     formulations = ("spherical", "cartesian")
     oracles = ("orbit in the plane ⟂ L; vector L (p_φ = mr²sin²θφ̇ = L_z) and LRL A conserved; "
                "apsides a(1 ± e), period 2π√(ma³/k); equals the planar central_force turned by "

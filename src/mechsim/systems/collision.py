@@ -55,7 +55,7 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class Collision(LagrangianModel):
     id = "collision"
     title = "Elastic collision of two spheres (LAB and CM frames, contact event)"
-    source = "seed 003 §5.2: elastic collisions of two particles, LAB and CM systems"
+    source = "PHYS0500 – Advanced Classical Mechanics, §5.2 (Elastic Collisions of Two Particles)"
     formulations = ("lab", "cm")
     oracles = ("contact time; θ = 2arccos(b/(R₁+R₂)); tan ψ = sinθ/(cosθ + m₁/m₂); 2ζ = π − θ; "
                "T₂/T₀ = 2m₁m₂(1 − cosθ)/M²; sin ψ_max = m₂/m₁; momentum, energy, L across the "

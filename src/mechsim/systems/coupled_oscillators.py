@@ -68,7 +68,8 @@ def laplacian_eigenvalues(n: int) -> np.ndarray:
 class CoupledOscillators(LagrangianModel):
     id = "coupled_oscillators"
     title = "N identical coupled oscillators (normal modes, beats)"
-    source = "seed 003 ch. 8 (Coupled Oscillations, §8.1–8.4); seed 001 §2.21"
+    source = ("PHYS0500 – Advanced Classical Mechanics, ch. 8 (Coupled Oscillations, §8.1–8.4); "
+              "Introduction to analytical mechanics, “Small Oscillations”")
     energy_parts = ("mode_energy_",)
     oracles = ("ω_r² from |A − ω²M| = 0 (closed form), exact modal solution, conserved mode "
                "energies, beat transfer time π/(ω₁ − ω₂) ≈ π/(2εω₀)")

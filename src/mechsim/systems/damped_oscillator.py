@@ -35,7 +35,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder
 class DampedOscillator(LinearOscillator):
     id = "damped_oscillator"
     title = "Damped harmonic oscillator (under-, critically and over-damped)"
-    source = "seed 003 §1.3 (Damped Oscillations); seed 000 S8 (Case 5, Caldirola–Kanai)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.3 (Damped Oscillations); “Energy and "
+              "Hamiltonians: Part 3 – Examples” (blog post), Case 5 (Caldirola–Kanai)")
     oracles = ("exact x(t) in all three regimes, maxima spaced 2π/ω₁ with ratio e^{βT₁}, "
                "dE/dt = −bẋ², Caldirola–Kanai h = e^{bt/m}E with dh/dt = −(b/m)L")
     parameters = (

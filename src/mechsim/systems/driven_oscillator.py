@@ -25,7 +25,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder
 class DrivenOscillator(LinearOscillator):
     id = "driven_oscillator"
     title = "Driven damped harmonic oscillator"
-    source = "seed 003 §1.3–1.5: Damped and driven oscillations, resonance and Q"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.3–1.5 (Damped and Driven Oscillations, "
+              "Resonance Phenomena)")
     oracles = "full solution (transient + steady state), amplitude D and phase δ, ω_R, Q = ω_R/2β"
     parameters = (
         positive("mass", 1.0, "kg", "mass m"),

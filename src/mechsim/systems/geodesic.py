@@ -38,7 +38,8 @@ SURFACES = ("sphere", "cylinder", "cone")
 class Geodesic(LagrangianModel):
     id = "geodesic"
     title = "Geodesics: free particle on a sphere, cylinder or cone (Lagrange multiplier)"
-    source = "seed 003 ch. 2 (§2.2 geodesic), with the constraint machinery of §3.4"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §2.2 (Euler's Equation: geodesics), with "
+              "the multipliers of §3.4")
     oracles = ("constant speed, great circle (L fixed), helix, cone |r|² quadratic in t, "
                "Clairaut ρ²φ̇, normal force −mv²/R, constraint residual at round-off")
     parameters = (

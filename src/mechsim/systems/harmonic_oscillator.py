@@ -27,7 +27,9 @@ from mechsim.systems.lagrangian import LagrangianBuilder
 class HarmonicOscillator(LinearOscillator):
     id = "harmonic_oscillator"
     title = "Simple harmonic oscillator"
-    source = "seed 003 §1.1 (Simple Harmonic Oscillations, Energy); seed 001 §2.9"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.1 (Simple Harmonic Oscillations, "
+              "Energy); Introduction to analytical mechanics, “Conservation of energy” (harmonic "
+              "oscillator)")
     oracles = ("exact x(t) = x₀cos ω₀t + (v₀/ω₀)sin ω₀t, period 2π√(m/k), E = ½kA² = h, "
                "period averages ⟨T⟩ = ⟨V⟩ = E/2")
     parameters = (

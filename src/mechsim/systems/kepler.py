@@ -31,7 +31,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class Kepler(LagrangianModel):
     id = "kepler"
     title = "Kepler problem (two-body relative orbit)"
-    source = "seed 003 ch. 4: Central Force Motion, §4.1 and §4.6 (Kepler problem)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §4.1 (Reduced Mass) and §4.6 (Planetary "
+              "Motion, Kepler's laws)")
     oracles = "Kepler equation position, period 2π√(a³/GM), apsides a(1±e), |A| = μke"
     parameters = (
         positive("gravitational_parameter", 1.0, "m^3/s^2", "GM = G (m₁ + m₂)"),

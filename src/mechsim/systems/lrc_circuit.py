@@ -35,7 +35,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class LRCCircuit(LagrangianModel):
     id = "lrc_circuit"
     title = "Series LRC circuit driven by an emf (electrical analogue of the oscillator)"
-    source = "seed 003 §1.7: Analogy Between Electrical and Mechanical Quantities (with §1.3–1.5)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.7 (Analogy Between Electrical and "
+              "Mechanical Quantities), with §1.3–1.5")
     oracles = ("ω₀ = 1/√(LC); current amplitude ℰ₀/√(R² + (ωL − 1/ωC)²), peak at ω₀, "
                "half-power bandwidth R/L "
                "(Q = ω₀L/R); charge peak ω_R; Joule heat ∫RI²dt = work dissipated; same q(t) as "

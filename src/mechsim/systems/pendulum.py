@@ -33,7 +33,7 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class Pendulum(LagrangianModel):
     id = "pendulum"
     title = "Simple pendulum (reduced and Lagrange-multiplier forms)"
-    source = "seed 000 S1: Dynamical Systems and Constraints, Part 3 – Simple Pendulum"
+    source = "“Dynamical Systems and Constraints: Part 3 – Simple Pendulum” (blog post)"
     formulations = ("reduced", "multiplier")
     oracles = ("closed-form φ(t) (Jacobi sn, am; libration and rotation) = radau15; exact "
                "period 4√(R/g)K(k); tension mg(3cosφ − 2cosφ₀); λ = −T; both forms agree")

@@ -60,7 +60,8 @@ def _harmonic(name: str) -> int:
 class PeriodicDrive(LinearOscillator):
     id = "periodic_drive"
     title = "Damped oscillator driven by a periodic force (Fourier series, superposition)"
-    source = "seed 003 §1.6: Principle of Superposition (periodic force as a Fourier series)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.6 (Principle of Superposition: a "
+              "periodic force as a Fourier series)")
     oracles = ("steady state = Σ of the harmonic responses Dₙcos(nωt − φₙ − δₙ), converging to "
                "the response to the discontinuous square wave; transient + steady state; "
                "input power = bẋ² over a period; work balance")

@@ -35,7 +35,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class PlanarOscillator(LagrangianModel):
     id = "planar_oscillator"
     title = "Planar isotropic harmonic oscillator (Cartesian and polar)"
-    source = "seed 003 §1.2 (Harmonic Oscillations in Two Dimensions); seed 000 S6 (Case 3)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.2 (Harmonic Oscillations in Two "
+              "Dimensions); “Energy and Hamiltonians: Part 3 – Examples” (blog post), Case 3")
     formulations = ("cartesian", "polar")
     oracles = ("exact elliptic orbit x, y = x₀cos ω₀t + (v₀/ω₀)sin ω₀t, period 2π/ω₀; "
                "E = h, L_z, E_x, E_y conserved; both forms agree; r ≡ R on the circular orbit")

@@ -110,7 +110,8 @@ class RigidBody(QuaternionRigidBody):
     id = "rigid_body"
     ATTITUDE_FRAME = "principal"  # q poses the principal axes (see ``frames``)
     title = "Free rigid body (Euler's equations, quaternion attitude)"
-    source = "seed 003 §7.2–7.7: inertia tensor, principal axes, Euler's equations"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §7.2–7.7 (inertia tensor, principal axes, "
+              "Euler's equations)")
     oracles = ("box/cylinder/sphere tensors and parallel axis; spin stability about the "
                "extreme axes at ω₀√((I_k−I_i)(I_k−I_j)/(I_iI_j)), intermediate-axis flip; "
                "L (space) and 2T = ω·L conserved; agrees with a rotation-matrix integration")

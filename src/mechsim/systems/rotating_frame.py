@@ -60,7 +60,8 @@ def _cross(a: sp.Matrix, b: sp.Matrix) -> sp.Matrix:
 class RotatingFrame(LagrangianModel):
     id = "rotating_frame"
     title = "Rotating frame: free fall and Foucault pendulum on the rotating Earth"
-    source = "seed 003 ch. 6: Motion in Non-Inertial Reference Frames (§6.1, §6.2)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, ch. 6 (Motion in Non-Inertial Reference "
+              "Frames, §6.1–6.2)")
     formulations = ("rotating", "inertial", "foucault_pendulum")
     oracles = ("exact linear solution (matrix exponential); eastward deflection ⅓Ωg t³cosλ; "
                "Foucault plane rate −Ω sinλ; Jacobi integral; rotating = inertial form")

@@ -68,7 +68,8 @@ COULOMB = 8.9875517923e9  # 1/(4πε₀), N m²/C²
 class Scattering(LagrangianModel):
     id = "scattering"
     title = "Scattering on a hard sphere or a Coulomb centre (one impact parameter; beam function)"
-    source = "seed 003 §5.3: scattering cross-sections, LAB ↔ CM, hard-sphere example"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §5.3 (Scattering Cross-Sections: LAB and "
+              "CM, hard-sphere example)")
     oracles = ("θ = 2arccos(b/a) and tan(θ/2) = k/(2Eb) per trajectory; beam histograms vs "
                "σ = a²/4 and Rutherford (k/4E)²/sin⁴(θ/2), LAB σ(ψ) (eq. 5.10), σ_t = πa²; "
                "orbit integral (line 1255)")

@@ -67,8 +67,9 @@ def _indices(name: str) -> tuple[int, ...]:
 class SmallOscillations(LagrangianModel):
     id = "small_oscillations"
     title = "General small oscillations (normal modes of M q̈ = −A q)"
-    source = ("seed 003 §8.3–8.4: General Small-Oscillation Theory, Normal Coordinates; seed 001 "
-              "§2.21 (small oscillations, det(V − ω²T) = 0)")
+    source = ("PHYS0500 – Advanced Classical Mechanics, §8.3–8.4 (General Problem, Normal "
+              "Coordinates); Introduction to analytical mechanics, “Small Oscillations” (det(V − "
+              "ω²T) = 0)")
     energy_parts = ("mode_energy_",)
     oracles = ("ω_r², a_r from the generalized eigenproblem (scipy eigh; sympy for 2×2; double "
                "pendulum (2 ± √2)g/l); M-orthonormal modes; mode energies conserved; exact modal "

@@ -326,8 +326,9 @@ class SymmetricTop(Model):
 
     id = "symmetric_top"
     title = "Symmetric top: torque-free and heavy (Lagrange's top), Euler angles z-x-z"
-    source = ("seed 003 §7.6, §7.8–7.8.2 (symmetric top, heavy top); seed 002 §7 "
-              "(Lagrange's top, eqs. 10.37–10.46)")
+    source = ("PHYS0500 – Advanced Classical Mechanics, §7.6 and §7.8–7.8.2 (Eulerian angles, "
+              "symmetric top, top with one point fixed); Lecture 10: The Methods of Lagrange "
+              "Revisited, Lagrange's heavy symmetric top (eqs. 10.37–10.46)")
     formulations = ("quaternion", "euler_angles")
     oracles = ("steady precession Ω± (θ constant), reality condition, sleeping-top threshold, "
                "nutation bounds, conical pendulum Ω² = MgR/(I₁|cosθ|), torque-free body and "
