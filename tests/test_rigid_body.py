@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 import mechsim
 from mechsim.errors import ParameterError
-from mechsim.systems import _rigid as rg
+from mechsim.systems import _inertia as rg
 
 # --- inertia module ---------------------------------------------------------------------------
 

@@ -24,7 +24,7 @@ Formulations:
   unit quaternion (``_rigid.QuaternionRigidBody``); gravity acts as the torque R x̂₃ × (−Mg ẑ).
   Nothing is singular at θ = 0 (sleeping top). Euler angles and their rates are observables;
   exactly at θ = 0 only φ + ψ is defined: φ̇ = 0 and ψ̇ = ω₃ are published there. Method
-  ``exact``: with gravity 0 uniform precession (``_rigid.free_rotation``); with gravity
+  ``exact``: with gravity 0 uniform precession (``_free_rotation.free_rotation``); with gravity
   Lagrange's top in elliptic functions (``lagrange_motion``: u = cos θ between the roots of
   f(u), catalog 003 §7.8.1 [SUPPLEMENT, not in the seeds; Goldstein §5.7]; φ, ψ by
   quadrature of their rates as Fourier series), except near the vertical.
@@ -51,15 +51,12 @@ from numba import njit
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
 from mechsim.systems._elliptic import _amplitudes, agm_ratios, carlson_rf, elliptic_f
+from mechsim.systems._free_rotation import _clenshaw, _cos_sin, _qmul, period_spectra
 from mechsim.systems._rigid import (
     RB_SIZE,
     RIGID_KERNELS,
     QuaternionRigidBody,
     RigidData,
-    _clenshaw,
-    _cos_sin,
-    _qmul,
-    period_spectra,
     rb_momentum,
     rb_omega,
     rb_unit,
@@ -249,7 +246,7 @@ def lagrange_motion(inertia: tuple[float, float], mgr: float, y0: np.ndarray
                     ) -> LagrangeMotion | None:
     """The constants of Lagrange's top (gravity on, ``_lagrange_top_rows``) from the state
     y0 = [q, q̇, ...]; None where the motion comes within ``VERTICAL_MARGIN`` of the vertical
-    or its series would need more than ``_rigid.SERIES_MAX_SAMPLES`` samples a period."""
+    or its series would need more than ``_free_rotation.SERIES_MAX_SAMPLES`` samples a period."""
     I1, I3 = inertia
     q0 = rb_unit(y0)
     phi0, _, psi0, dphi0, dth0, _ = top_euler(y0)
