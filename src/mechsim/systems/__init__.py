@@ -43,6 +43,7 @@ SYSTEMS: dict[str, str] = {
     "pendulum": "mechsim.systems.pendulum",
     "periodic_drive": "mechsim.systems.periodic_drive",
     "planar_oscillator": "mechsim.systems.planar_oscillator",
+    "power_law_orbit": "mechsim.systems.power_law_orbit",
     "rigid_body": "mechsim.systems.rigid_body",
     "rotating_frame": "mechsim.systems.rotating_frame",
     "rotating_hoop": "mechsim.systems.rotating_hoop",

@@ -46,6 +46,9 @@ from mechsim.systems._central import (
     declare_orbit_quantities,
     effective_potential,
     kepler_elements,
+    merge_at_capture,
+    orbit_integral,
+    radial_range,
     turning_points,
 )
 from mechsim.systems._symbolic import sympy as sp
@@ -200,16 +203,7 @@ class CentralForce(LagrangianModel):
     def on_fall(self, t: float, y: np.ndarray) -> np.ndarray:
         """Merge: stop the relative motion, switch U off, book the lost relative energy."""
         n = len(self.coordinates)
-        p = self.parameter_vector()
-        before = np.empty(3)
-        self.kernels.energy(t, y, p, before)
-        y[n + 2] = 0.0
-        y[n + 3] = 0.0
-        y[2 * n + 2] = 1.0
-        after = np.empty(3)
-        self.kernels.energy(t, y, p, after)
-        y[2 * n + 1] += (before[0] + before[1]) - (after[0] + after[1])
-        return y
+        return merge_at_capture(self, t, y, rates=(n + 2, n + 3), mode=2 * n + 2)
 
     def laws(self):  # type: ignore[no-untyped-def]
         laws = super().laws()
@@ -268,23 +262,11 @@ class CentralForce(LagrangianModel):
     def radial_range(self) -> tuple[float, float]:
         """(r_min, r_max) of the motion: the turning points around the initial radius
         (r_max = ∞ when unbound; r_min = 0 when nothing stops an inward motion)."""
-        r0, dr = self.value("initial.r"), self.value("initial_rate.r")
-        tp = self.turning_points()
-        inner = [r for r in tp if r < r0 * (1 - 1e-7)]
-        outer = [r for r in tp if r > r0 * (1 + 1e-7)]
-        lo = max(inner) if inner else 0.0
-        hi = min(outer) if outer else math.inf
-        if dr == 0.0:  # r0 is a turning point: the side where E ≥ V_eff is the motion
-            V, h = self.effective_potential, 1e-6 * r0
-            slope = (V(r0 + h) - V(r0 - h)) / (2 * h)
-            force = abs(self.potential_function()(r0 + h) - self.potential_function()(r0 - h)) \
-                / (2 * h) + self.angular_momentum() ** 2 / (self.reduced_mass() * r0**3)
-            if abs(slope) < 1e-7 * force:
-                return r0, r0  # circular orbit
-            return (lo, r0) if slope > 0 else (r0, hi)
-        if dr > 0 and not math.isfinite(hi):
-            lo = r0  # moving out with nothing to turn it back
-        return lo, hi
+        r0 = self.value("initial.r")
+        return radial_range(self.potential_function(), self.reduced_mass(),
+                            self.relative_energy(), self.angular_momentum(), r0,
+                            self.value("initial_rate.r"),
+                            r_min=min(1e-4, self.value("capture_radius")) * r0, r_max=1e4 * r0)
 
     def falls_to_centre(self) -> bool:
         """True when nothing stops the bodies before r = 0 (only −a/r³ here)."""
@@ -317,21 +299,14 @@ class CentralForce(LagrangianModel):
         return "bounded" if math.isfinite(hi) else "unbounded"
 
     def radial_period(self) -> float:
-        """Time from r_min to r_max and back: 2 ∫ dr / √((2/μ)(E − V_eff)) (seed 001 §2.16),
-        by Gauss–Chebyshev quadrature (exact for the endpoint square-root singularities)."""
+        """Time from r_min to r_max and back: 2 ∫ dr / √((2/μ)(E − V_eff)) (the analytical-
+        mechanics notes' “Central force problem – with two body”; ``orbit_integral``)."""
         lo, hi = self.radial_range()
         if not (math.isfinite(hi) and lo > 0 and hi > lo):
             raise ValueError("no radial oscillation")
-        mu, E = self.reduced_mass(), self.relative_energy()
-        V = self.effective_potential
-        n = 4000
-        k = np.arange(1, n + 1)
-        x = np.cos((2 * k - 1) * math.pi / (2 * n))  # nodes on (−1, 1)
-        r = 0.5 * (hi + lo) + 0.5 * (hi - lo) * x
-        # ∫ f(r)/√((r−lo)(hi−r)) dr with f = √((r−lo)(hi−r)) / √((2/μ)(E − V))
-        g = np.array([(2 / mu) * (E - V(ri)) for ri in r])
-        f = np.sqrt((r - lo) * (hi - r) / np.maximum(g, 1e-300))
-        return float(2 * math.pi / n * np.sum(f))
+        E, V = self.relative_energy(), self.effective_potential
+        return 2 * orbit_integral(lambda r: np.array([E - V(x) for x in r]), self.reduced_mass(),
+                                  lo, hi, nodes=4000)
 
     def harmonic_period(self) -> float:
         """Isotropic oscillator: 2π√(μ/k), the same for every orbit (seed 001 §2.20)."""
