@@ -39,6 +39,7 @@ SYSTEMS: dict[str, str] = {
     "lrc_circuit": "mechsim.systems.lrc_circuit",
     "moving_coordinates": "mechsim.systems.moving_coordinates",
     "moving_frames": "mechsim.systems.moving_frames",
+    "noninertial_frame": "mechsim.systems.noninertial_frame",
     "paraboloid_bead": "mechsim.systems.paraboloid_bead",
     "pendulum": "mechsim.systems.pendulum",
     "periodic_drive": "mechsim.systems.periodic_drive",
