@@ -55,6 +55,7 @@ SYSTEMS: dict[str, str] = {
     "spherical_pendulum": "mechsim.systems.spherical_pendulum",
     "spring_pendulum": "mechsim.systems.spring_pendulum",
     "symmetric_top": "mechsim.systems.symmetric_top",
+    "three_body": "mechsim.systems.three_body",
     "two_body_field": "mechsim.systems.two_body_field",
 }
 
