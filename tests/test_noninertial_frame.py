@@ -6,8 +6,6 @@ evaluated here; the inertial invariants hold; both formulations agree."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 

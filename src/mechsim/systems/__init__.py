@@ -40,6 +40,7 @@ SYSTEMS: dict[str, str] = {
     "moving_coordinates": "mechsim.systems.moving_coordinates",
     "moving_frames": "mechsim.systems.moving_frames",
     "noninertial_frame": "mechsim.systems.noninertial_frame",
+    "oscillator_chain": "mechsim.systems.oscillator_chain",
     "paraboloid_bead": "mechsim.systems.paraboloid_bead",
     "pendulum": "mechsim.systems.pendulum",
     "periodic_drive": "mechsim.systems.periodic_drive",

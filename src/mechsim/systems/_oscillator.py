@@ -89,6 +89,28 @@ def state_rows(y0: np.ndarray, columns: list[np.ndarray]) -> np.ndarray:
     return rows
 
 
+def normal_mode_rows(u: np.ndarray, w: np.ndarray, y0: np.ndarray, tau: np.ndarray
+                     ) -> np.ndarray:
+    """Rows [x, ẋ, rest of y0] at the times τ after y0 of a linear system whose normal modes
+    are the orthonormal rows u_r of ``u`` at the angular frequencies ``w`` (PHYS0500 §8.4):
+    each η_r = u_r·x a free oscillator, η_r(τ) = η_r cos ω_r τ + (η̇_r/ω_r) sin ω_r τ (uniform
+    motion η_r + η̇_r τ for ω_r = 0), x = Σ η_r u_r, all modes and times at once. Nothing
+    drives or dissipates: the work terms and modes of y0 are carried unchanged."""
+    tau = np.asarray(tau, dtype=float)
+    n = u.shape[0]
+    eta0 = u @ np.asarray(y0[:n], dtype=float)
+    deta0 = u @ np.asarray(y0[n:2 * n], dtype=float)
+    wt = np.outer(tau, w)
+    c, s = np.cos(wt), np.sin(wt)
+    safe = np.where(w > 0, w, 1.0)
+    moving = np.where(w > 0, (deta0 / safe) * s, deta0 * tau[:, None])
+    rows = np.empty((tau.size, len(y0)))
+    rows[:, :n] = (eta0 * c + moving) @ u
+    rows[:, n:2 * n] = (deta0 * c - (eta0 * w) * s) @ u
+    rows[:, 2 * n:] = np.asarray(y0, dtype=float)[2 * n:]
+    return rows
+
+
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
 #: Quadrature nodes evaluated per block of ``cumulative_integral`` (bounds its memory).
 _GL_BLOCK = 4096

@@ -39,6 +39,7 @@ import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, positive
+from mechsim.systems._oscillator import normal_mode_rows
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
@@ -165,19 +166,8 @@ class CoupledOscillators(LagrangianModel):
         its state at t₀ (ω_r > 0: every mass has its anchor spring κ > 0), all modes at once:
         η_r = η_r(t₀) cos ω_r τ + η̇_r(t₀)/ω_r sin ω_r τ, x = Σ η_r u_r. Nothing drives or
         dissipates: the work terms stay as they are."""
-        tau = np.asarray(t, dtype=float) - t0
-        n = self.count
-        u, w = self.mode_shapes(), self.mode_frequencies()
-        eta0 = u @ np.asarray(y0[:n], dtype=float)
-        deta0 = u @ np.asarray(y0[n:2 * n], dtype=float)
-        wt = np.outer(tau, w)
-        c, s = np.cos(wt), np.sin(wt)
-        x = (eta0 * c + (deta0 / w) * s) @ u
-        v = (deta0 * c - (eta0 * w) * s) @ u
-        rows = np.empty((tau.size, len(y0)))
-        rows[:, :n], rows[:, n:2 * n] = x, v
-        rows[:, 2 * n:] = np.asarray(y0, dtype=float)[2 * n:]
-        return rows
+        return normal_mode_rows(self.mode_shapes(), self.mode_frequencies(), y0,
+                                np.asarray(t, dtype=float) - t0)
 
     def weak_coupling_ratio(self) -> float:
         """ε = κ₁₂ / 2κ (line 2094)."""
