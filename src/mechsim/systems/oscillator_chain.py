@@ -154,6 +154,15 @@ class OscillatorChain(LagrangianModel):
         fastest = float(self.mode_frequencies()[-1])
         return 2 * math.pi / fastest if fastest > 0 else 1.0
 
+    def law_scales(self) -> dict[str, float]:
+        """The free chain's momentum often starts at 0 (a chain at rest): its drift is
+        measured against √(2 n m E), the momentum the chain's energy could give it."""
+        scales = super().law_scales()
+        if "invariant:momentum" in scales:
+            scales["invariant:momentum"] = math.sqrt(
+                2 * self.count * self.value("mass") * self.energy_scale())
+        return scales
+
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray:
         """The superposition of the free normal modes (``normal_mode_rows``)."""
         return normal_mode_rows(chain_modes(self.count, self.walls)[1], self.mode_frequencies(),

@@ -129,6 +129,20 @@ class ThreeBody(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / self.rotation_rate()
 
+    def law_scales(self) -> dict[str, float]:
+        """The total momentum and angular momentum start at zero up to round-off (the
+        barycentre is removed): their drifts are measured against the sums of the bodies'
+        own magnitudes, Σ m|v| and Σ m|r × v|, not against that round-off."""
+        scales = super().law_scales()
+        r, v = (a.reshape(3, 2) for a in self.initial_state())
+        m = np.array([self.value("primary_mass"), self.value("secondary_mass"),
+                      self.value("third_mass")])
+        p = float(m @ np.hypot(v[:, 0], v[:, 1]))
+        lz = float(m @ np.abs(r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0]))
+        scales.update({"invariant:momentum_x": p, "invariant:momentum_y": p,
+                       "invariant:angular_momentum": lz})
+        return scales
+
     def visuals(self) -> tuple[Visual, ...]:
         L = self.value("separation")
         return (Visual("axes", "synodic", radius=0.3 * L),
