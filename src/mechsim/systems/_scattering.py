@@ -164,15 +164,3 @@ def coulomb_incoming_state(mu: float, k: float, speed: float, b: float, distance
     vt = Lz / (mu * distance)
     vr = -math.sqrt(max(v2 - vt * vt, 0.0))
     return distance * rhat, vr * rhat + vt * that
-
-
-def coulomb_outgoing_direction(mu: float, k: float, r: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Unit vector of the outgoing asymptote of the orbit through (r, w) in U = k/r, from the
-    conserved E, L_z and A: at t → ∞, A = μ u∞ L_z (ê_y, −ê_x) + μ k ê (solved for ê)."""
-    rn = float(np.linalg.norm(r))
-    u = math.sqrt(float(np.dot(w, w)) + 2.0 * k / (mu * rn))
-    Lz = mu * (r[0] * w[1] - r[1] * w[0])
-    A = np.array([mu * Lz * w[1] + mu * k * r[0] / rn, -mu * Lz * w[0] + mu * k * r[1] / rn])
-    c, s = mu * k, mu * u * Lz  # A = [[c, s], [−s, c]] ê
-    e = np.array([c * A[0] - s * A[1], s * A[0] + c * A[1]]) / (c * c + s * s)
-    return e / float(np.linalg.norm(e))
