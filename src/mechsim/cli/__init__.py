@@ -15,7 +15,7 @@ EXIT_USAGE = 2
 
 #: The verbs, in the order ``mechsim --help`` lists them: one module each in this package.
 VERBS = ("systems", "run", "record", "bag", "replay", "topic", "node", "param", "service",
-         "view", "convert", "bench", "stress", "cache")
+         "view", "convert", "bench", "stress", "cache", "figures")
 
 
 def build_parser() -> argparse.ArgumentParser:
