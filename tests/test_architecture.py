@@ -23,7 +23,7 @@ LAYERS: dict[str, int] = {
     "simulate": 3, "scene": 3, "mechsim": 3,  # "mechsim": the package's public API
     "outputs": 4,
     "ros": 5,
-    "bench": 6, "stress": 6, "experiments": 6, "testing": 6,
+    "bench": 6, "stress": 6, "experiments": 6, "figures": 6, "testing": 6,
     "cli": 7,
 }
 #: Rooms that must not see each other although the ranks would allow it.
