@@ -1,4 +1,4 @@
-"""Kepler problem (seed 003 §4.6): Kepler's equation, period, apsides, conserved L and LRL
+"""Kepler problem (PHYS0500 §4.6): Kepler's equation, period, apsides, conserved L and LRL
 vector, long-run energy conservation. Oracles computed here (scipy root finding)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Periodic drive by superposition (seed 003 §1.6): the steady state is the sum of the harmonic
+"""Periodic drive by superposition (PHYS0500 §1.6): the steady state is the sum of the harmonic
 responses. Oracles written here independently of the code: Fourier coefficients by quadrature
 of the discontinuous waveforms, phasor responses F̂ₙ/(k − mn²ω² + ibnω), the exact periodic
 response to the discontinuous wave from the period map of solve_ivp, and the free transient."""

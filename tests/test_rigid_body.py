@@ -1,4 +1,4 @@
-"""Free rigid body (seed 003 §7.2–7.7): inertia module, Euler's equations, quaternion attitude.
+"""Free rigid body (PHYS0500 §7.2–7.7): inertia module, Euler's equations, quaternion attitude.
 
 References: sympy volume integrals for the solid tensors; brute-force point sums for the
 parallel-axis theorem; an independent scipy integration of Euler's equations with the attitude

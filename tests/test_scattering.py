@@ -1,4 +1,4 @@
-"""Scattering on a hard sphere and a repulsive Coulomb centre (seed 003 §5.3): deflection per
+"""Scattering on a hard sphere and a repulsive Coulomb centre (PHYS0500 §5.3): deflection per
 trajectory against the closed forms, the document's orbit integral (line 1255) by mpmath
 quadrature, an independent Newtonian integration (scipy), the incoming hyperbola checked by
 integrating backwards, σ from eq. 5.6 with sympy, the LAB conversion (eq. 5.10, 1312, 1316)

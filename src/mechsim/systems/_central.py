@@ -1,4 +1,4 @@
-"""Shared physics of central-force motion (seed 003 ch. 4, seed 001 §2.16–2.20): the relative
+"""Shared physics of central-force motion (PHYS0500 ch. 4, seed 001 §2.16–2.20): the relative
 orbit's first integrals as sympy expressions, and the analytic oracles (effective potential,
 turning points, Kepler elements, conic classes, Kepler's equation), and the three-dimensional
 orbit vectors L and A with the orbit frame they define. Used by ``kepler``, ``central_force``,
@@ -106,14 +106,14 @@ def orbit_quaternion(L: tuple[Expr, Expr, Expr], A: tuple[Expr, Expr, Expr] | No
 # --- oracles ------------------------------------------------------------------------------------
 def effective_potential(U: Callable[[float], float], mu: float, l: float
                         ) -> Callable[[float], float]:
-    """V_eff(r) = U(r) + l² / (2 μ r²) (seed 003 line 960, seed 001 §2.18)."""
+    """V_eff(r) = U(r) + l² / (2 μ r²) (PHYS0500 line 960, seed 001 §2.18)."""
     return lambda r: U(r) + l * l / (2 * mu * r * r)
 
 
 def turning_points(U: Callable[[float], float], mu: float, E: float, l: float,
                    r_min: float = 1e-6, r_max: float = 1e6, samples: int = 20000
                    ) -> list[float]:
-    """All radii in [r_min, r_max] where E = V_eff(r) (seed 003 line 913), by sign changes on
+    """All radii in [r_min, r_max] where E = V_eff(r) (PHYS0500 line 913), by sign changes on
     a logarithmic grid refined with brentq."""
     from scipy.optimize import brentq  # here: importing scipy.optimize costs 0.2-0.4 s
 
@@ -249,7 +249,7 @@ def conic_class(eccentricity: float, tol: float = 1e-9) -> str:
 
 
 def kepler_elements(mu: float, k: float, E: float, l: float) -> dict[str, float]:
-    """Orbit of U = −k/r from E and l (seed 003 lines 984–1042, ε typo fixed):
+    """Orbit of U = −k/r from E and l (PHYS0500 lines 984–1042, ε typo fixed):
     α = l²/(μk), ε = √(1 + 2El²/(μk²)), r_min = α/(1 + ε), r_max = α/(1 − ε) (∞ unless bound),
     a = k/(2|E|), τ = 2π √(μ a³ / k) (bound orbits), V_min = −μk²/(2l²)."""
     alpha = l * l / (mu * k)

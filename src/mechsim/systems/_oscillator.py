@@ -75,7 +75,7 @@ def tone_response(force_over_mass: float, omega: float, omega0: float, beta: flo
                   ) -> tuple[float, float]:
     """Amplitude D and phase lag δ ∈ [0, π] of the steady response x = D cos(ωt − δ) of
     ẍ + 2βẋ + ω₀²x = A cos ωt, A = ``force_over_mass``: D = A/√((ω₀² − ω²)² + 4ω²β²),
-    tan δ = 2ωβ/(ω₀² − ω²) (seed 003 §1.4, eq. 1.2)."""
+    tan δ = 2ωβ/(ω₀² − ω²) (PHYS0500 §1.4, eq. 1.2)."""
     D = force_over_mass / math.sqrt((omega0**2 - omega**2) ** 2 + 4 * omega**2 * beta**2)
     return D, math.atan2(2 * omega * beta, omega0**2 - omega**2)
 
@@ -221,7 +221,7 @@ class LinearOscillator(LagrangianModel):
     def drive_tones(self) -> list[tuple[float, float, float]]:
         """The drive as a sum of tones F(t) = Σ Fₙ cos(ωₙt − φₙ), as (Fₙ, ωₙ, φₙ): here the one
         tone F₀ cos ωt, none without a drive. A periodic drive overrides this (its Fourier
-        series); ``propagate`` superposes the responses (seed 003 §1.6)."""
+        series); ``propagate`` superposes the responses (PHYS0500 §1.6)."""
         F0 = self._optional("drive_amplitude")
         return [(F0, self._optional("drive_frequency"), 0.0)] if F0 != 0.0 else []
 

@@ -1,4 +1,4 @@
-"""Shared physics of two-particle elastic collisions and scattering (seed 003 §5.2–5.3): the
+"""Shared physics of two-particle elastic collisions and scattering (PHYS0500 §5.2–5.3): the
 elastic impulse along the line of centres, the LAB ↔ CM angle and energy relations, the
 hard-sphere and Rutherford (repulsive Coulomb) deflections and cross-sections, the LAB
 cross-section conversion, and the exact incoming state on a repulsive Coulomb hyperbola. Used by
@@ -58,7 +58,7 @@ def reflect(r: np.ndarray, w: np.ndarray) -> np.ndarray:
     return w - 2.0 * float(np.dot(w, n)) * n
 
 
-# --- LAB ↔ CM (seed 003 §5.2) ------------------------------------------------------------------
+# --- LAB ↔ CM (PHYS0500 §5.2) ------------------------------------------------------------------
 
 
 def lab_angle(theta: np.ndarray | float, mass_ratio: float) -> np.ndarray:
@@ -97,7 +97,7 @@ def cm_angles_of_lab(psi: float, mass_ratio: float) -> list[float]:
     return [t for t in out if 0.0 <= t <= math.pi]
 
 
-# --- deflection functions and cross-sections (seed 003 §5.3) ----------------------------------
+# --- deflection functions and cross-sections (PHYS0500 §5.3) ----------------------------------
 
 
 def hard_sphere_deflection(b: np.ndarray | float, a: float) -> np.ndarray:

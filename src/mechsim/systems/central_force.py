@@ -1,12 +1,12 @@
 """Two bodies in a central potential: centre of mass, relative orbit, reduced mass.
 
-Sources: seed 003 ch. 4 (PHYS0500 "Central Force Motion": §4.1 reduced mass, §4.2–4.4 first
+Sources: PHYS0500 ch. 4 ("Central Force Motion": §4.1 reduced mass, §4.2–4.4 first
 integrals and turning points, §4.5 effective potential, §4.6 Kepler and the conic table),
 seed 001 §2.16–2.20 (two-body problem, Kepler, effective potential, −a/r³, isotropic harmonic
 and the spring V ∝ (r − l)²), seed 002 §3 (central-force particle).
 
 Coordinates: the centre of mass R = (m₁r₁ + m₂r₂)/M in ``world`` (``cm_x``, ``cm_y``) and the
-relative position r = r₁ − r₂ (of body 1 from body 2, seed 003 line 819) in the orbital plane,
+relative position r = r₁ − r₂ (of body 1 from body 2, PHYS0500 line 819) in the orbital plane,
 z along the angular momentum: Cartesian (x, y) or polar (r, θ), the two formulations.
 L = ½ M Ṙ² + ½ μ ṙ² − U(r), μ = m₁m₂/M; body 1 sits at +(m₂/M) r and body 2 at −(m₁/M) r
 from the CM (eq. 4.1).
@@ -25,10 +25,10 @@ from the CM (eq. 4.1).
   2π√(μ/k) for every energy.
 - ``spring``: ½ k (r − l₀)² (``rest_length`` l₀, seed 001 L1408): a vibrating rotor.
 
-Typos fixed (see the catalog): ε = √(1 + 2El²/(μk²)) (seed 003 line 988 prints √(2 + 2El²/(μk)));
+Typos fixed (see the catalog): ε = √(1 + 2El²/(μk²)) (PHYS0500 line 988 prints √(2 + 2El²/(μk)));
 rθ̇² = (l²/μ²)u³ (line 893 prints u²); E = ½μ(ṙ² + r²θ̇²) + U (line 843 is truncated); V = −k/r
 (seed 001 L1898 prints −k/2); the conic equation carries e²x² (seed 001 L1896).
-Orbit classes follow the conic table (seed 003 line 996) for −k/r; for the other potentials
+Orbit classes follow the conic table (PHYS0500 line 996) for −k/r; for the other potentials
 ``orbit_class`` reports circle / bounded / unbounded / falls.
 """
 
@@ -231,7 +231,7 @@ class CentralForce(LagrangianModel):
 
     # --- analytic oracles ---------------------------------------------------------------------
     def reduced_mass(self) -> float:
-        """μ = m₁m₂/(m₁ + m₂) (seed 003 line 815)."""
+        """μ = m₁m₂/(m₁ + m₂) (PHYS0500 line 815)."""
         m1, m2 = self.value("mass_1"), self.value("mass_2")
         return m1 * m2 / (m1 + m2)
 
@@ -241,19 +241,19 @@ class CentralForce(LagrangianModel):
             "initial_rate.theta")
 
     def relative_energy(self) -> float:
-        """E = ½ μ (ṙ² + r² θ̇²) + U(r) of the relative motion (seed 003 line 847)."""
+        """E = ½ μ (ṙ² + r² θ̇²) + U(r) of the relative motion (PHYS0500 line 847)."""
         r, dr, dth = (self.value("initial.r"), self.value("initial_rate.r"),
                       self.value("initial_rate.theta"))
         return 0.5 * self.reduced_mass() * (dr**2 + r**2 * dth**2) + \
             self.potential_function()(r)
 
     def effective_potential(self, r: float) -> float:
-        """V_eff = U + l²/(2μr²) (seed 003 line 960)."""
+        """V_eff = U + l²/(2μr²) (PHYS0500 line 960)."""
         return effective_potential(self.potential_function(), self.reduced_mass(),
                                    self.angular_momentum())(r)
 
     def turning_points(self) -> list[float]:
-        """All radii with E = V_eff(r) (seed 003 line 913), ascending."""
+        """All radii with E = V_eff(r) (PHYS0500 line 913), ascending."""
         return turning_points(self.potential_function(), self.reduced_mass(),
                               self.relative_energy(), self.angular_momentum(),
                               r_min=min(1e-4, self.value("capture_radius")) *
@@ -282,7 +282,7 @@ class CentralForce(LagrangianModel):
         return 3 * a * mu / l**2, l**6 / (54 * a * a * mu**3)
 
     def kepler_elements(self) -> dict[str, float]:
-        """For −k/r: ε, α, r_min, r_max, a, b, period (seed 003 §4.6, ε typo fixed)."""
+        """For −k/r: ε, α, r_min, r_max, a, b, period (PHYS0500 §4.6, ε typo fixed)."""
         return kepler_elements(self.reduced_mass(), self.value("force_constant"),
                                self.relative_energy(), self.angular_momentum())
 

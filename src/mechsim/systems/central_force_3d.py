@@ -8,7 +8,7 @@ d/dt(mr² sin²θ φ̇) = 0 — "the conservation of the z component of angular 
 The whole vector L = m r × ṙ is conserved, so the orbit lies in the fixed plane normal to L
 (catalog [DERIVED]); for Ṽ = −k/r the Laplace–Runge–Lenz vector A = m ṙ × L − m k r̂ is
 conserved too (it points to the periapsis; catalog supplement). In that plane the motion is the
-planar problem of ``central_force`` (seed 003 ch. 4) turned by a rotation.
+planar problem of ``central_force`` (PHYS0500 ch. 4) turned by a rotation.
 
 ``potential``: ``kepler`` Ṽ = −k/r (``force_constant``) or ``harmonic`` Ṽ = ½ k r²
 (``spring_constant``; then each Cartesian energy ½mẋᵢ² + ½kxᵢ² is conserved as well).

@@ -1,6 +1,6 @@
 """N identical coupled oscillators: normal modes, beats and energy transfer.
 
-Sources: seed 003 ch. 8 "Coupled Oscillations" — §8.1 two identical coupled oscillators
+Sources: PHYS0500 ch. 8 "Coupled Oscillations" — §8.1 two identical coupled oscillators
 (lines 1986–2088), §8.2 weak coupling and beats (2090–2139), §8.3–8.4 general small-oscillation
 theory and normal coordinates (2141–2281); seed 001 §2.21 (small oscillations, |V − ω²T| = 0).
 
@@ -144,7 +144,7 @@ class CoupledOscillators(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / float(self.mode_frequencies()[-1])
 
-    # --- analytic oracles (seed 003 ch. 8) ---------------------------------------------------
+    # --- analytic oracles (PHYS0500 ch. 8) ---------------------------------------------------
     def mode_frequencies(self) -> np.ndarray:
         """ω_r, ascending."""
         lam = laplacian_eigenvalues(self.count)

@@ -1,6 +1,6 @@
 """Free particle constrained to a surface: geodesics on a sphere, a cylinder or a cone.
 
-Source: seed 003 ch. 2 (§2.2, line 393: the geodesic, "the shortest path on a given surface"),
+Source: PHYS0500 ch. 2 (§2.2, line 393: the geodesic, "the shortest path on a given surface"),
 made simulable as the catalog suggests (003 §10): a free particle held on the surface by a
 holonomic constraint with a Lagrange multiplier (§3.4) moves along geodesics at constant speed.
 

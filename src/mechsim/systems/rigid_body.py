@@ -1,6 +1,6 @@
 """Free rigid body: inertia tensor, principal axes, Euler's equations, quaternion attitude.
 
-Source: seed 003 §7.2–7.7 (PHYS0500 ch. 7 "Dynamics of Rigid Bodies": inertia tensor eq. 7.1,
+Source: PHYS0500 §7.2–7.7 (ch. 7 "Dynamics of Rigid Bodies": inertia tensor eq. 7.1,
 principal axes §7.4, parallel-axis theorem §7.5, Euler's equations §7.7.1 force-free and §7.7.2
 with torque, line 1783). The body is a solid ``shape`` (box, cylinder along z, sphere) of mass
 ``mass`` plus an optional point mass ``tip_mass`` at ``tip_position`` (both in the shape's own
