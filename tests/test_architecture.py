@@ -24,7 +24,7 @@ LAYERS: dict[str, int] = {
     "runcore": 4,  # one system run sample by sample, without ROS
     "outputs": 5,
     "ros": 6,
-    "bench": 7, "stress": 7, "experiments": 7, "testing": 7,
+    "bench": 7, "stress": 7, "experiments": 7, "figures": 7, "testing": 7,
     "cli": 8,
 }
 #: Rooms that must not see each other although the ranks would allow it.

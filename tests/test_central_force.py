@@ -1,4 +1,4 @@
-"""Two-body central-force problem (seed 003 ch. 4, seed 001 §2.16–2.20): independent two-body
+"""Two-body central-force problem (PHYS0500 ch. 4, seed 001 §2.16–2.20): independent two-body
 Newtonian integration, turning points, Kepler elements and conic classes, harmonic period,
 −a/r³ barrier and fall time."""
 

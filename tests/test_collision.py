@@ -1,4 +1,4 @@
-"""Elastic collision of two spheres (seed 003 §5.2): contact-event time, conservation across the
+"""Elastic collision of two spheres (PHYS0500 §5.2): contact-event time, conservation across the
 impulse, LAB/CM formulations, final velocities against an independent sympy solution of the
 conservation laws, the document's angle and energy-sharing formulas derived again with sympy,
 the maximum LAB angle by an impact-parameter sweep."""

@@ -1,4 +1,4 @@
-"""N coupled oscillators (seed 003 ch. 8, seed 001 §2.21): normal modes from |A − ω²M| = 0,
+"""N coupled oscillators (PHYS0500 ch. 8, seed 001 §2.21): normal modes from |A − ω²M| = 0,
 modal solution, conserved mode energies, beats and the transfer time."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Damped oscillator (seed 003 §1.3, seed 000 S8): exact motion in the three regimes, the
+"""Damped oscillator (PHYS0500 §1.3, seed 000 S8): exact motion in the three regimes, the
 dissipation balance dE/dt = −bẋ², and the Caldirola–Kanai energy function h = e^{bt/m}E."""
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ def test_caldirola_kanai_observable() -> None:
 
 
 def test_successive_maxima() -> None:
-    """Maxima T₁ = 2π/ω₁ apart, ratio e^{βT₁} (seed 003 lines 143–145)."""
+    """Maxima T₁ = 2π/ω₁ apart, ratio e^{βT₁} (PHYS0500 lines 143–145)."""
     m = model(damping=0.3)
     w1, beta = m.damped_frequency(), m.beta()
     assert w1 == pytest.approx(math.sqrt(4.0 - 0.15**2), rel=1e-15)

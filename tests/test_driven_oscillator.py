@@ -1,4 +1,4 @@
-"""Driven damped oscillator (seed 003 §1.3–1.5): steady-state amplitude and phase, resonance,
+"""Driven damped oscillator (PHYS0500 §1.3–1.5): steady-state amplitude and phase, resonance,
 Q, and the power balance. Expected values come from the corrected formulas written out here
 and from a least-squares fit of the simulated motion, not from the model's own methods."""
 

@@ -1,7 +1,7 @@
 """The torque-free rigid body's closed form as evaluated in blocks of samples
-(``_rigid._torque_free_motion``): its vectorizing cos/sin and half angles against ``math``, and
-runs of several blocks, in any order of the times and from any anchor time, against an
-independent integration."""
+(``_free_rotation._torque_free_motion``): its vectorizing cos/sin and half angles against
+``math``, and runs of several blocks, in any order of the times and from any anchor time,
+against an independent integration."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 
 import mechsim
 from mechsim.integrators import make_stepper
-from mechsim.systems import _rigid
+from mechsim.systems import _free_rotation, _rigid
 
 
 def test_cos_sin_within_an_ulp_of_math() -> None:
@@ -25,7 +25,7 @@ def test_cos_sin_within_an_ulp_of_math() -> None:
         np.nextafter(np.arange(-2000, 2000) * (0.5 * math.pi), np.inf),
         [0.0, -0.0, 5e-324, -1e-300, 2.0**19, -(2.0**19), np.nextafter(2.0**19, np.inf)]])
     c, s = np.empty_like(x), np.empty_like(x)
-    _rigid._cos_sin(x, c, s)
+    _free_rotation._cos_sin(x, c, s)
     cos_ref = np.array([math.cos(v) for v in x])
     sin_ref = np.array([math.sin(v) for v in x])
     # within an ulp of 1 (values of magnitude ≤ 1), and relative to small values
@@ -36,7 +36,7 @@ def test_cos_sin_within_an_ulp_of_math() -> None:
                                                                     5e-324)) <= 2.3e-16
     odd = np.array([np.inf, -np.inf, np.nan])
     c, s = np.empty(3), np.empty(3)
-    _rigid._cos_sin(odd, c, s)
+    _free_rotation._cos_sin(odd, c, s)
     assert np.isnan(c).all() and np.isnan(s).all()
 
 
@@ -47,7 +47,7 @@ def test_half_angle_is_half_of_atan2() -> None:
                (-0.0, 0.0), (0.0, -0.0), (-0.0, -0.0), (3.0, 0.0), (-3.0, -0.0)]
     for y, x in points:
         half = 0.5 * math.atan2(y, x)
-        c, s = _rigid._half_angle(y, x, math.hypot(x, y))
+        c, s = _free_rotation._half_angle(y, x, math.hypot(x, y))
         assert abs(c - math.cos(half)) <= 4e-16 and abs(s - math.sin(half)) <= 4e-16, (y, x)
         assert math.copysign(1.0, s) == math.copysign(1.0, math.sin(half)), (y, x)
 
@@ -86,6 +86,6 @@ def test_the_initial_state_is_reproduced(values: dict) -> None:
     y0 = model.initial_y()
     q0 = y0[:4] / np.linalg.norm(y0[:4])
     w0 = np.array(_rigid.rb_omega(y0))
-    rows, W = _rigid.free_rotation(model.rigid.moments, q0, w0, np.zeros(1))
+    rows, W = _free_rotation.free_rotation(model.rigid.moments, q0, w0, np.zeros(1))
     assert np.max(np.abs(rows[0, :4] - q0)) < 1e-15
     assert np.max(np.abs(W[0] - w0)) < 1e-14 * np.max(np.abs(w0))

@@ -1,4 +1,4 @@
-"""Geodesics (seed 003 ch. 2): constant speed, great circles on the sphere (L fixed, path in the
+"""Geodesics (PHYS0500 ch. 2): constant speed, great circles on the sphere (L fixed, path in the
 plane ⟂ L, period 2πR/v, normal force −mv²/R), helices on the cylinder (exact φ(t), z(t)),
 straight lines on the unrolled cone (|r|² = |r₀|² + 2r₀·v₀t + v²t², since the normal force is
 ⟂ r on a cone through the apex), Clairaut's ρ²φ̇, constraint residual at round-off."""

@@ -1,4 +1,4 @@
-"""Simple harmonic oscillator (seed 003 §1.1, seed 001 §2.9): exact solution, E = h, and the
+"""Simple harmonic oscillator (PHYS0500 §1.1, seed 001 §2.9): exact solution, E = h, and the
 period averages ⟨T⟩ = ⟨V⟩ = E/2."""
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ def test_exact_solution(method: str) -> None:
 
 
 def test_sine_form_and_period() -> None:
-    """x = A sin(ω₀t − δ) (seed 003 line 49) and x(t + 2π√(m/k)) = x(t)."""
+    """x = A sin(ω₀t − δ) (PHYS0500 line 49) and x(t + 2π√(m/k)) = x(t)."""
     m = model(**{"initial.x": -0.2, "initial_rate.x": 0.9})
     A, d, w = m.amplitude(), m.phase(), m.natural_frequency()
     assert m.period() == pytest.approx(2 * math.pi * math.sqrt(1.0 / 4.0), rel=1e-15)

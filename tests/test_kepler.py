@@ -1,4 +1,4 @@
-"""Kepler problem (seed 003 §4.6): Kepler's equation, period, apsides, conserved L and LRL
+"""Kepler problem (PHYS0500 §4.6): Kepler's equation, period, apsides, conserved L and LRL
 vector, long-run energy conservation. Oracles computed here (scipy root finding)."""
 
 from __future__ import annotations
@@ -32,6 +32,8 @@ def run() -> mechsim.SimulationResult:
 def test_positions_match_keplers_equation(run: mechsim.SimulationResult) -> None:
     exact = np.array([_kepler_position(t) for t in run.t])
     assert np.max(np.abs(run.q - exact)) < 1e-9 * A
+    # the model's oracle (Newton on Kepler's equation) is this solution, and so is the run
+    assert np.max(np.abs(run.model.position_at(run.t) - exact)) < 1e-12 * A
 
 
 def test_period_apsides_and_elements(run: mechsim.SimulationResult) -> None:

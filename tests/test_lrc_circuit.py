@@ -1,4 +1,4 @@
-"""Series LRC circuit (seed 003 §1.7): oracles from circuit theory written here (sympy's
+"""Series LRC circuit (PHYS0500 §1.7): oracles from circuit theory written here (sympy's
 solution of Kirchhoff's law, the complex impedance, half-power points), the Joule heat as the
 dissipated work, and the same trajectory as the mechanical analogue under the table's mapping
 (both integrated from their own declarations)."""
@@ -109,7 +109,7 @@ def test_resonance_and_quality_factor() -> None:
     mod = circuit()
     assert mod.quality_factor() == pytest.approx(w0 / (half[1] - half[0]), rel=1e-13)
     assert mod.quality_factor() == pytest.approx(math.sqrt(L / C) / R, rel=1e-14)
-    # the charge amplitude peaks lower, at ω_R = √(ω₀² − 2β²) (seed 003 §1.5)
+    # the charge amplitude peaks lower, at ω_R = √(ω₀² − 2β²) (PHYS0500 §1.5)
     assert mod.charge_resonance_frequency() == pytest.approx(math.sqrt(w0**2 - 2 * beta**2),
                                                              rel=1e-14)
     assert mod.document_quality_factor() == pytest.approx(

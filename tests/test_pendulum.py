@@ -1,5 +1,8 @@
-"""Simple pendulum (seed 000 S1): exact period, tension, multiplier = −tension, both forms agree,
-long-run energy conservation. Oracles are computed here from scipy/mpmath, not by the model."""
+"""Simple pendulum (“Dynamical Systems and Constraints: Part 3 – Simple Pendulum”): exact period,
+tension, multiplier = −tension in the document's own polar form and in Cartesian coordinates, the
+forms agree, the small-angle form beside the exact one, long-run energy conservation. Oracles are
+computed here from scipy/mpmath and the document's equations, or are the model's analytic
+methods (exact period, tension from energy conservation) checked against those first."""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ import math
 import mpmath
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 import mechsim
 
@@ -41,6 +45,8 @@ def test_exact_period(form: str, phi0: float) -> None:
     c = np.polyfit(run.t[window] - run.t[k], angle[window], 2)
     t_turn = run.t[k] - c[1] / (2 * c[0])
     assert abs(t_turn - period) < 2e-7 * period
+    # the model's own oracle (scipy's K) agrees with mpmath's at 30 digits
+    assert m.exact_period() == pytest.approx(period, rel=1e-14)
     assert np.sign(rate[k - 5]) != np.sign(rate[k + 5]) or phi0 < 0.5
 
 
@@ -51,6 +57,8 @@ def test_tension_formula_and_multiplier_sign(phi0: float) -> None:
     phi = run.observables["angle"]
     expected = M * G * (3 * np.cos(phi) - 2 * math.cos(phi0))  # from energy conservation
     assert np.max(np.abs(run.observables["tension"] - expected)) < 1e-8 * M * G
+    # the model's oracle is this formula
+    assert np.allclose(m.tension_at(phi), expected, rtol=1e-14, atol=1e-14 * M * G)
     assert np.allclose(run.observables["multiplier"], -run.observables["tension"], atol=0)
     # Rod in compression for φ₀ > π/2 (catalog: min T = −4.0824 N for φ₀ = 2 rad, m = 1).
     if phi0 > math.pi / 2:
@@ -97,3 +105,57 @@ def test_rejects_bad_parameters() -> None:
         mechsim.load_system("pendulum", masss=1.0)
     with pytest.raises(mechsim.ParameterError, match="formulation: must be one of"):
         mechsim.load_system("pendulum", formulation="newtonian")
+
+
+def _document_pendulum(phi0: float, t: np.ndarray) -> np.ndarray:
+    """φ(t) of R φ̈ + g sin φ = 0 (the post's L32), by scipy's DOP853 at 1e-13."""
+    sol = solve_ivp(lambda _, s: [s[1], -G / R * math.sin(s[0])], (0.0, float(t[-1])),
+                    [phi0, 0.0], t_eval=t, method="DOP853", rtol=1e-13, atol=1e-13)
+    return sol.y[0]
+
+
+@pytest.mark.parametrize("phi0", [1.0, 2.5])
+def test_polar_multiplier_is_the_documents_form(phi0: float) -> None:
+    """(ρ, φ) with ρ − R = 0 (L78): the multiplier is −(m g cos φ + m R φ̇²) read off the state
+    (the Newtonian tension, L28; L90 gives λ = −T), ρ stays R, φ(t) is the document's
+    pendulum, and the tension follows energy conservation (``tension_at``)."""
+    m = _model("polar_multiplier", phi0)
+    run = mechsim.simulate(m, 6.0, 0.01, tolerance=1e-12)
+    rho, phi, dphi = run.q[:, 0], run.q[:, 1], run.v[:, 1]
+    newton_tension = M * G * np.cos(phi) + M * R * dphi**2
+    assert np.max(np.abs(run.observables["multiplier"] + newton_tension)) < 1e-8 * M * G
+    assert np.array_equal(run.observables["tension"], -run.observables["multiplier"])
+    assert np.max(np.abs(rho - R)) < 1e-12 * R
+    assert np.max(np.abs(run.invariants["constraint_rod_length"])) < 1e-12 * R
+    assert np.max(np.abs(phi - _document_pendulum(phi0, run.t))) < 1e-8
+    assert np.max(np.abs(run.observables["tension"] - m.tension_at(phi))) < 1e-8 * M * G
+
+
+def test_polar_and_cartesian_multipliers_agree_with_the_reduced_form() -> None:
+    """The three forms of the post (substitution, polar multiplier) and the Cartesian one: the
+    same φ(t), the same λ = −T along it."""
+    runs = {f: mechsim.simulate(_model(f, 2.5), 8.0, 0.01, tolerance=1e-12, method="dop853")
+            for f in ("reduced", "multiplier", "polar_multiplier")}
+    phi = runs["reduced"].q[:, 0]
+    assert np.max(np.abs(runs["polar_multiplier"].q[:, 1] - phi)) < 1e-8
+    assert np.max(np.abs(runs["multiplier"].observables["angle"] - phi)) < 1e-8
+    lam_polar = runs["polar_multiplier"].observables["multiplier"]
+    assert np.max(np.abs(lam_polar - runs["multiplier"].observables["multiplier"])) < 1e-7
+    assert np.max(np.abs(lam_polar + runs["reduced"].observables["tension"])) < 1e-7
+
+
+@pytest.mark.parametrize("phi0", [0.1, 1.0, 2.5])
+def test_small_angle_form_is_isochronous(phi0: float) -> None:
+    """The linearised pendulum integrated (not its closed form): φ₀ cos ω₀t, period 2π√(R/g)
+    at every amplitude; the exact period exceeds it by 1 + φ₀²/16 + 11φ₀⁴/3072 + 173φ₀⁶/737280
+    + … (series checked at φ₀ = 0.1, where the next term is 2e-10)."""
+    w0 = math.sqrt(G / R)
+    run = mechsim.simulate(_model("small_angle", phi0), 10.0, 0.01, tolerance=1e-12,
+                           method="dop853")
+    assert np.max(np.abs(run.q[:, 0] - phi0 * np.cos(w0 * run.t))) < 1e-9 * phi0
+    small = 2 * math.pi / w0
+    exact = _model("reduced", phi0).exact_period()
+    assert exact > small
+    if phi0 <= 0.1:
+        series = small * (1 + phi0**2 / 16 + 11 * phi0**4 / 3072 + 173 * phi0**6 / 737280)
+        assert exact == pytest.approx(series, rel=1e-9)

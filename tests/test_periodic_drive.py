@@ -1,4 +1,4 @@
-"""Periodic drive by superposition (seed 003 §1.6): the steady state is the sum of the harmonic
+"""Periodic drive by superposition (PHYS0500 §1.6): the steady state is the sum of the harmonic
 responses. Oracles written here independently of the code: Fourier coefficients by quadrature
 of the discontinuous waveforms, phasor responses F̂ₙ/(k − mn²ω² + ibnω), the exact periodic
 response to the discontinuous wave from the period map of solve_ivp, and the free transient."""
@@ -104,8 +104,11 @@ def test_steady_state_is_sum_of_harmonic_responses() -> None:
     partial_sum = sum(F0 * (a * np.cos(n * w * run.t) + b * np.sin(n * w * run.t))
                       for n, a, b in coeffs)
     np.testing.assert_allclose(run.observables["drive_force"], partial_sum, atol=1e-9)
-    # the model's own steady state agrees with the independent sum
+    # the model's own steady state, and the sum of its per-tone responses, agree with it
     np.testing.assert_allclose(mod.steady_state(run.t[late])[0], ref, atol=1e-12)
+    tones = sum(D * np.cos(wn * run.t[late] - phi - delta)
+                for wn, D, phi, delta in mod.harmonic_responses())
+    np.testing.assert_allclose(tones, ref, atol=1e-12)
 
 
 @pytest.mark.parametrize("name,f", [("square", square), ("sawtooth", sawtooth)])

@@ -1,4 +1,4 @@
-"""Planar isotropic oscillator (seed 003 §1.2, seed 000 S6): Cartesian and polar forms agree,
+"""Planar isotropic oscillator (PHYS0500 §1.2, seed 000 S6): Cartesian and polar forms agree,
 exact elliptic orbit, L_z, E_x, E_y and E = h conserved, the document's radial equation is
 missing the centrifugal term."""
 

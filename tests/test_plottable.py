@@ -5,9 +5,9 @@ uses) and Foxglove's ROS 2 decoding stack (``@mcap/core``, ``@foxglove/rosmsg``,
 An invariant is selected by its name ("angular_momentum"), never by its index; an attitude
 system publishes geometry_msgs pose and twist, and no quaternion in JointState.
 
-Oracles: the Kepler orbit's angular momentum L = √(μ² GM a (1 − e²)) (seed 003 §4.6), and a
+Oracles: the Kepler orbit's angular momentum L = √(μ² GM a (1 − e²)) (PHYS0500 §4.6), and a
 rigid body spinning about a principal axis, whose body angular velocity stays (0, 0, ω₀) and
-whose attitude is q(t) = q₀ ⊗ (0, 0, sin(ω₀t/2), cos(ω₀t/2)) (seed 003 §7.7: stable spin
+whose attitude is q(t) = q₀ ⊗ (0, 0, sin(ω₀t/2), cos(ω₀t/2)) (PHYS0500 §7.7: stable spin
 about the axis of largest moment), with q₀ from scipy's z-x-z Euler angles.
 """
 

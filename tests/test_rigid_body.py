@@ -1,4 +1,4 @@
-"""Free rigid body (seed 003 §7.2–7.7): inertia module, Euler's equations, quaternion attitude.
+"""Free rigid body (PHYS0500 §7.2–7.7): inertia module, Euler's equations, quaternion attitude.
 
 References: sympy volume integrals for the solid tensors; brute-force point sums for the
 parallel-axis theorem; an independent scipy integration of Euler's equations with the attitude
@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 import mechsim
 from mechsim.errors import ParameterError
-from mechsim.systems import _rigid as rg
+from mechsim.systems import _inertia as rg
 
 # --- inertia module ---------------------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-"""Rotating frame and the rotating Earth (seed 003 ch. 6).
+"""Rotating frame and the rotating Earth (PHYS0500 ch. 6).
 
 References: the rotating-frame particle obeys the linear constant-coefficient system
 r̈ = g − 2ω × ṙ − ω × (ω × r), solved exactly here with a matrix exponential; a free particle is

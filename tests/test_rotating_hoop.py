@@ -88,8 +88,8 @@ def test_bifurcation_at_critical_speed() -> None:
     high = mechsim.simulate(_model("reduced", w, eps), 10.0, 0.005, tolerance=1e-12)
     assert high.q[:, 0].max() > th_eq
     assert high.q[:, 0].max() < 2 * th_eq + 0.1
-    # At ω = ω_c exactly there is no off-axis equilibrium: arccos(1) = 0.
-    assert math.acos(G / (L * WC * WC)) == 0.0
+    # the model's critical speed is where the two regimes meet: ω_c = √(g/l)
+    assert _model("reduced", w, eps).critical_speed() == pytest.approx(WC, rel=1e-15)
 
 
 def test_parameter_validation() -> None:

@@ -1,4 +1,4 @@
-"""Scattering on a hard sphere and a repulsive Coulomb centre (seed 003 §5.3): deflection per
+"""Scattering on a hard sphere and a repulsive Coulomb centre (PHYS0500 §5.3): deflection per
 trajectory against the closed forms, the document's orbit integral (line 1255) by mpmath
 quadrature, an independent Newtonian integration (scipy), the incoming hyperbola checked by
 integrating backwards, σ from eq. 5.6 with sympy, the LAB conversion (eq. 5.10, 1312, 1316)
@@ -93,6 +93,11 @@ def test_coulomb_trajectory_matches_newton_and_closed_forms(coulomb_run) -> None
     assert np.max(np.abs(r.observables["asymptotic_cm_angle"] - th)) < 1e-10
     rr = r.observables["radius"][-1]
     assert rr > 40.0 and abs(r.observables["cm_angle"][-1] - th) < k * b / (E * rr**2)
+    # the LAB angle of the projectile tends to the model's ψ(b) (tan ψ = sin θ/(cos θ + m₁/m₂)),
+    # as k/(E r): it depends on the relative speed, which approaches its asymptote as 1/r
+    psi = float(m.lab_deflection(b))
+    assert psi == pytest.approx(math.atan2(math.sin(th), math.cos(th) + m.mass_ratio()))
+    assert abs(r.observables["lab_angle_1"][-1] - psi) < k / (E * rr)
     # closest approach r_min = k/(2E) + √((k/2E)² + b²) (catalog supplement)
     rmin = k / (2 * E) + math.hypot(k / (2 * E), b)
     i = int(np.argmin(r.observables["radius"]))

@@ -73,6 +73,7 @@ def test_normal_force_on_sphere_then_zero_in_flight(form: str) -> None:
     th, _, _ = _angle_and_xz(form, np.column_stack([run.q]))
     N_expected = M * G * (3 * np.cos(th[on]) - 2 * math.cos(th0))
     assert np.max(np.abs(run.observables["normal_force"][on] - N_expected)) < 1e-8 * M * G
+    assert np.allclose(m.normal_force_at(th[on]), N_expected, rtol=1e-14, atol=1e-14 * M * G)
     assert np.all(run.observables["normal_force"][on] > 0)
     assert np.all(run.observables["normal_force"][~on] == 0.0)
     np.testing.assert_array_equal(run.mode("phase"), (~on).astype(float))

@@ -22,6 +22,7 @@ def _model(**kw: object) -> mechsim.systems.base.Model:
 @pytest.mark.parametrize("th0", [0.3, 1.0, 1.4])
 def test_conical_pendulum_and_its_oscillation(th0: float) -> None:
     rate = math.sqrt(G / (L * math.cos(th0)))
+    assert _model().conical_rate(th0) == pytest.approx(rate, rel=1e-15)
     steady = mechsim.simulate(_model(**{"initial.polar_angle": th0,
                                         "initial_rate.azimuth": rate}), 5.0, 0.05,
                               tolerance=1e-12)

@@ -1,4 +1,4 @@
-"""Symmetric top (seed 003 §7.6–7.8.2, seed 002 §7): torque-free and heavy (Lagrange) top.
+"""Symmetric top (PHYS0500 §7.6–7.8.2, seed 002 §7): torque-free and heavy (Lagrange) top.
 
 References: the θ Euler–Lagrange equation derived here with sympy from the Lagrangian (for
 steady precession), the catalog's worked numbers, turning points found by root bracketing of
@@ -93,7 +93,7 @@ def test_reality_condition() -> None:
     assert top(**steady(theta, 0.999 * crit, 0.0)).steady_precession_rates() == ()
     lo, hi = top(**steady(theta, 1.001 * crit, 0.0)).steady_precession_rates()
     assert 0 < lo < hi
-    # θ > π/2: always real, opposite signs (seed 003 line 1966)
+    # θ > π/2: always real, opposite signs (PHYS0500 line 1966)
     lo, hi = top(**steady(2.2, 1.0, 0.0)).steady_precession_rates()
     assert lo < 0 < hi
 

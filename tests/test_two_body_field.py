@@ -68,6 +68,7 @@ def test_centre_of_mass_falls_freely(run: mechsim.SimulationResult) -> None:
     t = run.t
     expected = np.stack([1.0 * t, 0 * t, 8.0 * t - 0.5 * G * t**2], axis=1)
     np.testing.assert_allclose(cm(run), expected, atol=1e-9)
+    np.testing.assert_allclose(run.model.cm_position(t), expected, atol=1e-12)
     np.testing.assert_allclose(run.observables["cm_height"], expected[:, 2], atol=1e-9)
     np.testing.assert_allclose(run.invariants["momentum_z_falling_frame"], (M1 + M2) * 8.0,
                                rtol=1e-12)

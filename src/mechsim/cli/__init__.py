@@ -24,7 +24,7 @@ EXIT_INTERRUPTED = 130
 
 #: The verbs, in the order ``mechsim --help`` lists them: one module each in this package.
 VERBS = ("systems", "run", "record", "bag", "replay", "topic", "node", "param", "service",
-         "view", "convert", "bench", "stress", "cache")
+         "view", "convert", "bench", "stress", "cache", "figures")
 #: The node processes' verbs (``executables``), not listed by ``mechsim --help``.
 NODE_VERBS = ("simulator", "diagnostics", "recorder")
 

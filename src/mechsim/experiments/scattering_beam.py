@@ -1,4 +1,4 @@
-"""The scattering beam (seed 003 §4.3, the cross-section experiment): many trajectories of the
+"""The scattering beam (PHYS0500 §5.3, the cross-section experiment): many trajectories of the
 ``scattering`` system through the stepper, histogrammed into dσ/dΩ. An experiment run on a
 system, so it lives above the physics and stepping layers and imports both downward."""
 

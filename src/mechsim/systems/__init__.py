@@ -39,10 +39,13 @@ SYSTEMS: dict[str, str] = {
     "lrc_circuit": "mechsim.systems.lrc_circuit",
     "moving_coordinates": "mechsim.systems.moving_coordinates",
     "moving_frames": "mechsim.systems.moving_frames",
+    "noninertial_frame": "mechsim.systems.noninertial_frame",
+    "oscillator_chain": "mechsim.systems.oscillator_chain",
     "paraboloid_bead": "mechsim.systems.paraboloid_bead",
     "pendulum": "mechsim.systems.pendulum",
     "periodic_drive": "mechsim.systems.periodic_drive",
     "planar_oscillator": "mechsim.systems.planar_oscillator",
+    "power_law_orbit": "mechsim.systems.power_law_orbit",
     "rigid_body": "mechsim.systems.rigid_body",
     "rotating_frame": "mechsim.systems.rotating_frame",
     "rotating_hoop": "mechsim.systems.rotating_hoop",
@@ -53,6 +56,7 @@ SYSTEMS: dict[str, str] = {
     "spherical_pendulum": "mechsim.systems.spherical_pendulum",
     "spring_pendulum": "mechsim.systems.spring_pendulum",
     "symmetric_top": "mechsim.systems.symmetric_top",
+    "three_body": "mechsim.systems.three_body",
     "two_body_field": "mechsim.systems.two_body_field",
 }
 

@@ -1,4 +1,4 @@
-"""Shared physics of central-force motion (seed 003 ch. 4, seed 001 §2.16–2.20): the relative
+"""Shared physics of central-force motion (PHYS0500 ch. 4, seed 001 §2.16–2.20): the relative
 orbit's first integrals as sympy expressions, and the analytic oracles (effective potential,
 turning points, Kepler elements, conic classes, Kepler's equation), and the three-dimensional
 orbit vectors L and A with the orbit frame they define. Used by ``kepler``, ``central_force``,
@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mechsim.systems._symbolic import sympy as sp
-from mechsim.systems.lagrangian import LagrangianBuilder
+from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 if TYPE_CHECKING:
     from sympy import Expr
@@ -106,14 +106,14 @@ def orbit_quaternion(L: tuple[Expr, Expr, Expr], A: tuple[Expr, Expr, Expr] | No
 # --- oracles ------------------------------------------------------------------------------------
 def effective_potential(U: Callable[[float], float], mu: float, l: float
                         ) -> Callable[[float], float]:
-    """V_eff(r) = U(r) + l² / (2 μ r²) (seed 003 line 960, seed 001 §2.18)."""
+    """V_eff(r) = U(r) + l² / (2 μ r²) (PHYS0500 line 960, seed 001 §2.18)."""
     return lambda r: U(r) + l * l / (2 * mu * r * r)
 
 
 def turning_points(U: Callable[[float], float], mu: float, E: float, l: float,
                    r_min: float = 1e-6, r_max: float = 1e6, samples: int = 20000
                    ) -> list[float]:
-    """All radii in [r_min, r_max] where E = V_eff(r) (seed 003 line 913), by sign changes on
+    """All radii in [r_min, r_max] where E = V_eff(r) (PHYS0500 line 913), by sign changes on
     a logarithmic grid refined with brentq."""
     from scipy.optimize import brentq  # here: importing scipy.optimize costs 0.2-0.4 s
 
@@ -130,6 +130,115 @@ def turning_points(U: Callable[[float], float], mu: float, E: float, l: float,
     return roots
 
 
+def radial_range(U: Callable[[float], float], mu: float, E: float, l: float, r0: float,
+                 rdot0: float, r_min: float, r_max: float) -> tuple[float, float]:
+    """(r_min, r_max) of the motion from (r₀, ṙ₀): the turning points E = V_eff(r) around r₀
+    (``turning_points`` on [r_min, r_max]; r_max = ∞ when unbound, r_min = 0 when nothing
+    stops an inward motion); r₀ twice for a circular orbit."""
+    V = effective_potential(U, mu, l)
+    tp = turning_points(U, mu, E, l, r_min=r_min, r_max=r_max)
+    inner = [r for r in tp if r < r0 * (1 - 1e-7)]
+    outer = [r for r in tp if r > r0 * (1 + 1e-7)]
+    lo = max(inner) if inner else 0.0
+    hi = min(outer) if outer else math.inf
+    if rdot0 == 0.0:  # r0 is a turning point: the side where E ≥ V_eff is the motion
+        h = 1e-6 * r0
+        slope = (V(r0 + h) - V(r0 - h)) / (2 * h)
+        force = abs(U(r0 + h) - U(r0 - h)) / (2 * h) + l * l / (mu * r0**3)
+        if abs(slope) < 1e-7 * force:
+            return r0, r0  # circular orbit
+        return (lo, r0) if slope > 0 else (r0, hi)
+    if rdot0 > 0 and not math.isfinite(hi):
+        lo = r0  # moving out with nothing to turn it back
+    return lo, hi
+
+
+def nearest_turning_points(gap: Callable[[float], float], r0: float, rdot0: float,
+                           r_min: float, r_max: float) -> tuple[float, float]:
+    """(r_min, r_max) of the motion from (r₀, ṙ₀): the roots of gap(r) = E − V_eff(r) nearest
+    to r₀ on each side, found by stepping away from r₀ in geometrically growing steps (from
+    1e-9 r₀) to the first sign change and refining it with brentq, so that the apsides of a
+    nearly circular orbit, any distance apart, are found (a fixed grid misses roots closer
+    than its spacing). r_max = ∞ where nothing turns the motion back before ``r_max``,
+    r_min = 0 where nothing does before ``r_min``; (r₀, r₀) for a circular orbit. With
+    ṙ₀ = 0, r₀ is itself the turning point on the side where E < V_eff."""
+    from scipy.optimize import brentq  # here: importing scipy.optimize costs 0.2-0.4 s
+
+    def search(sign: int, limit: float) -> float | None:
+        s, inside = 1e-9, r0
+        while True:
+            r = r0 * math.exp(sign * s)
+            if (sign < 0 and r <= limit) or (sign > 0 and r >= limit):
+                return None
+            if gap(r) < 0.0:
+                a, b = (r, inside) if sign < 0 else (inside, r)
+                return float(brentq(gap, a, b, xtol=1e-15 * r0, rtol=8.9e-16))
+            inside = r
+            s *= 2.0
+
+    if rdot0 == 0.0:
+        inward, outward = gap(r0 * (1 - 1e-7)), gap(r0 * (1 + 1e-7))
+        if inward <= 0.0 and outward <= 0.0:
+            return r0, r0  # circular
+        if inward <= 0.0:  # moving out from the pericentre r₀
+            hi = search(+1, r_max)
+            return r0, math.inf if hi is None else hi
+        lo = search(-1, r_min)
+        return 0.0 if lo is None else lo, r0
+    lo, hi = search(-1, r_min), search(+1, r_max)
+    if hi is None and rdot0 > 0.0:
+        return r0, math.inf  # moving out with nothing to turn it back
+    return 0.0 if lo is None else lo, math.inf if hi is None else hi
+
+
+def orbit_integral(gap: Callable[[np.ndarray], np.ndarray], mu: float, lo: float, hi: float,
+                   weight: Callable[[np.ndarray], np.ndarray] | None = None,
+                   nodes: int = 256) -> float:
+    """∫ w(r) dr / ṙ from the turning point ``lo`` to ``hi``, ṙ = √((2/μ) gap(r)) with
+    gap(r) = E − V_eff(r) (vectorized): the time (w = 1; PHYS0500 eq. 4.3) or the angle
+    (w = l/(μr²); eq. 4.4) the motion takes between the apsides. Gauss–Chebyshev quadrature
+    of the first kind: the gap has simple roots at both ends, so
+    f = w √((r − lo)(hi − r)/((2/μ) gap)) is smooth on [lo, hi] and the nodes converge
+    geometrically. Near the ends the gap is small: it must be computed without cancellation
+    (not as E − V_eff(r) with E and V_eff large) for the result to keep its digits on a nearly
+    circular orbit."""
+    k = np.arange(1, nodes + 1)
+    x = np.cos((2 * k - 1) * math.pi / (2 * nodes))  # nodes on (−1, 1)
+    r = 0.5 * (hi + lo) + 0.5 * (hi - lo) * x
+    g = (2 / mu) * np.asarray(gap(r), dtype=float)
+    f = np.sqrt((r - lo) * (hi - r) / np.maximum(g, 1e-300))
+    if weight is not None:
+        f = f * weight(r)
+    return float(math.pi / nodes * np.sum(f))
+
+
+def apsidal_angle(gap: Callable[[np.ndarray], np.ndarray], mu: float, l: float, lo: float,
+                  hi: float) -> float:
+    """The angle swept from one apsis to the next, ½Δθ of PHYS0500 §4.4:
+    ∫_{r_min}^{r_max} (l/r²) dr / √(2μ(E − U − l²/2μr²)) (``orbit_integral``). The orbit
+    closes iff Δθ = 2π a/b with a, b whole."""
+    return orbit_integral(gap, mu, lo, hi, weight=lambda r: l / (mu * r * r))
+
+
+def merge_at_capture(model: LagrangianModel, t: float, y: np.ndarray, rates: tuple[int, ...],
+                     mode: int) -> np.ndarray:
+    """What a fall to the centre does (an event at the capture radius): the bodies merge,
+    the relative rates ``rates`` (state indices) stop, the mode at index ``mode`` switches the
+    potential off, and the relative energy lost goes into work_dissipated so that the work
+    balance still closes."""
+    layout = model.layout
+    p = model.parameter_vector()
+    before = np.empty(3)
+    model.kernels.energy(t, y, p, before)
+    for i in rates:
+        y[i] = 0.0
+    y[mode] = 1.0
+    after = np.empty(3)
+    model.kernels.energy(t, y, p, after)
+    y[layout.work_dissipated] += (before[0] + before[1]) - (after[0] + after[1])
+    return y
+
+
 def conic_class(eccentricity: float, tol: float = 1e-9) -> str:
     """Seed 003 conic table (line 996): circle, ellipse, parabola or hyperbola."""
     if eccentricity < tol:
@@ -140,7 +249,7 @@ def conic_class(eccentricity: float, tol: float = 1e-9) -> str:
 
 
 def kepler_elements(mu: float, k: float, E: float, l: float) -> dict[str, float]:
-    """Orbit of U = −k/r from E and l (seed 003 lines 984–1042, ε typo fixed):
+    """Orbit of U = −k/r from E and l (PHYS0500 lines 984–1042, ε typo fixed):
     α = l²/(μk), ε = √(1 + 2El²/(μk²)), r_min = α/(1 + ε), r_max = α/(1 − ε) (∞ unless bound),
     a = k/(2|E|), τ = 2π √(μ a³ / k) (bound orbits), V_min = −μk²/(2l²)."""
     alpha = l * l / (mu * k)

@@ -75,7 +75,7 @@ def tone_response(force_over_mass: float, omega: float, omega0: float, beta: flo
                   ) -> tuple[float, float]:
     """Amplitude D and phase lag δ ∈ [0, π] of the steady response x = D cos(ωt − δ) of
     ẍ + 2βẋ + ω₀²x = A cos ωt, A = ``force_over_mass``: D = A/√((ω₀² − ω²)² + 4ω²β²),
-    tan δ = 2ωβ/(ω₀² − ω²) (seed 003 §1.4, eq. 1.2)."""
+    tan δ = 2ωβ/(ω₀² − ω²) (PHYS0500 §1.4, eq. 1.2)."""
     D = force_over_mass / math.sqrt((omega0**2 - omega**2) ** 2 + 4 * omega**2 * beta**2)
     return D, math.atan2(2 * omega * beta, omega0**2 - omega**2)
 
@@ -86,6 +86,28 @@ def state_rows(y0: np.ndarray, columns: list[np.ndarray]) -> np.ndarray:
     rows = np.repeat(np.asarray(y0, dtype=float)[None, :], len(columns[0]), axis=0)
     for j, col in enumerate(columns):
         rows[:, j] = col
+    return rows
+
+
+def normal_mode_rows(u: np.ndarray, w: np.ndarray, y0: np.ndarray, tau: np.ndarray
+                     ) -> np.ndarray:
+    """Rows [x, ẋ, rest of y0] at the times τ after y0 of a linear system whose normal modes
+    are the orthonormal rows u_r of ``u`` at the angular frequencies ``w`` (PHYS0500 §8.4):
+    each η_r = u_r·x a free oscillator, η_r(τ) = η_r cos ω_r τ + (η̇_r/ω_r) sin ω_r τ (uniform
+    motion η_r + η̇_r τ for ω_r = 0), x = Σ η_r u_r, all modes and times at once. Nothing
+    drives or dissipates: the work terms and modes of y0 are carried unchanged."""
+    tau = np.asarray(tau, dtype=float)
+    n = u.shape[0]
+    eta0 = u @ np.asarray(y0[:n], dtype=float)
+    deta0 = u @ np.asarray(y0[n:2 * n], dtype=float)
+    wt = np.outer(tau, w)
+    c, s = np.cos(wt), np.sin(wt)
+    safe = np.where(w > 0, w, 1.0)
+    moving = np.where(w > 0, (deta0 / safe) * s, deta0 * tau[:, None])
+    rows = np.empty((tau.size, len(y0)))
+    rows[:, :n] = (eta0 * c + moving) @ u
+    rows[:, n:2 * n] = (deta0 * c - (eta0 * w) * s) @ u
+    rows[:, 2 * n:] = np.asarray(y0, dtype=float)[2 * n:]
     return rows
 
 
@@ -199,7 +221,7 @@ class LinearOscillator(LagrangianModel):
     def drive_tones(self) -> list[tuple[float, float, float]]:
         """The drive as a sum of tones F(t) = Σ Fₙ cos(ωₙt − φₙ), as (Fₙ, ωₙ, φₙ): here the one
         tone F₀ cos ωt, none without a drive. A periodic drive overrides this (its Fourier
-        series); ``propagate`` superposes the responses (seed 003 §1.6)."""
+        series); ``propagate`` superposes the responses (PHYS0500 §1.6)."""
         F0 = self._optional("drive_amplitude")
         return [(F0, self._optional("drive_frequency"), 0.0)] if F0 != 0.0 else []
 

@@ -109,7 +109,7 @@ def euler_zxz_quat(phi, theta, psi):
     """q = q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ) as a tuple: the body frame of z-x-z Euler angles.
 
     This is world_R_body = R_z(φ) R_x(θ) R_z(ψ) = λᵀ, the transpose of the passive
-    λ = λ_ψ λ_θ λ_φ of seed 003 §7.6 (which maps world components to body components).
+    λ = λ_ψ λ_θ λ_φ of PHYS0500 §7.6 (which maps world components to body components).
     """
     c1, s1 = math.cos(0.5 * phi), math.sin(0.5 * phi)
     c2, s2 = math.cos(0.5 * theta), math.sin(0.5 * theta)

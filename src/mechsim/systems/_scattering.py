@@ -1,4 +1,4 @@
-"""Shared physics of two-particle elastic collisions and scattering (seed 003 §5.2–5.3): the
+"""Shared physics of two-particle elastic collisions and scattering (PHYS0500 §5.2–5.3): the
 elastic impulse along the line of centres, the LAB ↔ CM angle and energy relations, the
 hard-sphere and Rutherford (repulsive Coulomb) deflections and cross-sections, the LAB
 cross-section conversion, and the exact incoming state on a repulsive Coulomb hyperbola. Used by
@@ -58,7 +58,7 @@ def reflect(r: np.ndarray, w: np.ndarray) -> np.ndarray:
     return w - 2.0 * float(np.dot(w, n)) * n
 
 
-# --- LAB ↔ CM (seed 003 §5.2) ------------------------------------------------------------------
+# --- LAB ↔ CM (PHYS0500 §5.2) ------------------------------------------------------------------
 
 
 def lab_angle(theta: np.ndarray | float, mass_ratio: float) -> np.ndarray:
@@ -97,7 +97,7 @@ def cm_angles_of_lab(psi: float, mass_ratio: float) -> list[float]:
     return [t for t in out if 0.0 <= t <= math.pi]
 
 
-# --- deflection functions and cross-sections (seed 003 §5.3) ----------------------------------
+# --- deflection functions and cross-sections (PHYS0500 §5.3) ----------------------------------
 
 
 def hard_sphere_deflection(b: np.ndarray | float, a: float) -> np.ndarray:
@@ -164,15 +164,3 @@ def coulomb_incoming_state(mu: float, k: float, speed: float, b: float, distance
     vt = Lz / (mu * distance)
     vr = -math.sqrt(max(v2 - vt * vt, 0.0))
     return distance * rhat, vr * rhat + vt * that
-
-
-def coulomb_outgoing_direction(mu: float, k: float, r: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Unit vector of the outgoing asymptote of the orbit through (r, w) in U = k/r, from the
-    conserved E, L_z and A: at t → ∞, A = μ u∞ L_z (ê_y, −ê_x) + μ k ê (solved for ê)."""
-    rn = float(np.linalg.norm(r))
-    u = math.sqrt(float(np.dot(w, w)) + 2.0 * k / (mu * rn))
-    Lz = mu * (r[0] * w[1] - r[1] * w[0])
-    A = np.array([mu * Lz * w[1] + mu * k * r[0] / rn, -mu * Lz * w[0] + mu * k * r[1] / rn])
-    c, s = mu * k, mu * u * Lz  # A = [[c, s], [−s, c]] ê
-    e = np.array([c * A[0] - s * A[1], s * A[0] + c * A[1]]) / (c * c + s * s)
-    return e / float(np.linalg.norm(e))

@@ -41,7 +41,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class Atwood(LagrangianModel):
     id = "atwood"
     title = "Atwood machine and compound wheel (massive pulley optional)"
-    source = "seed 001 §2.1 (Atwood's machine) and §2.11 (compound wheel, conditions of balance)"
+    source = ("Introduction to analytical mechanics, “Atwood's machine – equation of motion "
+              "Lagrangian” and “Conditions of balance” (compound wheel)")
     formulations = ("reduced", "multiplier")
     oracles = ("φ̈ = g(m₁R₁ − m₂R₂)/(I + m₁R₁² + m₂R₂²); Atwood ẍ = (M₁ − M₂)g/(M₁ + M₂), "
                "T = 2M₁M₂g/(M₁ + M₂); multipliers = tensions; rest iff m₁R₁ = m₂R₂")

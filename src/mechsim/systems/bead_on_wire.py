@@ -1,7 +1,7 @@
 """Bead sliding without friction on a fixed planar wire under gravity.
 
 Sources: seed 000 S2 ("Dynamical Systems and Constraints: Part 2 – Bead on a Wire", L99–256);
-seed 001 §2.12 (brachistochrone, the cycloid); seed 003 ch. 2 (calculus of variations: the
+seed 001 §2.12 (brachistochrone, the cycloid); PHYS0500 ch. 2 (calculus of variations: the
 cycloid as the curve of quickest descent and the tautochrone are the catalog's supplement).
 
 Wire shapes (``shape``), in the x–z plane of the ``wire`` frame (REP-103: z up; the document's
@@ -200,8 +200,9 @@ def _numeric(expr: sp.Expr) -> Callable[[float], float]:
 class BeadOnWire(LagrangianModel):
     id = "bead_on_wire"
     title = "Bead on a wire: line, parabola, cycloid (brachistochrone/tautochrone), any z = f(x)"
-    source = ("seed 000 S2 (Bead on a Wire), seed 001 §2.12 (brachistochrone), "
-              "seed 003 ch. 2 (calculus of variations)")
+    source = ("“Dynamical Systems and Constraints: Part 2 – Bead on a Wire” (blog post); "
+              "Introduction to analytical mechanics, “Brachistochrone problem – shortest time "
+              "problem”; PHYS0500 – Advanced Classical Mechanics, ch. 2 (Calculus of Variations)")
     formulations = ("reduced", "multiplier", "naive")
     oracles = ("line: uniform acceleration −gs/(1+s²), chord time √((π²+4)a/g); parabola: exact "
                "period by quadrature, √(2gc) small; cycloid: π√(a/g) to the bottom from any "

@@ -1,12 +1,12 @@
 """Two bodies in a central potential: centre of mass, relative orbit, reduced mass.
 
-Sources: seed 003 ch. 4 (PHYS0500 "Central Force Motion": §4.1 reduced mass, §4.2–4.4 first
+Sources: PHYS0500 ch. 4 ("Central Force Motion": §4.1 reduced mass, §4.2–4.4 first
 integrals and turning points, §4.5 effective potential, §4.6 Kepler and the conic table),
 seed 001 §2.16–2.20 (two-body problem, Kepler, effective potential, −a/r³, isotropic harmonic
 and the spring V ∝ (r − l)²), seed 002 §3 (central-force particle).
 
 Coordinates: the centre of mass R = (m₁r₁ + m₂r₂)/M in ``world`` (``cm_x``, ``cm_y``) and the
-relative position r = r₁ − r₂ (of body 1 from body 2, seed 003 line 819) in the orbital plane,
+relative position r = r₁ − r₂ (of body 1 from body 2, PHYS0500 line 819) in the orbital plane,
 z along the angular momentum: Cartesian (x, y) or polar (r, θ), the two formulations.
 L = ½ M Ṙ² + ½ μ ṙ² − U(r), μ = m₁m₂/M; body 1 sits at +(m₂/M) r and body 2 at −(m₁/M) r
 from the CM (eq. 4.1).
@@ -25,10 +25,10 @@ from the CM (eq. 4.1).
   2π√(μ/k) for every energy.
 - ``spring``: ½ k (r − l₀)² (``rest_length`` l₀, seed 001 L1408): a vibrating rotor.
 
-Typos fixed (see the catalog): ε = √(1 + 2El²/(μk²)) (seed 003 line 988 prints √(2 + 2El²/(μk)));
+Typos fixed (see the catalog): ε = √(1 + 2El²/(μk²)) (PHYS0500 line 988 prints √(2 + 2El²/(μk)));
 rθ̇² = (l²/μ²)u³ (line 893 prints u²); E = ½μ(ṙ² + r²θ̇²) + U (line 843 is truncated); V = −k/r
 (seed 001 L1898 prints −k/2); the conic equation carries e²x² (seed 001 L1896).
-Orbit classes follow the conic table (seed 003 line 996) for −k/r; for the other potentials
+Orbit classes follow the conic table (PHYS0500 line 996) for −k/r; for the other potentials
 ``orbit_class`` reports circle / bounded / unbounded / falls.
 """
 
@@ -46,6 +46,9 @@ from mechsim.systems._central import (
     declare_orbit_quantities,
     effective_potential,
     kepler_elements,
+    merge_at_capture,
+    orbit_integral,
+    radial_range,
     turning_points,
 )
 from mechsim.systems._symbolic import sympy as sp
@@ -58,8 +61,10 @@ POTENTIALS = ("kepler", "inverse_cube", "harmonic", "spring")
 class CentralForce(LagrangianModel):
     id = "central_force"
     title = "Two-body central-force problem (Kepler, −a/r³, harmonic, spring)"
-    source = ("seed 003 ch. 4: Central Force Motion; seed 001 §2.16–2.20; seed 002 §3 "
-              "(central-force particle)")
+    source = ("PHYS0500 – Advanced Classical Mechanics, ch. 4 (Central Force Motion, §4.1–4.6); "
+              "Introduction to analytical mechanics, “Central force problem – with two body” and "
+              "“Classification of the orbits”; Lecture 10: The Methods of Lagrange Revisited, "
+              "central force (eq. 10.19)")
     formulations = ("cartesian", "polar")
     oracles = ("turning points E = V_eff(r); Kepler ε, r_min/r_max, period, conic class, LRL "
                "|A| = μkε; harmonic period 2π√(μ/k); CM uniform; −a/r³ barrier r* and fall time")
@@ -198,16 +203,7 @@ class CentralForce(LagrangianModel):
     def on_fall(self, t: float, y: np.ndarray) -> np.ndarray:
         """Merge: stop the relative motion, switch U off, book the lost relative energy."""
         n = len(self.coordinates)
-        p = self.parameter_vector()
-        before = np.empty(3)
-        self.kernels.energy(t, y, p, before)
-        y[n + 2] = 0.0
-        y[n + 3] = 0.0
-        y[2 * n + 2] = 1.0
-        after = np.empty(3)
-        self.kernels.energy(t, y, p, after)
-        y[2 * n + 1] += (before[0] + before[1]) - (after[0] + after[1])
-        return y
+        return merge_at_capture(self, t, y, rates=(n + 2, n + 3), mode=2 * n + 2)
 
     def laws(self):  # type: ignore[no-untyped-def]
         laws = super().laws()
@@ -235,7 +231,7 @@ class CentralForce(LagrangianModel):
 
     # --- analytic oracles ---------------------------------------------------------------------
     def reduced_mass(self) -> float:
-        """μ = m₁m₂/(m₁ + m₂) (seed 003 line 815)."""
+        """μ = m₁m₂/(m₁ + m₂) (PHYS0500 line 815)."""
         m1, m2 = self.value("mass_1"), self.value("mass_2")
         return m1 * m2 / (m1 + m2)
 
@@ -245,19 +241,19 @@ class CentralForce(LagrangianModel):
             "initial_rate.theta")
 
     def relative_energy(self) -> float:
-        """E = ½ μ (ṙ² + r² θ̇²) + U(r) of the relative motion (seed 003 line 847)."""
+        """E = ½ μ (ṙ² + r² θ̇²) + U(r) of the relative motion (PHYS0500 line 847)."""
         r, dr, dth = (self.value("initial.r"), self.value("initial_rate.r"),
                       self.value("initial_rate.theta"))
         return 0.5 * self.reduced_mass() * (dr**2 + r**2 * dth**2) + \
             self.potential_function()(r)
 
     def effective_potential(self, r: float) -> float:
-        """V_eff = U + l²/(2μr²) (seed 003 line 960)."""
+        """V_eff = U + l²/(2μr²) (PHYS0500 line 960)."""
         return effective_potential(self.potential_function(), self.reduced_mass(),
                                    self.angular_momentum())(r)
 
     def turning_points(self) -> list[float]:
-        """All radii with E = V_eff(r) (seed 003 line 913), ascending."""
+        """All radii with E = V_eff(r) (PHYS0500 line 913), ascending."""
         return turning_points(self.potential_function(), self.reduced_mass(),
                               self.relative_energy(), self.angular_momentum(),
                               r_min=min(1e-4, self.value("capture_radius")) *
@@ -266,23 +262,11 @@ class CentralForce(LagrangianModel):
     def radial_range(self) -> tuple[float, float]:
         """(r_min, r_max) of the motion: the turning points around the initial radius
         (r_max = ∞ when unbound; r_min = 0 when nothing stops an inward motion)."""
-        r0, dr = self.value("initial.r"), self.value("initial_rate.r")
-        tp = self.turning_points()
-        inner = [r for r in tp if r < r0 * (1 - 1e-7)]
-        outer = [r for r in tp if r > r0 * (1 + 1e-7)]
-        lo = max(inner) if inner else 0.0
-        hi = min(outer) if outer else math.inf
-        if dr == 0.0:  # r0 is a turning point: the side where E ≥ V_eff is the motion
-            V, h = self.effective_potential, 1e-6 * r0
-            slope = (V(r0 + h) - V(r0 - h)) / (2 * h)
-            force = abs(self.potential_function()(r0 + h) - self.potential_function()(r0 - h)) \
-                / (2 * h) + self.angular_momentum() ** 2 / (self.reduced_mass() * r0**3)
-            if abs(slope) < 1e-7 * force:
-                return r0, r0  # circular orbit
-            return (lo, r0) if slope > 0 else (r0, hi)
-        if dr > 0 and not math.isfinite(hi):
-            lo = r0  # moving out with nothing to turn it back
-        return lo, hi
+        r0 = self.value("initial.r")
+        return radial_range(self.potential_function(), self.reduced_mass(),
+                            self.relative_energy(), self.angular_momentum(), r0,
+                            self.value("initial_rate.r"),
+                            r_min=min(1e-4, self.value("capture_radius")) * r0, r_max=1e4 * r0)
 
     def falls_to_centre(self) -> bool:
         """True when nothing stops the bodies before r = 0 (only −a/r³ here)."""
@@ -298,7 +282,7 @@ class CentralForce(LagrangianModel):
         return 3 * a * mu / l**2, l**6 / (54 * a * a * mu**3)
 
     def kepler_elements(self) -> dict[str, float]:
-        """For −k/r: ε, α, r_min, r_max, a, b, period (seed 003 §4.6, ε typo fixed)."""
+        """For −k/r: ε, α, r_min, r_max, a, b, period (PHYS0500 §4.6, ε typo fixed)."""
         return kepler_elements(self.reduced_mass(), self.value("force_constant"),
                                self.relative_energy(), self.angular_momentum())
 
@@ -315,21 +299,14 @@ class CentralForce(LagrangianModel):
         return "bounded" if math.isfinite(hi) else "unbounded"
 
     def radial_period(self) -> float:
-        """Time from r_min to r_max and back: 2 ∫ dr / √((2/μ)(E − V_eff)) (seed 001 §2.16),
-        by Gauss–Chebyshev quadrature (exact for the endpoint square-root singularities)."""
+        """Time from r_min to r_max and back: 2 ∫ dr / √((2/μ)(E − V_eff)) (the analytical-
+        mechanics notes' “Central force problem – with two body”; ``orbit_integral``)."""
         lo, hi = self.radial_range()
         if not (math.isfinite(hi) and lo > 0 and hi > lo):
             raise ValueError("no radial oscillation")
-        mu, E = self.reduced_mass(), self.relative_energy()
-        V = self.effective_potential
-        n = 4000
-        k = np.arange(1, n + 1)
-        x = np.cos((2 * k - 1) * math.pi / (2 * n))  # nodes on (−1, 1)
-        r = 0.5 * (hi + lo) + 0.5 * (hi - lo) * x
-        # ∫ f(r)/√((r−lo)(hi−r)) dr with f = √((r−lo)(hi−r)) / √((2/μ)(E − V))
-        g = np.array([(2 / mu) * (E - V(ri)) for ri in r])
-        f = np.sqrt((r - lo) * (hi - r) / np.maximum(g, 1e-300))
-        return float(2 * math.pi / n * np.sum(f))
+        E, V = self.relative_energy(), self.effective_potential
+        return 2 * orbit_integral(lambda r: np.array([E - V(x) for x in r]), self.reduced_mass(),
+                                  lo, hi, nodes=4000)
 
     def harmonic_period(self) -> float:
         """Isotropic oscillator: 2π√(μ/k), the same for every orbit (seed 001 §2.20)."""

@@ -8,7 +8,7 @@ d/dt(mr² sin²θ φ̇) = 0 — "the conservation of the z component of angular 
 The whole vector L = m r × ṙ is conserved, so the orbit lies in the fixed plane normal to L
 (catalog [DERIVED]); for Ṽ = −k/r the Laplace–Runge–Lenz vector A = m ṙ × L − m k r̂ is
 conserved too (it points to the periapsis; catalog supplement). In that plane the motion is the
-planar problem of ``central_force`` (seed 003 ch. 4) turned by a rotation.
+planar problem of ``central_force`` (PHYS0500 ch. 4) turned by a rotation.
 
 ``potential``: ``kepler`` Ṽ = −k/r (``force_constant``) or ``harmonic`` Ṽ = ½ k r²
 (``spring_constant``; then each Cartesian energy ½mẋᵢ² + ½kxᵢ² is conserved as well).
@@ -52,8 +52,9 @@ POLE_MARGIN = math.radians(5.0)
 class CentralForce3D(LagrangianModel):
     id = "central_force_3d"
     title = "Central-force motion in three dimensions (spherical coordinates)"
-    source = ("seed 002 §3: central-force particle in spherical coordinates (L121–124, "
-              "eq. 10.19); seed 001 §1.1 (spherical polar coordinates)")
+    source = ("Lecture 10: The Methods of Lagrange Revisited, central force in spherical "
+              "coordinates (eqs. 10.14–10.19); Introduction to analytical mechanics, “Generalized "
+              "coordinates” (spherical polar coordinates)")
     formulations = ("spherical", "cartesian")
     oracles = ("orbit in the plane ⟂ L; vector L (p_φ = mr²sin²θφ̇ = L_z) and LRL A conserved; "
                "apsides a(1 ± e), period 2π√(ma³/k); equals the planar central_force turned by "

@@ -72,8 +72,11 @@ def _gyrate(x0: float, y0: float, z0: float, ux: float, uy: float, vz: float, vd
 class ChargedParticle(LagrangianModel):
     id = "charged_particle"
     title = "Charged particle in uniform E and B (symmetric and Landau gauges)"
-    source = ("seed 002 §10–13: Lagrangian with potentials, uniform B, gauge transformation; "
-              "seed 001 §2.4; seed 000 S13 (two moving charges)")
+    source = ("Lecture 10: The Methods of Lagrange Revisited, charged particle in an "
+              "electromagnetic field, uniform B, gauge transformation (eqs. 10.51–10.67); "
+              "Introduction to analytical mechanics, “Lagrange's equation of motion velocity "
+              "dependent potentials”; “Action and Reaction” (blog post), Case 3 (two moving "
+              "charges)")
     formulations = ("cylindrical", "symmetric", "landau")
     oracles = ("exact helix/cycloid (cyclotron ω_c = |q|B/m, Larmor radius, pitch, E×B drift); "
                "p_φ = mρ²φ̇ + ½qBρ² conserved; gauges agree; two-charge F₁₂ ≠ −F₂₁ balanced by "

@@ -1,6 +1,6 @@
 """Elastic collision of two smooth spheres in a plane: LAB and CM frames, exact contact event.
 
-Source: seed 003 §5.2 (PHYS0500 "Elastic Collisions of Two Particles", lines 1081–1213). The
+Source: PHYS0500 §5.2 ("Elastic Collisions of Two Particles", lines 1081–1213). The
 document derives from the conservation laws alone the LAB ↔ CM relations; the force law it says
 is missing is supplied here by finite-size hard spheres: m₁ (radius R₁) moves with velocity u₁
 along +x, m₂ (radius R₂) is at rest in the LAB, and the line of u₁ passes the centre of m₂ at the
@@ -55,7 +55,7 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class Collision(LagrangianModel):
     id = "collision"
     title = "Elastic collision of two spheres (LAB and CM frames, contact event)"
-    source = "seed 003 §5.2: elastic collisions of two particles, LAB and CM systems"
+    source = "PHYS0500 – Advanced Classical Mechanics, §5.2 (Elastic Collisions of Two Particles)"
     formulations = ("lab", "cm")
     oracles = ("contact time; θ = 2arccos(b/(R₁+R₂)); tan ψ = sinθ/(cosθ + m₁/m₂); 2ζ = π − θ; "
                "T₂/T₀ = 2m₁m₂(1 − cosθ)/M²; sin ψ_max = m₂/m₁; momentum, energy, L across the "
@@ -167,7 +167,7 @@ class Collision(LagrangianModel):
                 Visual("trail", "cm", color=(200, 200, 200)),
                 Visual("axes", "cm", radius=0.1))
 
-    # --- analytic oracles (seed 003 §5.2; verified in the tests) -------------------------------
+    # --- analytic oracles (PHYS0500 §5.2; verified in the tests) -------------------------------
     def contact_time(self) -> float:
         """Relative motion is x = −√(d² − b²) + u₁t at height b: touches at x = −√(a² − b²)."""
         a = self.value("radius_1") + self.value("radius_2")
@@ -178,7 +178,7 @@ class Collision(LagrangianModel):
             "initial.speed")
 
     def cm_angle(self) -> float:
-        """θ = 2 arccos(b/(R₁ + R₂)) (reflection at the contact normal; seed 003 line 1343)."""
+        """θ = 2 arccos(b/(R₁ + R₂)) (reflection at the contact normal; PHYS0500 line 1343)."""
         a = self.value("radius_1") + self.value("radius_2")
         return float(hard_sphere_deflection(self.value("impact_parameter"), a))
 

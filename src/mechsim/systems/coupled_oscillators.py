@@ -1,6 +1,6 @@
 """N identical coupled oscillators: normal modes, beats and energy transfer.
 
-Sources: seed 003 ch. 8 "Coupled Oscillations" — §8.1 two identical coupled oscillators
+Sources: PHYS0500 ch. 8 "Coupled Oscillations" — §8.1 two identical coupled oscillators
 (lines 1986–2088), §8.2 weak coupling and beats (2090–2139), §8.3–8.4 general small-oscillation
 theory and normal coordinates (2141–2281); seed 001 §2.21 (small oscillations, |V − ω²T| = 0).
 
@@ -39,6 +39,7 @@ import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, positive
+from mechsim.systems._oscillator import normal_mode_rows
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
@@ -68,7 +69,8 @@ def laplacian_eigenvalues(n: int) -> np.ndarray:
 class CoupledOscillators(LagrangianModel):
     id = "coupled_oscillators"
     title = "N identical coupled oscillators (normal modes, beats)"
-    source = "seed 003 ch. 8 (Coupled Oscillations, §8.1–8.4); seed 001 §2.21"
+    source = ("PHYS0500 – Advanced Classical Mechanics, ch. 8 (Coupled Oscillations, §8.1–8.4); "
+              "Introduction to analytical mechanics, “Small Oscillations”")
     energy_parts = ("mode_energy_",)
     oracles = ("ω_r² from |A − ω²M| = 0 (closed form), exact modal solution, conserved mode "
                "energies, beat transfer time π/(ω₁ − ω₂) ≈ π/(2εω₀)")
@@ -142,7 +144,7 @@ class CoupledOscillators(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / float(self.mode_frequencies()[-1])
 
-    # --- analytic oracles (seed 003 ch. 8) ---------------------------------------------------
+    # --- analytic oracles (PHYS0500 ch. 8) ---------------------------------------------------
     def mode_frequencies(self) -> np.ndarray:
         """ω_r, ascending."""
         lam = laplacian_eigenvalues(self.count)
@@ -164,19 +166,8 @@ class CoupledOscillators(LagrangianModel):
         its state at t₀ (ω_r > 0: every mass has its anchor spring κ > 0), all modes at once:
         η_r = η_r(t₀) cos ω_r τ + η̇_r(t₀)/ω_r sin ω_r τ, x = Σ η_r u_r. Nothing drives or
         dissipates: the work terms stay as they are."""
-        tau = np.asarray(t, dtype=float) - t0
-        n = self.count
-        u, w = self.mode_shapes(), self.mode_frequencies()
-        eta0 = u @ np.asarray(y0[:n], dtype=float)
-        deta0 = u @ np.asarray(y0[n:2 * n], dtype=float)
-        wt = np.outer(tau, w)
-        c, s = np.cos(wt), np.sin(wt)
-        x = (eta0 * c + (deta0 / w) * s) @ u
-        v = (deta0 * c - (eta0 * w) * s) @ u
-        rows = np.empty((tau.size, len(y0)))
-        rows[:, :n], rows[:, n:2 * n] = x, v
-        rows[:, 2 * n:] = np.asarray(y0, dtype=float)[2 * n:]
-        return rows
+        return normal_mode_rows(self.mode_shapes(), self.mode_frequencies(), y0,
+                                np.asarray(t, dtype=float) - t0)
 
     def weak_coupling_ratio(self) -> float:
         """ε = κ₁₂ / 2κ (line 2094)."""

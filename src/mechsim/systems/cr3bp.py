@@ -41,7 +41,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class CR3BP(LagrangianModel):
     id = "cr3bp"
     title = "Circular restricted three-body problem (planar)"
-    source = "seed 000 S12: Action and Reaction, Case 2 (circular restricted three-body problem)"
+    source = ("“Action and Reaction” (blog post), Case 2 – Driving forces (circular restricted "
+              "three-body problem)")
     formulations = ("inertial", "synodic")
     oracles = ("Jacobi integral J = E − ωL_z conserved while E, L_z vary; five Lagrange points "
                "are equilibria (collinear ones against published Earth–Moon values); forms agree")

@@ -1,6 +1,6 @@
 """Damped free harmonic oscillator: under-, critically and over-damped motion.
 
-Sources: seed 003 §1.3 "Damped Oscillations" (lines 87–173; §1.3.1–1.3.3) and seed 000 S8
+Sources: PHYS0500 §1.3 "Damped Oscillations" (lines 87–173; §1.3.1–1.3.3) and seed 000 S8
 (E&H Part 3 "Case 5 – E ≠ h, neither conserved", L511–529; "Action and Reaction, Case 1 –
 Dissipative forces", L786–802): m ẍ + b ẋ + k x = 0, β = b/2m, ω₀² = k/m.
 
@@ -35,7 +35,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder
 class DampedOscillator(LinearOscillator):
     id = "damped_oscillator"
     title = "Damped harmonic oscillator (under-, critically and over-damped)"
-    source = "seed 003 §1.3 (Damped Oscillations); seed 000 S8 (Case 5, Caldirola–Kanai)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.3 (Damped Oscillations); “Energy and "
+              "Hamiltonians: Part 3 – Examples” (blog post), Case 5 (Caldirola–Kanai)")
     oracles = ("exact x(t) in all three regimes, maxima spaced 2π/ω₁ with ratio e^{βT₁}, "
                "dE/dt = −bẋ², Caldirola–Kanai h = e^{bt/m}E with dh/dt = −(b/m)L")
     parameters = (
@@ -57,7 +58,7 @@ class DampedOscillator(LinearOscillator):
         b.observable("power_dissipated", "W", c * dx**2)
         b.observable("damping_force", "N", -c * dx)
 
-    # --- analytic oracles (seed 003 §1.3, corrected) -----------------------------------------
+    # --- analytic oracles (PHYS0500 §1.3, corrected) -----------------------------------------
     def critical_damping(self) -> float:
         """b_c = 2√(m k) (β = ω₀)."""
         return 2 * math.sqrt(self.value("mass") * self.value("spring_constant"))

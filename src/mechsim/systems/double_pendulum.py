@@ -48,7 +48,7 @@ def _accel(p: sp.Matrix, q: list[sp.Symbol], v: list[sp.Symbol], a: list[sp.Symb
 class DoublePendulum(LagrangianModel):
     id = "double_pendulum"
     title = "Double pendulum (angles and Lagrange-multiplier forms)"
-    source = "seed 001 §2.3: Double pendulum (L671–805, L2064–2091)"
+    source = "Introduction to analytical mechanics, “Double pendulum” and “Small Oscillations”"
     formulations = ("angles", "multiplier")
     oracles = ("small-oscillation modes from |V − ω²T| = 0, (2 ± √2)g/l and A₂ = ∓√2A₁ for "
                "equal masses; E conserved over long chaotic runs; forms and tensions agree")

@@ -30,7 +30,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class DragProjectile(LagrangianModel):
     id = "drag_projectile"
     title = "Projectile with linear air drag (Rayleigh dissipation)"
-    source = "seed 001 §2.5–2.6: Rayleigh dissipation function; projectile with air friction"
+    source = ("Introduction to analytical mechanics, “Lagrange's equation of motion with "
+              "frictional forces” (Rayleigh dissipation, projectile with air friction)")
     oracles = ("closed-form trajectory with τ = m/α, terminal velocity −mg/α, horizontal "
                "asymptote x₀ + ẋ₀τ, dE/dt = −2D, p_x = mẋ₀e^{−t/τ}")
     parameters = (

@@ -1,6 +1,6 @@
 """Harmonically driven, damped oscillator: resonance, Q factor, power balance.
 
-Source: seed 003 §1.3–1.5 (PHYS0500 ch. 1, "Damped Oscillations", "Driven Oscillations",
+Source: PHYS0500 §1.3–1.5 (ch. 1, "Damped Oscillations", "Driven Oscillations",
 "Resonance"), m ẍ + b ẋ + k x = F₀ cos ωt (eq. at line 183).
 
 Typos of the document fixed here (see the catalog, 003 §1.4–1.5): ω₀² (not ω₀) multiplies x in
@@ -25,7 +25,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder
 class DrivenOscillator(LinearOscillator):
     id = "driven_oscillator"
     title = "Driven damped harmonic oscillator"
-    source = "seed 003 §1.3–1.5: Damped and driven oscillations, resonance and Q"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.3–1.5 (Damped and Driven Oscillations, "
+              "Resonance Phenomena)")
     oracles = "full solution (transient + steady state), amplitude D and phase δ, ω_R, Q = ω_R/2β"
     parameters = (
         positive("mass", 1.0, "kg", "mass m"),
@@ -47,10 +48,10 @@ class DrivenOscillator(LinearOscillator):
         b.observable("power_in", "W", drive * dx)
         b.observable("power_dissipated", "W", c * dx**2)
 
-    # --- analytic oracles (seed 003 §1.4–1.5, corrected) ------------------------------------
+    # --- analytic oracles (PHYS0500 §1.4–1.5, corrected) ------------------------------------
     def steady_state(self) -> tuple[float, float]:
         """Amplitude D and phase lag δ ∈ [0, π] of the particular solution x_p = D cos(ωt − δ)
-        (seed 003 eq. 1.2, with the minus sign its line 213 drops)."""
+        (PHYS0500 eq. 1.2, with the minus sign its line 213 drops)."""
         return tone_response(self.value("drive_amplitude") / self.value("mass"),
                              self.value("drive_frequency"), self.natural_frequency(),
                              self.beta())

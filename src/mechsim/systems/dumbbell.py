@@ -51,8 +51,9 @@ _CM = ("cm_x", "cm_y", "cm_z")
 class Dumbbell(LagrangianModel):
     id = "dumbbell"
     title = "Rigid dumbbell / diatomic molecule (free or in gravity)"
-    source = ("seed 001 §1.1: Constraints, diatomic molecule or dumbbell (L96–104, rigid rod "
-              "r − d = 0); §2.16 centre of mass and relative coordinates")
+    source = ("Introduction to analytical mechanics, “Constraints” (diatomic molecule or dumbbell, "
+              "rigid rod r − d = 0) and “Central force problem – with two body” (centre of mass "
+              "and relative coordinates)")
     formulations = ("reduced", "multiplier")
     oracles = ("CM parabola; rod turns uniformly about the fixed L̂ (L_CM conserved); tension "
                "μdω² (= −λ), also in gravity; rotational energy ½μd²ω²; 6 − 1 = 5 DOF; forms "

@@ -35,7 +35,8 @@ PROFILES = ("sinusoid", "constant", "ramp")
 class ForcedParticle(LagrangianModel):
     id = "forced_particle"
     title = "Particle under a time-dependent uniform force (V = x F(t))"
-    source = "seed 000 S9: Energy and Hamiltonians, Case 6 – E = h, neither conserved"
+    source = ("“Energy and Hamiltonians: Part 3 – Examples” (blog post), Case 6 – E = h, neither "
+              "conserved")
     oracles = ("exact x(t) = x₀ + v₀t − ∬F/m for constant, ramp and sinusoidal F(t); "
                "E = h; dE/dt = xḞ (sign corrected: m ẍ = −F)")
     parameters = (

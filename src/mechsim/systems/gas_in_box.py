@@ -49,8 +49,8 @@ SIDES = ("low", "high")
 class GasInBox(LagrangianModel):
     id = "gas_in_box"
     title = "Gas in a container: point particles in a box with elastic walls"
-    source = ("seed 001 §1.1: non-holonomic (inequality) constraints, gas molecules contained "
-              "in a container (L159–167)")
+    source = ("Introduction to analytical mechanics, “Classification of constraints” "
+              "(non-holonomic inequality constraints: gas molecules contained in a container)")
     oracles = ("kinetic energy, energy of each axis and every speed component conserved "
                "through the wall events; positions, hit times and impulses of the folded free "
                "flight; time-averaged impulse pressure on each wall → (1/V)Σmvₐ² within one hit "

@@ -1,6 +1,6 @@
 """Free particle constrained to a surface: geodesics on a sphere, a cylinder or a cone.
 
-Source: seed 003 ch. 2 (§2.2, line 393: the geodesic, "the shortest path on a given surface"),
+Source: PHYS0500 ch. 2 (§2.2, line 393: the geodesic, "the shortest path on a given surface"),
 made simulable as the catalog suggests (003 §10): a free particle held on the surface by a
 holonomic constraint with a Lagrange multiplier (§3.4) moves along geodesics at constant speed.
 
@@ -38,7 +38,8 @@ SURFACES = ("sphere", "cylinder", "cone")
 class Geodesic(LagrangianModel):
     id = "geodesic"
     title = "Geodesics: free particle on a sphere, cylinder or cone (Lagrange multiplier)"
-    source = "seed 003 ch. 2 (§2.2 geodesic), with the constraint machinery of §3.4"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §2.2 (Euler's Equation: geodesics), with "
+              "the multipliers of §3.4")
     oracles = ("constant speed, great circle (L fixed), helix, cone |r|² quadratic in t, "
                "Clairaut ρ²φ̇, normal force −mv²/R, constraint residual at round-off")
     parameters = (

@@ -1,6 +1,6 @@
 """One-dimensional simple harmonic oscillator.
 
-Sources: seed 003 §1.1 "Simple Harmonic Oscillations, Energy" (lines 19–65) and seed 001 §2.9
+Sources: PHYS0500 §1.1 "Simple Harmonic Oscillations, Energy" (lines 19–65) and seed 001 §2.9
 (L1007–1009, L1369–1373, L2136–2146): m ẍ = −k x, ω₀² = k/m, T = ½ k A² cos²(ω₀t − δ),
 U = ½ k A² sin²(ω₀t − δ), E = ½ k A²; seed 001 shows h = ẋ ∂L/∂ẋ − L = T + V = E.
 
@@ -27,7 +27,9 @@ from mechsim.systems.lagrangian import LagrangianBuilder
 class HarmonicOscillator(LinearOscillator):
     id = "harmonic_oscillator"
     title = "Simple harmonic oscillator"
-    source = "seed 003 §1.1 (Simple Harmonic Oscillations, Energy); seed 001 §2.9"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.1 (Simple Harmonic Oscillations, "
+              "Energy); Introduction to analytical mechanics, “Conservation of energy” (harmonic "
+              "oscillator)")
     oracles = ("exact x(t) = x₀cos ω₀t + (v₀/ω₀)sin ω₀t, period 2π√(m/k), E = ½kA² = h, "
                "period averages ⟨T⟩ = ⟨V⟩ = E/2")
     parameters = (
@@ -41,7 +43,7 @@ class HarmonicOscillator(LinearOscillator):
         x, _, _, k = self.spring(b)
         b.observable("spring_force", "N", -k * x)
 
-    # --- analytic oracles (seed 003 §1.1, seed 001 §2.9) ------------------------------------
+    # --- analytic oracles (PHYS0500 §1.1, seed 001 §2.9) ------------------------------------
     def period(self) -> float:
         """2π/ω₀ = 2π√(m/k)."""
         return 2 * math.pi / self.natural_frequency()

@@ -1,6 +1,6 @@
 """Kepler problem: relative motion of two bodies under U = −k/r, in the orbital plane.
 
-Source: seed 003 ch. 4 (PHYS0500 "Central Force Motion", §4.1 reduced mass, §4.6 planetary
+Source: PHYS0500 ch. 4 ("Central Force Motion", §4.1 reduced mass, §4.6 planetary
 motion; conic table line 996). The Laplace–Runge–Lenz vector is not in the document (catalog:
 [SUPPLEMENT]); it is used here as an invariant because it is conserved only for 1/r.
 
@@ -31,7 +31,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class Kepler(LagrangianModel):
     id = "kepler"
     title = "Kepler problem (two-body relative orbit)"
-    source = "seed 003 ch. 4: Central Force Motion, §4.1 and §4.6 (Kepler problem)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §4.1 (Reduced Mass) and §4.6 (Planetary "
+              "Motion, Kepler's laws)")
     oracles = "Kepler equation position, period 2π√(a³/GM), apsides a(1±e), |A| = μke"
     parameters = (
         positive("gravitational_parameter", 1.0, "m^3/s^2", "GM = G (m₁ + m₂)"),
@@ -75,7 +76,7 @@ class Kepler(LagrangianModel):
         return 2 * math.pi * math.sqrt((a * (1 - e)) ** 3 /
                                        (self.value("gravitational_parameter") * (1 + e)))
 
-    # --- analytic oracles (seed 003 §4.6; Kepler's equation is a catalog supplement) -------
+    # --- analytic oracles (PHYS0500 §4.6; Kepler's equation is a catalog supplement) -------
     def period(self) -> float:
         """τ = 2π √(a³ / GM) (Kepler III, line 1042 with k = μ GM)."""
         return 2 * math.pi * math.sqrt(self.value("semi_major_axis") ** 3

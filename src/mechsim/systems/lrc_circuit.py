@@ -1,6 +1,6 @@
 """Series LRC circuit driven by an emf: the electrical analogue of the driven damped oscillator.
 
-Source: seed 003 §1.7 "Analogy Between Electrical and Mechanical Quantities" (lines 325–333),
+Source: PHYS0500 §1.7 "Analogy Between Electrical and Mechanical Quantities" (lines 325–333),
 whose table maps x → q (charge), ẋ → q̇ = I (current), m → L (inductance), b → R (resistance),
 1/k → C (capacitance), F → ℰ (impressed emf); with §1.3–1.5 (damped and driven oscillations,
 resonance and Q) for the oracles that carry over (catalog 003 §1.7, [DERIVED]).
@@ -35,7 +35,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class LRCCircuit(LagrangianModel):
     id = "lrc_circuit"
     title = "Series LRC circuit driven by an emf (electrical analogue of the oscillator)"
-    source = "seed 003 §1.7: Analogy Between Electrical and Mechanical Quantities (with §1.3–1.5)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.7 (Analogy Between Electrical and "
+              "Mechanical Quantities), with §1.3–1.5")
     oracles = ("ω₀ = 1/√(LC); current amplitude ℰ₀/√(R² + (ωL − 1/ωC)²), peak at ω₀, "
                "half-power bandwidth R/L "
                "(Q = ω₀L/R); charge peak ω_R; Joule heat ∫RI²dt = work dissipated; same q(t) as "
@@ -68,7 +69,7 @@ class LRCCircuit(LagrangianModel):
         b.observable("power_in", "W", emf * current)
         b.observable("joule_power", "W", R * current**2)
 
-    # --- the analogue (seed 003 §1.7 table) --------------------------------------------------
+    # --- the analogue (PHYS0500 §1.7 table) --------------------------------------------------
     def mechanical_analogue(self) -> DrivenOscillator:
         """The driven oscillator with m = L, b = R, k = 1/C, F₀ = ℰ₀ and x = q, ẋ = I."""
         return DrivenOscillator(
@@ -102,7 +103,7 @@ class LRCCircuit(LagrangianModel):
         return math.inf if R == 0 else self.natural_frequency() * self.value("inductance") / R
 
     def document_quality_factor(self) -> float:
-        """The document's Q = ω_R/(2β) (seed 003 line 258), via the analogue."""
+        """The document's Q = ω_R/(2β) (PHYS0500 line 258), via the analogue."""
         return self.mechanical_analogue().quality_factor()
 
     def charge_resonance_frequency(self) -> float:

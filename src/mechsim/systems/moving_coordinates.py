@@ -38,7 +38,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class MovingCoordinates(LagrangianModel):
     id = "moving_coordinates"
     title = "Free particle in inertial, Galilean and accelerating coordinates"
-    source = "seed 000 S4–S5 (E&H Part 3, Cases 1–2); seed 002 §4 (linearly accelerated frame)"
+    source = ("“Energy and Hamiltonians: Part 3 – Examples” (blog post), Cases 1–2; Lecture 10: "
+              "The Methods of Lagrange Revisited, linearly accelerated frame (eq. 10.24)")
     formulations = ("inertial", "galilean", "accelerating")
     oracles = ("x = x₀ + v₀t in every form; Galilean h_q = ½mq̇² − ½mu² (= −½mv₀² co-moving); "
                "accelerating: E = ½mv₀² constant, h_q = ½mv₀² − mav₀t, h′ = ½mq̇² + maq")

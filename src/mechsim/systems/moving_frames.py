@@ -196,8 +196,8 @@ FRAME_NAMES = ("vbn", "ric", "frenet")
 class MovingFrames(DirectModel):
     id = "moving_frames"
     title = "Moving frames (VBN, RIC, Frenet–Serret) on the twisted cubic"
-    source = ("seed 000 S14–S15: Moving Frames and the Twisted Cubic; Minimal Frames "
-              "(VBN, RIC, Frenet–Serret)")
+    source = ("“Moving Frames and the Twisted Cubic” and “Minimal Frames” (blog posts: VBN, RIC, "
+              "Frenet–Serret)")
     oracles = ("closed-form VBN/RIC/Frenet axes; ω from finite differences and the table at "
                "u = ±1, ±2; RIC and Frenet ω_y ≡ 0; κ, τ closed forms; Darboux ω = v(τT̂ + κB̂)")
     parameters = (

@@ -34,7 +34,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class ParaboloidBead(LagrangianModel):
     id = "paraboloid_bead"
     title = "Particle sliding inside a vertical paraboloid z = a r² (Lagrange multiplier)"
-    source = "seed 002 §6: particle sliding inside a smooth vertical paraboloid (multipliers)"
+    source = ("Lecture 10: The Methods of Lagrange Revisited, particle sliding inside a smooth "
+              "vertical paraboloid (eqs. 10.31–10.36)")
     formulations = ("multiplier", "reduced")
     oracles = ("steady circle v₀ = r₀√(2ag) with λ = mg, λ = (mg + 4aE + 8a³J²/m)/(1+4a²r²)² ≥ 0, "
                "ω_r = 2√(2ag)/√(1+4a²r₀²), E and J_z conserved")

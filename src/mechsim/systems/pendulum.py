@@ -13,9 +13,16 @@ Conventions (the document's are ambiguous or wrong here):
   as φ/2 = atan2(k sn, dn) (well conditioned at the turning points); a rotation (k > 1) is
   φ/2 = am(kω₀t + u₀ | 1/k²), φ̇ = 2kω₀ dn (Landau & Lifshitz §11 problem 1; the catalog's
   exact period 4√(R/g)K(k) is its quarter-period). φ keeps its whole turns (unwrapped).
-- Multiplier form: Cartesian (y, z) with the constraint ρ − R = 0 (the document's ρ = R, L78),
-  so λ is the outward radial force and λ = −T (the document's "λ = T", L95, has the sign wrong;
-  its L93 also drops m from the first term). ``tension`` T = m g cos φ + m R φ̇² (L28).
+- Multiplier forms: the document's own, ``polar_multiplier``, keeps both plane polar coordinates
+  (ρ, φ) with the constraint ρ − R = 0 (its L' = L + λ(ρ − R), L78), so that the radial
+  equation is m ρ̈ = m ρ φ̇² + m g cos φ + λ (L82) and λ = −m R φ̇² − m g cos φ (L90) is the
+  outward radial force: λ = −T (the document's "λ = T", L95, has the sign wrong; its L93 also
+  drops m from the first term). ``multiplier`` is the same constraint in Cartesian (y, z),
+  √(y² + z²) − R = 0, whose λ is the same radial force. ``tension`` T = m g cos φ + m R φ̇²
+  (L28) in every form but the small-angle one.
+- ``small_angle``: the linearised pendulum beside the exact one, V = ½ m g R φ² (sin φ ≈ φ):
+  φ = φ₀ cos ω₀t + (φ̇₀/ω₀) sin ω₀t, period 2π√(R/g) whatever the amplitude (the exact period
+  exceeds it by 1 + φ₀²/16 + 11φ₀⁴/3072 + …).
 """
 
 from __future__ import annotations
@@ -26,17 +33,19 @@ import numpy as np
 
 from mechsim.params import Parameter, nonnegative, positive
 from mechsim.systems._elliptic import elliptic_f, jacobi_amplitude
+from mechsim.systems._oscillator import free_solution, state_rows
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 
 class Pendulum(LagrangianModel):
     id = "pendulum"
-    title = "Simple pendulum (reduced and Lagrange-multiplier forms)"
-    source = "seed 000 S1: Dynamical Systems and Constraints, Part 3 – Simple Pendulum"
-    formulations = ("reduced", "multiplier")
+    title = "Simple pendulum (reduced, polar and Cartesian multiplier, small-angle forms)"
+    source = "“Dynamical Systems and Constraints: Part 3 – Simple Pendulum” (blog post)"
+    formulations = ("reduced", "multiplier", "polar_multiplier", "small_angle")
     oracles = ("closed-form φ(t) (Jacobi sn, am; libration and rotation) = radau15; exact "
-               "period 4√(R/g)K(k); tension mg(3cosφ − 2cosφ₀); λ = −T; both forms agree")
+               "period 4√(R/g)K(k); tension mg(3cosφ − 2cosφ₀); polar and Cartesian λ = −T; "
+               "forms agree; small angle: φ₀cos ω₀t, period 2π√(R/g) for every amplitude")
     parameters = (
         positive("mass", 1.0, "kg", "bob mass m"),
         positive("length", 1.0, "m", "rod length R"),
@@ -55,6 +64,23 @@ class Pendulum(LagrangianModel):
             b.observable("tension", "N", m * g * sp.cos(phi) + m * R * dphi**2)
             bob = (sp.Integer(0), R * sp.sin(phi), -R * sp.cos(phi))
             angle = phi
+        elif self.formulation == "small_angle":
+            phi, dphi = b.coordinate("angle", "rad")
+            b.kinetic = m * R**2 * dphi**2 / 2
+            b.potential = m * g * R * phi**2 / 2
+            bob = (sp.Integer(0), R * sp.sin(phi), -R * sp.cos(phi))
+            angle = phi
+        elif self.formulation == "polar_multiplier":
+            rho, drho = b.coordinate("rho", "m")
+            phi, dphi = b.coordinate("angle", "rad")
+            b.kinetic = m * (drho**2 + rho**2 * dphi**2) / 2
+            b.potential = m * g * (R - rho * sp.cos(phi))
+            b.constraint("rod_length", rho - R)
+            lam = b.multiplier(0)
+            b.observable("tension", "N", -lam)
+            b.observable("multiplier", "N", lam)
+            bob = (sp.Integer(0), rho * sp.sin(phi), -rho * sp.cos(phi))
+            angle = phi
         else:
             y, dy = b.coordinate("y", "m")
             z, dz = b.coordinate("z", "m")
@@ -72,9 +98,11 @@ class Pendulum(LagrangianModel):
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         phi, w = self.value("initial.angle"), self.value("initial_rate.angle")
-        if self.formulation == "reduced":
-            return np.array([phi]), np.array([w])
         R = self.value("length")
+        if self.formulation in ("reduced", "small_angle"):
+            return np.array([phi]), np.array([w])
+        if self.formulation == "polar_multiplier":
+            return np.array([R, phi]), np.array([0.0, w])
         return (np.array([R * math.sin(phi), -R * math.cos(phi)]),
                 np.array([R * math.cos(phi) * w, R * math.sin(phi) * w]))
 
@@ -83,13 +111,16 @@ class Pendulum(LagrangianModel):
         return 2 * math.pi * math.sqrt(self.value("length") / g) if g > 0 else 1.0
 
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
-        """The reduced form's motion in closed form (see the module docstring); the rest of
-        the state (work terms: none act) carried unchanged. None for the multiplier form."""
-        if self.formulation != "reduced":
+        """The reduced and small-angle forms' motion in closed form (see the module docstring);
+        the rest of the state (work terms: none act) carried unchanged. None for the multiplier
+        forms."""
+        if self.formulation not in ("reduced", "small_angle"):
             return None
         tau = np.asarray(t, dtype=float) - t0
         g, R = self.value("gravity"), self.value("length")
         phi0, rate0 = float(y0[0]), float(y0[1])
+        if self.formulation == "small_angle":
+            return state_rows(y0, list(free_solution(tau, phi0, rate0, math.sqrt(g / R))))
         turns = 2.0 * math.pi * round(phi0 / (2.0 * math.pi))
         half0 = 0.5 * (phi0 - turns)  # in [−π/2, π/2]
         if g == 0.0:
@@ -116,7 +147,7 @@ class Pendulum(LagrangianModel):
         rows[:, 0], rows[:, 1] = phi, rate
         return rows
 
-    # --- analytic oracles (derived in the catalog, checked in tests/test_pendulum.py) --------
+    # --- analytic oracles (tests/test_pendulum.py checks the integrated motion against them) -
     def amplitude(self) -> float:
         """Turning angle φ_max of a libration: cos φ_max = cos φ₀ − R φ̇₀² / (2 g)."""
         c = math.cos(self.value("initial.angle")) - (

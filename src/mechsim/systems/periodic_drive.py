@@ -1,7 +1,7 @@
 """Damped oscillator driven by a periodic force: the solution as a superposition of harmonic
 responses.
 
-Source: seed 003 §1.6 "Principle of Superposition" (lines 292–323) on the oscillator of
+Source: PHYS0500 §1.6 "Principle of Superposition" (lines 292–323) on the oscillator of
 §1.3–1.5, m ẍ + b ẋ + k x = F(t). The operator 𝓛 = d²/dt² + a d/dt + b of line 296 (there
 a = 2β = b/m and its b is ω₀², not the damping) is linear, so for F = Σ Fₙ the solution is
 x = Σ xₙ with 𝓛xₙ = Fₙ/m; a periodic force is written as its Fourier series and each harmonic
@@ -60,7 +60,8 @@ def _harmonic(name: str) -> int:
 class PeriodicDrive(LinearOscillator):
     id = "periodic_drive"
     title = "Damped oscillator driven by a periodic force (Fourier series, superposition)"
-    source = "seed 003 §1.6: Principle of Superposition (periodic force as a Fourier series)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.6 (Principle of Superposition: a "
+              "periodic force as a Fourier series)")
     oracles = ("steady state = Σ of the harmonic responses Dₙcos(nωt − φₙ − δₙ), converging to "
                "the response to the discontinuous square wave; transient + steady state; "
                "input power = bẋ² over a period; work balance")
@@ -125,7 +126,7 @@ class PeriodicDrive(LinearOscillator):
         b.observable("power_in", "W", drive * dx)
         b.observable("power_dissipated", "W", c * dx**2)
 
-    # --- analytic oracles (seed 003 §1.4 and §1.6) -------------------------------------------
+    # --- analytic oracles (PHYS0500 §1.4 and §1.6) -------------------------------------------
     def fourier_coefficients(self) -> list[tuple[int, float, float]]:
         """(n, aₙ, bₙ) of the integrated series, dimensionless (the force is F₀ times it)."""
         return [(n, float(an), float(bn))

@@ -1,6 +1,6 @@
 """Planar isotropic harmonic oscillator, Cartesian and polar formulations.
 
-Sources: seed 003 §1.2 "Harmonic Oscillations in Two Dimensions" (lines 67–85) and seed 000 S6
+Sources: PHYS0500 §1.2 "Harmonic Oscillations in Two Dimensions" (lines 67–85) and seed 000 S6
 "Energy and Hamiltonians, Case 3 – E = h, both conserved: Planar SHO" (L416–470):
 V = ½ k (x² + y²), m r̈ = −k r, L = ½ m (ṙ² + r²θ̇²) − ½ k r² in polar coordinates.
 
@@ -14,7 +14,7 @@ Document typos corrected (catalog 000 S6, 003 §1.2): the point transformation i
 x = r cos ω₀t, y = r sin ω₀t (L434–437) but the Lagrangian that follows uses x = r cos θ,
 y = r sin θ, which is what is used here; the radial Euler–Lagrange equation m r̈ + k r = 0
 (L445) misses the centrifugal term −m r θ̇² (the engine derives it from L; the numerical form
-at L452 has it); the "energy" printed at L463–468 is kinetic energy only; seed 003 line 83
+at L452 has it); the "energy" printed at L463–468 is kinetic energy only; PHYS0500 line 83
 uses one amplitude A for both axes (they are independent in general).
 """
 
@@ -35,7 +35,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class PlanarOscillator(LagrangianModel):
     id = "planar_oscillator"
     title = "Planar isotropic harmonic oscillator (Cartesian and polar)"
-    source = "seed 003 §1.2 (Harmonic Oscillations in Two Dimensions); seed 000 S6 (Case 3)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §1.2 (Harmonic Oscillations in Two "
+              "Dimensions); “Energy and Hamiltonians: Part 3 – Examples” (blog post), Case 3")
     formulations = ("cartesian", "polar")
     oracles = ("exact elliptic orbit x, y = x₀cos ω₀t + (v₀/ω₀)sin ω₀t, period 2π/ω₀; "
                "E = h, L_z, E_x, E_y conserved; both forms agree; r ≡ R on the circular orbit")
@@ -102,7 +103,7 @@ class PlanarOscillator(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / self.natural_frequency()
 
-    # --- analytic oracles (seed 003 §1.2, seed 000 S6) ---------------------------------------
+    # --- analytic oracles (PHYS0500 §1.2, seed 000 S6) ---------------------------------------
     def natural_frequency(self) -> float:
         """ω₀ = √(k/m)."""
         return math.sqrt(self.value("spring_constant") / self.value("mass"))
@@ -117,7 +118,7 @@ class PlanarOscillator(LagrangianModel):
         return state_rows(y0, [x, y, vx, vy])
 
     def exact_position(self, t: np.ndarray) -> np.ndarray:
-        """(x, y)(t): each axis a 1-D oscillator with frequency ω₀ (seed 003 line 83)."""
+        """(x, y)(t): each axis a 1-D oscillator with frequency ω₀ (PHYS0500 line 83)."""
         w = self.natural_frequency()
         x, _ = free_solution(t, self.value("initial.x"), self.value("initial_rate.x"), w)
         y, _ = free_solution(t, self.value("initial.y"), self.value("initial_rate.y"), w)

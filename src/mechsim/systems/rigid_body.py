@@ -1,11 +1,11 @@
 """Free rigid body: inertia tensor, principal axes, Euler's equations, quaternion attitude.
 
-Source: seed 003 §7.2–7.7 (PHYS0500 ch. 7 "Dynamics of Rigid Bodies": inertia tensor eq. 7.1,
+Source: PHYS0500 §7.2–7.7 (ch. 7 "Dynamics of Rigid Bodies": inertia tensor eq. 7.1,
 principal axes §7.4, parallel-axis theorem §7.5, Euler's equations §7.7.1 force-free and §7.7.2
 with torque, line 1783). The body is a solid ``shape`` (box, cylinder along z, sphere) of mass
 ``mass`` plus an optional point mass ``tip_mass`` at ``tip_position`` (both in the shape's own
 frame, whose origin is the shape's centre); its tensor about the common centre of mass comes
-from the inertia module ``mechsim.systems._rigid`` (parallel-axis theorem) and is diagonalised
+from the inertia module ``mechsim.systems._inertia`` (parallel-axis theorem) and is diagonalised
 into principal axes Q (det Q = +1, axes matched to the nearest shape axes).
 
 Conventions:
@@ -20,7 +20,7 @@ Conventions:
 - Attitude: a unit quaternion with its rates as velocities, renormalised by projection after
   every step (see ``_rigid``); no Euler angles are integrated, so nothing is singular.
 - Without a torque the motion has a closed form (method ``exact``): ω from Jacobi's elliptic
-  functions, the attitude from the precession about the fixed L (``_rigid.free_rotation``).
+  functions, the attitude from the precession about the fixed L (``_free_rotation.free_rotation``).
 
 Document typos corrected (catalog 003 §7.2–7.7): m_α missing in Σ m_α r_α = 0 (1537) and in the
 (3,2) entry of the explicit tensor (1580); a_j a_i for α_j α_i and I_ij for I_ii in the
@@ -37,20 +37,22 @@ import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
-from mechsim.systems._rigid import (
-    RB_EXTRA,
-    RIGID_KERNELS,
+from mechsim.systems._inertia import (
     Part,
-    QuaternionRigidBody,
-    RigidData,
     box_inertia,
     composite,
     cylinder_inertia,
     principal_axes,
+    sphere_inertia,
+)
+from mechsim.systems._rigid import (
+    RB_EXTRA,
+    RIGID_KERNELS,
+    QuaternionRigidBody,
+    RigidData,
     rb_momentum,
     rb_omega,
     rb_unit,
-    sphere_inertia,
 )
 from mechsim.systems._rotation import quat_from_euler_zxz, quat_from_rows, rotate
 from mechsim.systems.base import FrameSpec, Quantity, Visual
@@ -110,7 +112,8 @@ class RigidBody(QuaternionRigidBody):
     id = "rigid_body"
     ATTITUDE_FRAME = "principal"  # q poses the principal axes (see ``frames``)
     title = "Free rigid body (Euler's equations, quaternion attitude)"
-    source = "seed 003 §7.2–7.7: inertia tensor, principal axes, Euler's equations"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §7.2–7.7 (inertia tensor, principal axes, "
+              "Euler's equations)")
     oracles = ("box/cylinder/sphere tensors and parallel axis; spin stability about the "
                "extreme axes at ω₀√((I_k−I_i)(I_k−I_j)/(I_iI_j)), intermediate-axis flip; "
                "L (space) and 2T = ω·L conserved; agrees with a rotation-matrix integration")

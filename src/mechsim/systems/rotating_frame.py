@@ -1,6 +1,6 @@
 """Motion seen from a rotating frame: a particle and a Foucault pendulum on the rotating Earth.
 
-Source: seed 003 ch. 6 (PHYS0500 "Motion in Non-Inertial Reference Frames": eqs. 6.1–6.4, §6.1
+Source: PHYS0500 ch. 6 ("Motion in Non-Inertial Reference Frames": eqs. 6.1–6.4, §6.1
 centrifugal and Coriolis forces, §6.2 motion relative to the Earth). The document cites but
 omits eq. (6.3), the transport theorem (dQ/dt)_fixed = (dQ/dt)_rot + ω × Q for any vector Q;
 it is what the rotating-frame Lagrangian below encodes: the velocity seen from the fixed axes is
@@ -60,7 +60,8 @@ def _cross(a: sp.Matrix, b: sp.Matrix) -> sp.Matrix:
 class RotatingFrame(LagrangianModel):
     id = "rotating_frame"
     title = "Rotating frame: free fall and Foucault pendulum on the rotating Earth"
-    source = "seed 003 ch. 6: Motion in Non-Inertial Reference Frames (§6.1, §6.2)"
+    source = ("PHYS0500 – Advanced Classical Mechanics, ch. 6 (Motion in Non-Inertial Reference "
+              "Frames, §6.1–6.2)")
     formulations = ("rotating", "inertial", "foucault_pendulum")
     oracles = ("exact linear solution (matrix exponential); eastward deflection ⅓Ωg t³cosλ; "
                "Foucault plane rate −Ω sinλ; Jacobi integral; rotating = inertial form")

@@ -40,7 +40,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class RotatingHoop(LagrangianModel):
     id = "rotating_hoop"
     title = "Pendulum forced to turn about the vertical at constant ω (bead on a spinning hoop)"
-    source = "seed 002 §9: spherical pendulum whose plane is forced to rotate at constant ω"
+    source = ("Lecture 10: The Methods of Lagrange Revisited, spherical pendulum whose plane is "
+              "forced to rotate at constant ω (eqs. 10.49–10.50)")
     formulations = ("reduced", "multiplier")
     oracles = ("E′ = h conserved, E − E₀ = ∫Gω dt, ω_c = √(g/l), θ₀ = arccos(g/lω²), "
                "ω_osc² = ω²sin²θ₀ (above) or g/l − ω² (below), λ = G")

@@ -38,7 +38,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class RotatingSpring(LagrangianModel):
     id = "rotating_spring"
     title = "Motor-driven rotating spring (constrained planar SHO)"
-    source = "seed 000 S7: Energy and Hamiltonians, Case 4 – E ≠ h, h conserved"
+    source = ("“Energy and Hamiltonians: Part 3 – Examples” (blog post), Case 4 – E ≠ h, h "
+              "conserved")
     formulations = ("reduced", "multiplier")
     oracles = ("exact r(t) about r_eq = ω₀²ℓ₀/(ω₀² − ω²) with Ω = √(ω₀² − ω²); h_r conserved, "
                "E − h_r = mr²ω², motor work mω²(r² − r₀²), λ = motor torque 2mrṙω")

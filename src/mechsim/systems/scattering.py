@@ -1,7 +1,7 @@
 """Scattering of a beam on a hard sphere or a repulsive Coulomb centre: one trajectory per impact
 parameter, and the beam's measured differential cross-section.
 
-Source: seed 003 §5.3 (PHYS0500 "Scattering Cross-Sections", lines 1215–1372): σ(θ) dΩ′ = dN/I,
+Source: PHYS0500 §5.3 ("Scattering Cross-Sections", lines 1215–1372): σ(θ) dΩ′ = dN/I,
 I 2πb db = −I σ(θ) 2π sin θ dθ (eq. 5.5), σ = (b/sin θ)|db/dθ| (eq. 5.6), θ = π − 2Θ (eq. 5.7)
 with the orbit integral Θ(b) (line 1255), the LAB ↔ CM conversion (eq. 5.8–5.10, 1312, 1316) and
 the hard-sphere example σ = a²/4, σ_t = πa² (lines 1320–1372). The Rutherford results are the
@@ -17,7 +17,7 @@ Model (``target``):
   surface normal.
 - ``coulomb``: U = k/r, k = q₁q₂/(4πε₀) > 0 (repulsive; same-sign charges).
 Coordinates: the centre of mass (cm_x, cm_y) and the relative position r = r₁ − r₂ = (x, y),
-T = ½MṘ² + ½μṙ² (the two-body reduction of seed 003 §4.1, as in ``central_force``). In the LAB
+T = ½MṘ² + ½μṙ² (the two-body reduction of PHYS0500 §4.1, as in ``central_force``). In the LAB
 the target is at rest and the projectile comes in along +x with kinetic energy T₀ (``energy``) on
 the line y = b (``impact_parameter``); so V = m₁u₁/M, the relative speed at infinity is u₁ and
 the CM energy is E = T₀′ = ½μu₁² = (m₂/M) T₀.
@@ -68,7 +68,8 @@ COULOMB = 8.9875517923e9  # 1/(4πε₀), N m²/C²
 class Scattering(LagrangianModel):
     id = "scattering"
     title = "Scattering on a hard sphere or a Coulomb centre (one impact parameter; beam function)"
-    source = "seed 003 §5.3: scattering cross-sections, LAB ↔ CM, hard-sphere example"
+    source = ("PHYS0500 – Advanced Classical Mechanics, §5.3 (Scattering Cross-Sections: LAB and "
+              "CM, hard-sphere example)")
     oracles = ("θ = 2arccos(b/a) and tan(θ/2) = k/(2Eb) per trajectory; beam histograms vs "
                "σ = a²/4 and Rutherford (k/4E)²/sin⁴(θ/2), LAB σ(ψ) (eq. 5.10), σ_t = πa²; "
                "orbit integral (line 1255)")
@@ -216,7 +217,7 @@ class Scattering(LagrangianModel):
                 Visual("sphere", "cm", radius=0.02 * L, color=(255, 255, 255)),
                 Visual("axes", "cm", radius=0.5 * L))
 
-    # --- analytic oracles (seed 003 §5.3 and the catalog's supplement; verified in the tests) --
+    # --- analytic oracles (PHYS0500 §5.3 and the catalog's supplement; verified in the tests) --
     def deflection(self, b: np.ndarray | float) -> np.ndarray:
         """CM deflection θ(b): 2 arccos(b/a) (hard sphere) or 2 arctan(k/(2Eb)) (Coulomb)."""
         if self.target == "coulomb":

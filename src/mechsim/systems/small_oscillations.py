@@ -1,7 +1,7 @@
 """General small oscillations: n coordinates with arbitrary positive-definite mass and stiffness
 matrices, normal modes from the generalized eigenproblem.
 
-Sources: seed 003 §8.3 "General Small-Oscillation Theory" and §8.4 "Normal Coordinates"
+Sources: PHYS0500 §8.3 "General Small-Oscillation Theory" and §8.4 "Normal Coordinates"
 (lines 2141–2281): near a stable equilibrium T = ½ Σ m_jk q̇_j q̇_k and U = ½ Σ A_jk q_j q_k,
 so M q̈ = −A q (line 2223); q = a e^{i(ωt − δ)} gives (A − ω²M) a = 0 and |A − ω²M| = 0
 (2205–2213); the normal coordinates η_r with q = Σ_r a_r η_r obey η̈_r + ω_r² η_r = 0 (2278)
@@ -67,8 +67,9 @@ def _indices(name: str) -> tuple[int, ...]:
 class SmallOscillations(LagrangianModel):
     id = "small_oscillations"
     title = "General small oscillations (normal modes of M q̈ = −A q)"
-    source = ("seed 003 §8.3–8.4: General Small-Oscillation Theory, Normal Coordinates; seed 001 "
-              "§2.21 (small oscillations, det(V − ω²T) = 0)")
+    source = ("PHYS0500 – Advanced Classical Mechanics, §8.3–8.4 (General Problem, Normal "
+              "Coordinates); Introduction to analytical mechanics, “Small Oscillations” (det(V − "
+              "ω²T) = 0)")
     energy_parts = ("mode_energy_",)
     oracles = ("ω_r², a_r from the generalized eigenproblem (scipy eigh; sympy for 2×2; double "
                "pendulum (2 ± √2)g/l); M-orthonormal modes; mode energies conserved; exact modal "
@@ -148,7 +149,7 @@ class SmallOscillations(LagrangianModel):
         M, A = self.matrices()
         return scipy.linalg.eigh(A, M)  # ascending ω², columns M-orthonormal
 
-    # --- analytic oracles (seed 003 §8.3–8.4) -----------------------------------------------
+    # --- analytic oracles (PHYS0500 §8.3–8.4) -----------------------------------------------
     def frequencies(self) -> np.ndarray:
         """ω_r, ascending, from |A − ω²M| = 0."""
         return np.sqrt(self._eig()[0])

@@ -39,7 +39,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class SphereSlide(LagrangianModel):
     id = "sphere_slide"
     title = "Particle sliding off a smooth sphere (one-sided constraint, departure event)"
-    source = "seed 001 §1.1: non-holonomic (inequality) constraint, particle on top of a sphere"
+    source = ("Introduction to analytical mechanics, “Classification of constraints” (inequality "
+              "constraint: particle rolling from the top of a sphere)")
     formulations = ("polar", "cartesian")
     oracles = ("normal force mg(3cosθ − 2cosθ₀) − mRθ̇₀², departure at cosθ = (2cosθ₀ + Rθ̇₀²/g)/3 "
                "(2/3 from rest) and its time by quadrature, projectile flight after")

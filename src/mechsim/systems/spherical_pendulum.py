@@ -30,7 +30,8 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class SphericalPendulum(LagrangianModel):
     id = "spherical_pendulum"
     title = "Spherical pendulum (free, or with an applied vertical torque)"
-    source = "seed 002 §8: free spherical pendulum and the same with an applied vertical torque G"
+    source = ("Lecture 10: The Methods of Lagrange Revisited, spherical pendulum, free and with an "
+              "applied vertical torque G (eqs. 10.47–10.48)")
     oracles = ("conical rate φ̇² = g/(l cosθ₀), cone oscillation ω² = g(1 + 3cos²θ₀)/(l cosθ₀), "
                "p_φ and E conserved; with torque E − E₀ = GΔφ, Δp_φ = G t")
     parameters = (

@@ -36,7 +36,7 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 class SpringPendulum(LagrangianModel):
     id = "spring_pendulum"
     title = "Spring (elastic) pendulum"
-    source = "seed 001 §2.2: Spring pendulum (L630–669)"
+    source = "Introduction to analytical mechanics, “Spring pendulum”"
     formulations = ("polar", "cartesian")
     oracles = ("equilibrium stretch mg/k; small-oscillation frequencies √(k/m) and "
                "√(g/(l + mg/k)); exact vertical SHM for θ ≡ 0; E conserved; forms agree")

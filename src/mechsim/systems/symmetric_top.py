@@ -1,6 +1,6 @@
 """Symmetric top: torque-free (gravity 0) and heavy (Lagrange's top), with one point fixed.
 
-Sources: seed 003 §7.6 (Euler angles), §7.8 (torque-free symmetric top), §7.8.1–7.8.2 (heavy
+Sources: PHYS0500 §7.6 (Euler angles), §7.8 (torque-free symmetric top), §7.8.1–7.8.2 (heavy
 symmetric top, steady precession, nutation); seed 002 §7 (Lecture 10, eqs. 10.37–10.46:
 Lagrange's top, Ω± from I₁cosθ Ω² − I₃ω₃Ω + MgR = 0, reality condition, slow/fast limits,
 the suspended top as a conical compound pendulum).
@@ -13,7 +13,7 @@ Conventions:
   §7.8 (about the fixed point, which the free top's formulas treat alike).
 - I₁ = I₂ (``transverse_inertia``) is about a perpendicular axis through the support point,
   I₃ (``axial_inertia``) about the symmetry axis.
-- Euler angles z-x-z as in seed 003 §7.6: the passive λ = λ_ψ λ_θ λ_φ maps world to body
+- Euler angles z-x-z as in PHYS0500 §7.6: the passive λ = λ_ψ λ_θ λ_φ maps world to body
   components, so the published body frame is world_R_body = λᵀ = R_z(φ) R_x(θ) R_z(ψ)
   (quaternion q_z(φ) ⊗ q_x(θ) ⊗ q_z(ψ)); body ω₁ = φ̇ sinθ sinψ + θ̇ cosψ,
   ω₂ = φ̇ sinθ cosψ − θ̇ sinψ, ω₃ = φ̇ cosθ + ψ̇; symmetry axis in space
@@ -24,12 +24,12 @@ Formulations:
   unit quaternion (``_rigid.QuaternionRigidBody``); gravity acts as the torque R x̂₃ × (−Mg ẑ).
   Nothing is singular at θ = 0 (sleeping top). Euler angles and their rates are observables;
   exactly at θ = 0 only φ + ψ is defined: φ̇ = 0 and ψ̇ = ω₃ are published there. Method
-  ``exact``: with gravity 0 uniform precession (``_rigid.free_rotation``); with gravity
+  ``exact``: with gravity 0 uniform precession (``_free_rotation.free_rotation``); with gravity
   Lagrange's top in elliptic functions (``lagrange_motion``: u = cos θ between the roots of
   f(u), catalog 003 §7.8.1 [SUPPLEMENT, not in the seeds; Goldstein §5.7]; φ, ψ by
   quadrature of their rates as Fourier series), except near the vertical.
 - ``euler_angles``: the Lagrangian L = ½I₁(θ̇² + φ̇² sin²θ) + ½I₃(ψ̇ + φ̇ cosθ)² − MgR cosθ
-  (seed 003 line 1874, seed 002 eq. 10.38) given to the engine; singular at sin θ = 0, so it
+  (PHYS0500 line 1874, seed 002 eq. 10.38) given to the engine; singular at sin θ = 0, so it
   refuses initial θ within 0.01 rad of 0 or π. Both publish the same invariants p_φ, p_ψ and
   observables, for comparison.
 
@@ -51,15 +51,12 @@ from numba import njit
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, nonnegative, number, positive
 from mechsim.systems._elliptic import _amplitudes, agm_ratios, carlson_rf, elliptic_f
+from mechsim.systems._free_rotation import _clenshaw, _cos_sin, _qmul, period_spectra
 from mechsim.systems._rigid import (
     RB_SIZE,
     RIGID_KERNELS,
     QuaternionRigidBody,
     RigidData,
-    _clenshaw,
-    _cos_sin,
-    _qmul,
-    period_spectra,
     rb_momentum,
     rb_omega,
     rb_unit,
@@ -249,7 +246,7 @@ def lagrange_motion(inertia: tuple[float, float], mgr: float, y0: np.ndarray
                     ) -> LagrangeMotion | None:
     """The constants of Lagrange's top (gravity on, ``_lagrange_top_rows``) from the state
     y0 = [q, q̇, ...]; None where the motion comes within ``VERTICAL_MARGIN`` of the vertical
-    or its series would need more than ``_rigid.SERIES_MAX_SAMPLES`` samples a period."""
+    or its series would need more than ``_free_rotation.SERIES_MAX_SAMPLES`` samples a period."""
     I1, I3 = inertia
     q0 = rb_unit(y0)
     phi0, _, psi0, dphi0, dth0, _ = top_euler(y0)
@@ -326,8 +323,9 @@ class SymmetricTop(Model):
 
     id = "symmetric_top"
     title = "Symmetric top: torque-free and heavy (Lagrange's top), Euler angles z-x-z"
-    source = ("seed 003 §7.6, §7.8–7.8.2 (symmetric top, heavy top); seed 002 §7 "
-              "(Lagrange's top, eqs. 10.37–10.46)")
+    source = ("PHYS0500 – Advanced Classical Mechanics, §7.6 and §7.8–7.8.2 (Eulerian angles, "
+              "symmetric top, top with one point fixed); Lecture 10: The Methods of Lagrange "
+              "Revisited, Lagrange's heavy symmetric top (eqs. 10.37–10.46)")
     formulations = ("quaternion", "euler_angles")
     oracles = ("steady precession Ω± (θ constant), reality condition, sleeping-top threshold, "
                "nutation bounds, conical pendulum Ω² = MgR/(I₁|cosθ|), torque-free body and "
@@ -407,7 +405,7 @@ class SymmetricTop(Model):
         return dphi * math.cos(th) + dpsi
 
     def momenta(self) -> tuple[float, float]:
-        """(p_φ, p_ψ) = ((I₁sin²θ + I₃cos²θ)φ̇ + I₃ψ̇cosθ, I₃ω₃) (seed 003 eqs. 7.3, 7.4)."""
+        """(p_φ, p_ψ) = ((I₁sin²θ + I₃cos²θ)φ̇ + I₃ψ̇cosθ, I₃ω₃) (PHYS0500 eqs. 7.3, 7.4)."""
         I1, I3, _ = self._consts()
         _, th, _, dphi, _, dpsi = self._init()
         s, c = math.sin(th), math.cos(th)
@@ -446,7 +444,7 @@ class SymmetricTop(Model):
         return math.sqrt(mgr / (I1 * abs(math.cos(th))))
 
     def effective_potential(self, theta: np.ndarray) -> np.ndarray:
-        """V(θ) = (p_φ − p_ψcosθ)²/(2I₁sin²θ) + MgR cosθ (seed 003 eq. 7.8)."""
+        """V(θ) = (p_φ − p_ψcosθ)²/(2I₁sin²θ) + MgR cosθ (PHYS0500 eq. 7.8)."""
         I1, _, mgr = self._consts()
         pphi, ppsi = self.momenta()
         th = np.asarray(theta, dtype=float)
@@ -477,7 +475,7 @@ class SymmetricTop(Model):
 
     def free_precession_rates(self) -> tuple[float, float]:
         """Torque-free top: (Ω_body, Ω_space). ω precesses about x₃ in the body at
-        Ω = ω₃(I₃ − I₁)/I₁ (seed 003 §7.8, line 1805 with ω₃ restored); x₃ and ω precess
+        Ω = ω₃(I₃ − I₁)/I₁ (PHYS0500 §7.8, line 1805 with ω₃ restored); x₃ and ω precess
         about the fixed L in space at |L|/I₁ (catalog 003 §7.8 [SUPPLEMENT])."""
         I1, I3, _ = self._consts()
         _, th, psi, dphi, dth, _ = self._init()

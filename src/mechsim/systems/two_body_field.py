@@ -58,8 +58,8 @@ _REL = ("x", "y", "z")
 class TwoBodyField(LagrangianModel):
     id = "two_body_field"
     title = "Two bodies in a uniform field (free-falling centre of mass, Kepler relative orbit)"
-    source = ("seed 001 §2.16: Central force problem with two bodies in a uniform external "
-              "field (L1392–1695), §2.17 (Kepler)")
+    source = ("Introduction to analytical mechanics, “Central force problem – with two body” (two "
+              "bodies in a uniform external field) and “Classification of the orbits” (Kepler)")
     formulations = ("cm", "bodies")
     oracles = ("CM parabola R₀ + V₀t − ½gt²ẑ; relative orbit from Kepler's equation; relative "
                "energy, vector L and LRL vector A conserved, orbit in the plane ⟂ L; forms agree")
