@@ -160,7 +160,7 @@ def _hand_made_mcap(path: Path, serialized_metadata: str, n: int = 20) -> None:
     as given (an attacker's file)."""
     from mcap.writer import Writer
 
-    from mechsim.outputs.bag import cdr_bytes, message_definition
+    from mechsim.outputs.wire import cdr_bytes, message_definition
 
     path.mkdir()
     with open(path / f"{path.name}_0.mcap", "wb") as f:

@@ -16,8 +16,8 @@ rclpy = import_rclpy()
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.serialization import deserialize_message  # noqa: E402
 
-from mechsim.outputs.bag.typeinfo import typestore_with  # noqa: E402
 from mechsim.outputs.messages import EnergyColumns  # noqa: E402
+from mechsim.outputs.wire import typestore_with  # noqa: E402
 from mechsim.ros.diagnostics import DiagnosticsNode  # noqa: E402
 from mechsim_msgs.msg import SystemInfo  # noqa: E402
 

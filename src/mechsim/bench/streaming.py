@@ -143,7 +143,7 @@ class _FirstRows:
         self.rows.setdefault(topic, data)
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
-        from mechsim.outputs.bag import cdr_bytes
+        from mechsim.outputs.wire import cdr_bytes
 
         self.rows.setdefault(topic, cdr_bytes(msg))
 

@@ -53,14 +53,18 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from std_msgs.msg import Header
 
-from mechsim.outputs.bag.typeinfo import StatusRow, encode_diagnostic_array
 from mechsim.outputs.sink import Sink
+from mechsim.outputs.wire import encode
 from mechsim.ros.outlet import DIAGNOSTICS_QOS, LATCHED_QOS, Outlet
 from mechsim.systems.base import LEVEL_NAMES, Law
 from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
 
 _SUB_QOS = QoSProfile(depth=1000)
 _INFO_TYPE = "mechsim_msgs/msg/SystemInfo"
+_REPORT_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+#: A diagnostic_msgs/DiagnosticStatus as the tuple of its fields: level, name, message,
+#: hardware_id and the (key, value) pairs (what the wire encoder takes for the message).
+StatusRow = tuple[int, str, str, str, list[tuple[str, str]]]
 STREAMS = ("system_info", "energy", "invariants")
 #: Laws read from one system_info at most (the rest is ignored).
 MAX_LAWS = 256
@@ -588,7 +592,7 @@ class DiagnosticsNode(Node):
     def status_rows(self) -> list[StatusRow]:
         """The report: one DiagnosticStatus per law per system, as plain values (level, name,
         message, hardware_id, [(key, value), ...]), encoded without building rclpy messages
-        (``encode_diagnostic_array``)."""
+        (the fields of the message as tuples)."""
         out: list[StatusRow] = []
         timeout = self._param("stale_timeout")
         thresholds = self._thresholds()
@@ -636,8 +640,7 @@ class DiagnosticsNode(Node):
             return
         ns = max((s.last_stamp for s in self.systems.values() if s.last_stamp is not None),
                  default=0)
-        sec, nanosec = divmod(ns, 1_000_000_000)
-        data = encode_diagnostic_array(sec, nanosec, "", self.status_rows())
+        data = encode(_REPORT_TYPE, ((divmod(ns, 1_000_000_000), ""), self.status_rows()))
         self.outlet.publish_serialized(
             self.t_diag, data, ns, lambda: deserialize_message(data, DiagnosticArray))
         self.published += 1

@@ -14,9 +14,9 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from mechsim.outputs.bag import cdr_bytes
 from mechsim.outputs.messages import column_rows
 from mechsim.outputs.sink import Sink
+from mechsim.outputs.wire import cdr_bytes
 
 # QoS by role (ROS_CONVENTIONS §1, §2, §5).
 STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,

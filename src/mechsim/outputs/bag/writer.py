@@ -50,7 +50,7 @@ from mechsim.outputs.bag.metadata import (
     system_info_custom,
 )
 from mechsim.outputs.bag.qos import qos_dict
-from mechsim.outputs.bag.typeinfo import cdr_bytes, message_definition, type_description_hash
+from mechsim.outputs.wire import cdr_bytes, message_definition, type_description_hash
 
 PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"
