@@ -19,6 +19,8 @@ import_rclpy()
 
 from rerun.chunk import RrdReader  # noqa: E402
 
+from mechsim.outputs.sink import Capabilities  # noqa: E402
+
 OFFSET_NS = 1_000_000_000  # messages.DEFAULT_TIME_OFFSET, stated independently
 DURATION = 2.0
 RATE = 50.0
@@ -26,6 +28,8 @@ RATE = 50.0
 
 class Capture:
     """Keeps what the run published: (topic, type, message) in order."""
+
+    capabilities = Capabilities()
 
     def __init__(self) -> None:
         self.messages: list[tuple[str, str, Any]] = []

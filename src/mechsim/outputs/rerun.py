@@ -64,6 +64,7 @@ import numpy as np
 
 from mechsim.errors import MechsimError
 from mechsim.files import publish
+from mechsim.outputs.sink import Capabilities, Takes
 from mechsim.systems.base import Law
 
 if TYPE_CHECKING:
@@ -106,6 +107,12 @@ def _colours(n: int) -> list[tuple[int, int, int]]:
         r, g, b = colorsys.hsv_to_rgb(k / n, 0.8, 0.85)
         colours.append((int(255 * r), int(255 * g), int(255 * b)))
     return colours
+
+
+def drawn(topic: str) -> bool:
+    """The topics a RerunSink wants: all but those of types never drawn (clock, pose,
+    twist)."""
+    return topic.rpartition("/")[2] not in _NOT_DRAWN
 
 
 def _ns(stamp: Any) -> int:
@@ -275,24 +282,16 @@ class RerunSink:
         self.series: dict[str, _Series] = {}
         #: Samples gathered and not drawn yet: by topic (for transforms: topic and frames)
         self.streams: dict[Any, _Stream] = {}
-        self._wanted: dict[str, bool] = {}
         self.bbox: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self.messages = 0
         self.closed = False
         self.peaks: dict[str, float] = {}  # entity -> largest |value| sent (scalars)
         self._live_next: float | None = time.monotonic() + LIVE_PERIOD if live else None
-        #: A live stream gets each sample as it is published (``Outlet.hand_over``).
-        self.immediate = live
+        #: A live stream gets each sample as it is published.
+        self.capabilities = Capabilities(Takes.COLUMNS, immediate=live, wants=drawn)
         self._live_blueprint: tuple[Any, ...] = ()
 
     # --- sink protocol ------------------------------------------------------------------------
-    def wants(self, topic: str) -> bool:
-        """Every topic but those of types never drawn (clock, pose, twist)."""
-        wanted = self._wanted.get(topic)
-        if wanted is None:
-            wanted = self._wanted[topic] = topic.rpartition("/")[2] not in _NOT_DRAWN
-        return wanted
-
     def write_columns(self, topic: str, ns: np.ndarray, values: Columns) -> None:
         """A chunk of samples stamped ``ns`` as evaluated values (see ``Outlet.publish_chunk``):
         energy terms, /tf transforms, or name -> values (state positions, invariants,
