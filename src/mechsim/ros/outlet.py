@@ -34,8 +34,8 @@ DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 
 #: History a publisher keeps for a reliable subscriber in a lossless run: a chunk is sent in
 #: slices of this many samples, each acknowledged by every such subscriber before the next
-#: (Fast DDS acknowledges about every heartbeat, 10 ms with the project's profile, so with
-#: the usual depth of 10 a topic could carry ~1700 messages per second at most).
+#: (Fast DDS acknowledges about once per heartbeat period of the project's profile, so with
+#: the usual depth of 10 a topic would carry about ten messages per heartbeat at most).
 LOSSLESS_DEPTH = 1000
 #: Longest wait for one slice's acknowledgments (a reader that stopped answering is given up
 #: on after it, with one warning).
@@ -267,7 +267,7 @@ class Outlet:
         """Publish a message already encoded (``data``: CDR bytes, padding zero). A sink that
         takes bytes gets them; one that takes messages gets ``message()``, made only if such
         a sink wants the topic. A volatile topic without a subscriber is not written to DDS
-        (a fast run reports a thousand times a second; nobody could receive it later)."""
+        (a fast run reports many times a second; nobody could receive it later)."""
         self.hand_over()
         ch = self.channels[topic]
         if ch.qos.durability != DurabilityPolicy.VOLATILE \

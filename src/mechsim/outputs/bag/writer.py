@@ -58,7 +58,7 @@ PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"
 #: A chunk is closed at least this often [s of wall time], and when it passes ``CHUNK_SIZE``
 #: bytes. (Not by simulation time: a fast run would close a small chunk for every second it
-#: simulates, a thousand a second, and the writer, compressing and indexing each, would
+#: simulates, many a second, and the writer, compressing and indexing each, would
 #: hold the simulation back.)
 FLUSH_WALL_S = 1.0
 CHUNK_SIZE = 512 * 1024

@@ -46,7 +46,7 @@ LIVE_PERIOD = 0.1
 #: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
 LIVE_FLUSH_TIMEOUT = 10.0
 #: Longest wait for Rerun to write what it buffered when a recording is closed [s] (a file
-#: writer that died on a full disk once left an unbounded flush waiting under load).
+#: writer that died on a full disk can leave a flush waiting without a bound).
 FLUSH_TIMEOUT = 120.0
 
 #: Recordings whose file writer stopped or hung (a full disk): kept referenced, since dropping
