@@ -55,25 +55,44 @@ _FALLBACK = (struct.error, TypeError, OverflowError)
 ENCODING_ERRORS = (AttributeError, KeyError, IndexError, TypeError, ValueError, OverflowError,
                    struct.error, RecursionError)
 
-#: Encoded strings (length, bytes, NUL) by value: names, keys and labels recur from message
-#: to message. Short strings only, and emptied when full, so it stays within a few MB.
+#: Encoded strings (length, bytes, NUL) by value, and the same followed by the padding up to
+#: the next multiple of 4 (``_UNITS``): names, keys and labels recur from message to message.
+#: Short strings only, and emptied when full, so they stay within a few MB.
 _STRINGS: dict[str, bytes] = {}
+_UNITS: dict[str, bytes] = {}
 _STRINGS_MAX = 4096
 _STRING_MEMO_LENGTH = 256
+#: Zeros after a string of n bytes (with its NUL) up to a multiple of 4, by n % 4.
+_TAILS = (b"", b"\x00\x00\x00", b"\x00\x00", b"\x00")
+
+
+def _encoded(v: Any) -> bytes:
+    if not isinstance(v, str):
+        raise TypeError(f"a string field got {type(v).__name__}")
+    data = v.partition("\x00")[0].encode()
+    return U32.pack(len(data) + 1) + data + b"\x00"
+
+
+def _remember(memo: dict[str, bytes], v: Any, out: bytes) -> bytes:
+    if v.__class__ is str and len(v) <= _STRING_MEMO_LENGTH:
+        if len(memo) >= _STRINGS_MAX:
+            memo.clear()
+        memo[v] = out
+    return out
 
 
 def _string(v: Any) -> bytes:
     """A CDR string (uint32 length with the NUL, the UTF-8 text up to its first NUL, NUL),
     remembered in ``_STRINGS`` if it is a short ``str``."""
-    if not isinstance(v, str):
-        raise TypeError(f"a string field got {type(v).__name__}")
-    data = v.partition("\x00")[0].encode()
-    out = U32.pack(len(data) + 1) + data + b"\x00"
-    if v.__class__ is str and len(v) <= _STRING_MEMO_LENGTH:
-        if len(_STRINGS) >= _STRINGS_MAX:
-            _STRINGS.clear()
-        _STRINGS[v] = out
-    return out
+    return _remember(_STRINGS, v, _encoded(v))
+
+
+def _unit(v: Any) -> bytes:
+    """:func:`_string` and the zeros up to the next multiple of 4 (a string starts 4-aligned:
+    where what follows it is 4-aligned too, its padding is written with it), remembered in
+    ``_UNITS``."""
+    out = _encoded(v)
+    return _remember(_UNITS, v, out + _TAILS[len(out) & 3])
 
 
 def _value(op: struct.Struct, v: Any) -> bytes:
@@ -115,7 +134,9 @@ class _Source:
 
     ``align`` follows the alignment of the offset known at each point of the source (8 at
     the start; the size of the last primitive; 1 after a string), so a padding that is
-    always empty is not emitted. Expressions handed down are names of locals."""
+    always empty is not emitted; a string followed in its message by a field that starts
+    4-aligned is written with its padding (``_unit``). Expressions handed down are names of
+    locals."""
 
     def __init__(self, types: dict[str, tuple[Field, ...]], trace: bool) -> None:
         self.types = types
@@ -124,7 +145,8 @@ class _Source:
         self.count = itertools.count()
         self.align = 8
         self.names: dict[str, Any] = {
-            "_strings": _STRINGS, "_string": _string, "_U32": U32.pack, "_value": _value,
+            "_strings": _STRINGS, "_string": _string, "_units": _UNITS, "_unit": _unit,
+            "_U32": U32.pack, "_value": _value,
             "_run": _run, "_Z": [bytes(k) for k in range(8)], "_dict": dict,
             "_fallback": _FALLBACK, "_sized": (list, tuple, array, np.ndarray, bytes, bytearray),
             "_array": array, "_ndarray": np.ndarray, "_join": _join, "_length": _length}
@@ -159,12 +181,27 @@ class _Source:
         if self.trace and type_name == TIME_TYPE:
             self.pad(4, indent)
             self.add(indent, "times.append(len(buf))")
-        for f, v in zip(fields, values, strict=True):
-            self.field(f, v, f"_join({path}, {f.name!r})", indent, depth)
+        for i, (f, v) in enumerate(zip(fields, values, strict=True)):
+            follow = self.first_align(fields[i + 1], depth) if i + 1 < len(fields) else 1
+            self.field(f, v, f"_join({path}, {f.name!r})", indent, depth, follow)
 
-    def field(self, f: Field, expr: str, path: str, indent: str, depth: int) -> None:
+    def first_align(self, f: Field, depth: int) -> int:
+        """The alignment the first byte of field ``f`` has (its first pad)."""
+        if f.sequence or f.type == "string":
+            return 4
+        if not f.is_message:
+            return STRUCTS[f.type].size
+        fields = self.types.get(f.type)
+        if not fields or depth > DEPTH_LIMIT:
+            return 1
+        return self.first_align(fields[0], depth + 1)
+
+    def field(self, f: Field, expr: str, path: str, indent: str, depth: int,
+              follow: int = 1) -> None:
+        """Field ``f`` (its value: ``expr``); ``follow``: the alignment of what comes after
+        it in the message (1 if not known here)."""
         if f.length is None and not f.sequence:
-            self.element(f, expr, path, indent, depth)
+            self.element(f, expr, path, indent, depth, follow)
             return
         k = next(self.count)
         items = f"items{k}"
@@ -234,7 +271,8 @@ class _Source:
         self.add(inner, f"buf += _run(_s{k}, {items})")
         self.align = min(before, op.size) if f.sequence else min(self.align, op.size)
 
-    def element(self, f: Field, expr: str, path: str, indent: str, depth: int) -> None:
+    def element(self, f: Field, expr: str, path: str, indent: str, depth: int,
+                follow: int = 1) -> None:
         """One value of ``f``'s type (the field itself, or an element of it)."""
         if f.is_message:
             self.message(f.type, expr, path, indent, depth + 1)
@@ -245,8 +283,12 @@ class _Source:
                                  f"{f.string_bound}: _length({f.name!r}, len({expr}), "
                                  f"'at most {f.string_bound} characters')")
             self.pad(4, indent)
-            self.add(indent, f"buf += remembered({expr}) or string({expr})")
-            self.align = 1
+            if follow >= 4:  # padded to 4 here: what follows needs it
+                self.add(indent, f"buf += unit_of({expr}) or unit({expr})")
+                self.align = 4
+            else:
+                self.add(indent, f"buf += remembered({expr}) or string({expr})")
+                self.align = 1
             return
         k = next(self.count)
         op = STRUCTS[f.type]
@@ -266,7 +308,8 @@ class _Source:
         self.message(type_name, "value", "''", " ", 0)
         args = "buf, value, slots, times" if self.trace else "buf, value"
         # The names used most, as locals.
-        head = [" Z = _Z", " remembered = _strings.get", " string = _string"]
+        head = [" Z = _Z", " remembered = _strings.get", " string = _string",
+                " unit_of = _units.get", " unit = _unit"]
         exec(f"def encode({args}):\n" + "\n".join(head + self.lines), self.names)  # noqa: S102
         return self.names["encode"]  # type: ignore[no-any-return]
 
