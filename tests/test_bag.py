@@ -17,6 +17,8 @@ from typing import Any
 import pytest
 import yaml
 
+from mechsim.outputs.sink import Capabilities  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
 SHARE = Path(sys.prefix) / "share"
 MECHSIM = [sys.executable, "-m", "mechsim.cli"]
@@ -35,6 +37,8 @@ HASHES = {
 
 class Capture:
     """A second sink: what the nodes handed to the outlet, kept for comparison."""
+
+    capabilities = Capabilities()
 
     def __init__(self) -> None:
         self.items: list[tuple[str, str, Any, int]] = []

@@ -48,7 +48,7 @@ def test_every_message_once_in_the_order_given(tmp_path: Path) -> None:
     for block, singles in enumerate([3, 0, HELD_MESSAGES * 2 + 1, 1]):
         ns = t + 10_000_000 * np.arange(1, 51, dtype=np.int64)
         rows = _clock_rows(ns)
-        w.write_chunk(ns, [("/clock", CLOCK, STATE_QOS, rows)])
+        w.write_rows(ns, [("/clock", CLOCK, STATE_QOS, rows)])
         given += [("/clock", int(s), r.tobytes()) for s, r in zip(ns, rows, strict=True)]
         t = int(ns[-1])
         for k in range(singles):

@@ -170,7 +170,7 @@ def test_long_recording_lists_every_chunk(tmp_path: Path, monkeypatch: pytest.Mo
             ns = np.arange(k * n, (k + 1) * n, dtype=np.int64) * SECOND
             a = np.full((n, 8), k % 256, dtype=np.uint8)
             b = np.repeat(np.arange(n, dtype=np.uint8)[:, None], 12, 1)
-            bag.write_chunk(ns, [("/a", "std_msgs/msg/UInt64", qos, a),
+            bag.write_rows(ns, [("/a", "std_msgs/msg/UInt64", qos, a),
                                  ("/b", "std_msgs/msg/String", qos, b)])
     assert len(spills) == 1 and spills[0].closed
     assert sorted(p.name for p in path.iterdir()) == ["bag_0.mcap", "metadata.yaml"]

@@ -44,6 +44,7 @@ from mechsim.outputs.bag import (  # noqa: E402
     read_metadata,
     repair_bag,
 )
+from mechsim.outputs.wire import cdr_bytes  # noqa: E402
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 OFFSET_NS = 1_000_000_000
@@ -62,7 +63,7 @@ def _write_states(w: BagWriter, n: int, first: int = 0) -> None:
         m.velocity = [0.5 * k]
         ns = OFFSET_NS + 10_000_000 * k
         m.header.stamp.sec, m.header.stamp.nanosec = divmod(ns, 1_000_000_000)
-        w.write("/p/state", JOINT_STATE, m, qos, ns)
+        w.write_bytes("/p/state", JOINT_STATE, qos, ns, cdr_bytes(m))
 
 
 def _make_bag(path: Path, n: int = 400, chunk_size: int = 4096,
@@ -160,7 +161,7 @@ def _hand_made_mcap(path: Path, serialized_metadata: str, n: int = 20) -> None:
     as given (an attacker's file)."""
     from mcap.writer import Writer
 
-    from mechsim.outputs.bag import cdr_bytes, message_definition
+    from mechsim.outputs.wire import message_definition
 
     path.mkdir()
     with open(path / f"{path.name}_0.mcap", "wb") as f:

@@ -28,6 +28,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from mechsim.outputs.messages import MessageFactory, Sample  # noqa: E402
+from mechsim.outputs.sink import Capabilities  # noqa: E402
 from mechsim.ros.diagnostics import DiagnosticsNode  # noqa: E402
 from mechsim.ros.launch import run_scene  # noqa: E402
 from mechsim.ros.outlet import LATCHED_QOS, STATE_QOS  # noqa: E402
@@ -55,6 +56,8 @@ def level_of(diag: DiagnosticsNode, ns: str, key: str) -> int:
 
 
 class Capture:
+    capabilities = Capabilities()
+
     def __init__(self) -> None:
         self.messages: list[tuple[str, Any]] = []
 

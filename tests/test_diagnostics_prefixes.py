@@ -17,12 +17,8 @@ from mechsim.environment import import_rclpy
 
 rclpy = import_rclpy()
 from mechsim.outputs.messages import EnergyColumns  # noqa: E402
-from mechsim.ros.diagnostics import (  # noqa: E402
-    DiagnosticsNode,
-    LawState,
-    track,
-    track_prefixes,
-)
+from mechsim.ros.diagnostics import DiagnosticsNode  # noqa: E402
+from mechsim.ros.drift import LawState, track, track_prefixes  # noqa: E402
 from mechsim.ros.feed import DiagnosticsFeed  # noqa: E402
 from mechsim.systems.base import Law  # noqa: E402
 from mechsim_msgs.msg import SystemInfo  # noqa: E402

@@ -16,8 +16,9 @@ rclpy = import_rclpy()
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.serialization import deserialize_message  # noqa: E402
 
-from mechsim.outputs.bag.typeinfo import typestore_with  # noqa: E402
 from mechsim.outputs.messages import EnergyColumns  # noqa: E402
+from mechsim.outputs.sink import Capabilities, Takes  # noqa: E402
+from mechsim.outputs.wire import typestore_with  # noqa: E402
 from mechsim.ros.diagnostics import DiagnosticsNode  # noqa: E402
 from mechsim_msgs.msg import SystemInfo  # noqa: E402
 
@@ -28,12 +29,17 @@ S = 1_000_000_000
 class _Capture:
     """A recorder-like sink: keeps the bytes of each /diagnostics report."""
 
+    capabilities = Capabilities(Takes.BYTES)
+
     def __init__(self) -> None:
         self.reports: list[tuple[int, bytes]] = []
 
     def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
         assert topic == "/diagnostics" and type_name == ARRAY
         self.reports.append((ns, bytes(data)))
+
+    def write_rows(self, ns: Any, topics: list[Any]) -> None:
+        raise AssertionError("the diagnostics node publishes no chunks")
 
 
 def _values(drift: str, max_drift: str, initial: str, current: str, scale: str,

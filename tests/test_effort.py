@@ -28,6 +28,7 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from mechsim.outputs import messages  # noqa: E402
 from mechsim.outputs.bag.reader import read_messages  # noqa: E402
 from mechsim.outputs.bag.writer import BagWriter  # noqa: E402
+from mechsim.outputs.sink import Capabilities  # noqa: E402
 from mechsim.ros.launch import run_scene  # noqa: E402
 from mechsim.ros.simulator import SimulatorNode  # noqa: E402
 from mechsim.scene import Instance, single_system_scene  # noqa: E402
@@ -50,6 +51,8 @@ def oracle(y0: list[float], t0: float, times: np.ndarray, torque: float) -> np.n
 
 class Recorder:
     """Sink: every message the node sends (and every effort it applied), with its time."""
+
+    capabilities = Capabilities()
 
     def __init__(self, offset: float) -> None:
         self.offset = offset

@@ -19,6 +19,7 @@ from typing import Any
 import pytest
 import yaml
 
+from mechsim.outputs.sink import Capabilities
 from mechsim.ros.launch import FAST_CHUNK
 from mechsim.scene import parse_scene
 
@@ -30,6 +31,8 @@ FAULT_AT = 0.5
 
 class Injector:
     """Sink: when ``<victim>/state`` passes ``FAULT_AT``, corrupt the victim's stepper state."""
+
+    capabilities = Capabilities()
 
     def __init__(self, victim: str, corrupt: Any) -> None:
         self.victim = victim

@@ -360,9 +360,9 @@ def test_live_viewer_renders_the_run(ros_env: dict[str, str], tmp_path: Path) ->
 def test_live_viewer_shows_a_real_time_run_as_it_happens(ros_env: dict[str, str],
                                                          tmp_path: Path) -> None:
     """A run in real time, far from its end: the viewer receives rows while it runs, a few at a
-    time (not in the batches of ``_FLUSH_ROWS`` rows a recording is written in), and more
+    time (not in the batches of ``FLUSH_ROWS`` rows a recording is written in), and more
     later; Ctrl-C then stops the run and the view together."""
-    from mechsim.outputs.rerun import _FLUSH_ROWS
+    from mechsim.outputs.rerun.series import FLUSH_ROWS
 
     v = ViewerRun(["pendulum", "--duration", "3600", "--rate", str(RATE)], ros_env, tmp_path)
     try:
@@ -373,7 +373,7 @@ def test_live_viewer_shows_a_real_time_run_as_it_happens(ros_env: dict[str, str]
             return int(v.recording(page, tmp_path / "live.rrd").get(entity, {}).get("rows", 0))
 
         first = wait_until("rows in the viewer, fewer than a whole batch",
-                           lambda: (n := rows()) % _FLUSH_ROWS and n)
+                           lambda: (n := rows()) % FLUSH_ROWS and n)
         wait_until("more rows in the viewer", lambda: rows() > first)
         assert v.run.poll() is None and not v.err.find("the run has ended")
         v.run.send_signal(signal.SIGINT)

@@ -21,6 +21,7 @@ rclpy = import_rclpy()
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
+from mechsim.outputs.sink import Capabilities  # noqa: E402
 from mechsim.ros.simulator import SimulatorNode  # noqa: E402
 from mechsim.scene import Instance, parse_scene  # noqa: E402
 
@@ -28,12 +29,11 @@ from mechsim.scene import Instance, parse_scene  # noqa: E402
 class Capture:
     """Sink keeping every state and energy message (in-process: nothing dropped)."""
 
+    capabilities = Capabilities(wants=lambda topic: topic.endswith(("/state", "/energy")))
+
     def __init__(self) -> None:
         self.state: list[Any] = []
         self.energy: list[Any] = []
-
-    def wants(self, topic: str) -> bool:
-        return topic.endswith(("/state", "/energy"))
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
         if topic.endswith("/state"):

@@ -20,6 +20,7 @@ import sympy as sp
 import mechsim
 from mechsim import systems
 from mechsim.errors import UnknownSystemError
+from mechsim.outputs.sink import Capabilities  # noqa: E402
 from mechsim.params import nonnegative, number, positive
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
@@ -131,6 +132,8 @@ def test_registered_system_simulates_like_its_closed_form(spring_particle: None)
 
 
 class Capture:
+    capabilities = Capabilities()
+
     def __init__(self) -> None:
         self.messages: list[tuple[str, Any]] = []
 

@@ -19,6 +19,8 @@ import_rclpy()
 
 from rerun.chunk import RrdReader  # noqa: E402
 
+from mechsim.outputs.sink import Capabilities  # noqa: E402
+
 OFFSET_NS = 1_000_000_000  # messages.DEFAULT_TIME_OFFSET, stated independently
 DURATION = 2.0
 RATE = 50.0
@@ -26,6 +28,8 @@ RATE = 50.0
 
 class Capture:
     """Keeps what the run published: (topic, type, message) in order."""
+
+    capabilities = Capabilities()
 
     def __init__(self) -> None:
         self.messages: list[tuple[str, str, Any]] = []
@@ -330,7 +334,7 @@ def test_columns_and_messages_give_one_recording(tmp_path: Path) -> None:
     assert main(["convert", str(bag), "--rrd", str(converted)]) == 0
     run, conv = read_rrd(rrd), read_rrd(converted)
     assert sorted(run) == sorted(conv)
-    n = 1501  # 1000 Hz, t = 0 … 1.5: one drawing (``_DRAW_ROWS``) and part of the next
+    n = 1501  # 1000 Hz, t = 0 … 1.5: one drawing (``DRAW_ROWS``) and part of the next
     for entity in ("/plots/double_pendulum/energy/total", "/plots/gas_in_box/state/x_8",
                    "/world/double_pendulum/visuals/trail_bob_2",
                    "/plots/two_body_field/drift/angular_momentum_z"):
@@ -360,11 +364,12 @@ def test_resets_rebase_drifts_and_trails(tmp_path: Path, monkeypatch: pytest.Mon
     from geometry_msgs.msg import TransformStamped
 
     import mechsim.outputs.rerun as rerun_output
+    import mechsim.outputs.rerun.drawing as drawing
     from mechsim.outputs.messages import EnergyColumns, TransformColumns
     from mechsim_msgs.msg import Energy, NamedScalar, NamedScalars, SystemInfo
     from tf2_msgs.msg import TFMessage
 
-    monkeypatch.setattr(rerun_output, "_DRAW_ROWS", draw_rows)
+    monkeypatch.setattr(drawing, "DRAW_ROWS", draw_rows)
     t = np.array([0.0, 0.1, 0.2, 0.3, 0.0, 0.1, 0.2])  # reset after the 4th sample
     ns = (np.round(t * 1e9) + OFFSET_NS).astype(np.int64)
     total = np.array([5.0, 5.5, 6.0, 7.0, 2.0, 2.25, 3.0])

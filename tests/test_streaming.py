@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
+from mechsim.outputs.sink import Capabilities, Takes  # noqa: E402
 from mechsim.testing import wait_until
 
 REPO = Path(__file__).resolve().parents[1]
@@ -73,6 +74,8 @@ def test_identical_runs_give_identical_bytes_and_lossless_counts(tmp_path: Path)
 
 class _Capture:
     """A sink keeping (topic, stamp) of every message handed to it."""
+
+    capabilities = Capabilities()
 
     def __init__(self) -> None:
         self.items: list[tuple[str, int]] = []
@@ -259,6 +262,8 @@ def test_mcap_batches_read_back_by_the_mcap_library(tmp_path: Path) -> None:
 class _Messages:
     """A sink keeping (topic, stamp, message) of the state and energy messages."""
 
+    capabilities = Capabilities()
+
     def __init__(self) -> None:
         self.items: list[tuple[str, int, Any]] = []
 
@@ -331,19 +336,17 @@ class _Chunks:
     """A sink taking chunks of CDR rows (as the recorder does): the stamps of each hand-off
     per topic, and the number of hand-offs."""
 
+    capabilities = Capabilities(Takes.BYTES)
+
     def __init__(self) -> None:
         self.handoffs = 0
         self.stamps: dict[str, list[int]] = {}
 
-    def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
+    def write_rows(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
         self.handoffs += 1
         for topic, _, _, rows in topics:
             assert len(rows) == len(ns), topic
             self.stamps.setdefault(topic, []).extend(int(x) for x in ns)
-
-    def write_serialized(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int,
-                         data: bytes) -> None:
-        pass
 
     def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
         pass

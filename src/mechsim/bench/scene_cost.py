@@ -30,11 +30,15 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from mechsim.outputs.sink import Capabilities, Takes
+
 VARIANTS = ("run_scene + sink", "run_scene", "nodes + sink", "nodes only")
 
 
 class CountingSink:
     """Consumes every message (so every output is wanted) and counts them per topic."""
+
+    capabilities = Capabilities(Takes.MESSAGES)
 
     def __init__(self) -> None:
         self.counts: Counter[str] = Counter()

@@ -132,20 +132,18 @@ class _FirstRows:
     """A sink keeping one recorded payload of each topic (the bare loop's messages)."""
 
     def __init__(self) -> None:
+        from mechsim.outputs.sink import Capabilities, Takes
+
+        self.capabilities = Capabilities(Takes.BYTES)
         self.rows: dict[str, bytes] = {}
 
-    def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
+    def write_rows(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
         for topic, _, _, rows in topics:
             if len(rows):
                 self.rows.setdefault(topic, rows[0].tobytes())
 
     def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
         self.rows.setdefault(topic, data)
-
-    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
-        from mechsim.outputs.bag import cdr_bytes
-
-        self.rows.setdefault(topic, cdr_bytes(msg))
 
 
 def live_subscriber_rtf(system: str, duration: float, mode: str = "drain") -> dict[str, Any]:

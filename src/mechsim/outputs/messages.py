@@ -220,10 +220,10 @@ class Chunk:
     _time_rows: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def time_rows(self) -> np.ndarray:
-        """The Time fields of the chunk's stamps (``cdr.time_rows``), made once for all its
+        """The Time fields of the chunk's stamps (``wire.time_rows``), made once for all its
         topics."""
         if self._time_rows is None:
-            from mechsim.outputs.cdr import time_rows
+            from mechsim.outputs.wire import time_rows
 
             self._time_rows = time_rows(self.ns)
         return self._time_rows
@@ -301,11 +301,11 @@ def joined_columns(parts: list[Columns]) -> Columns:
 
 class ChunkEncoder:
     """The CDR payloads of a chunk, per topic, as :class:`MessageFactory` would fill the
-    messages (see ``mechsim.outputs.cdr``): the layouts are made once from the factory's own
-    messages of a prototype sample, then only numbers and stamps change."""
+    messages (see ``mechsim.outputs.wire.rows``): the layouts are made once from the factory's
+    own messages of a prototype sample, then only numbers and stamps change."""
 
     def __init__(self, factory: MessageFactory) -> None:
-        from mechsim.outputs.cdr import Layout
+        from mechsim.outputs.wire import Layout
 
         self.factory = f = factory
         m = f.model

@@ -10,10 +10,17 @@ from typing import Any
 
 import numpy as np
 
+from mechsim.outputs.sink import Capabilities, Takes
+
 
 def _same(a: list[Any], b: list[Any]) -> bool:
     """The same objects, in the same order."""
     return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
+
+
+def _laws_carried(topic: str) -> bool:
+    """The topics the feed wants: what the diagnostics node follows."""
+    return topic.rpartition("/")[2] in ("system_info", "energy", "invariants")
 
 
 #: A stamp past every sample (``DiagnosticsFeed.deliver``).
@@ -28,13 +35,12 @@ class DiagnosticsFeed:
     until :meth:`deliver` (the runner reports in between, at the stamps of its diagnostics
     period, however long the chunks)."""
 
+    capabilities = Capabilities(Takes.COLUMNS, wants=_laws_carried)
+
     def __init__(self, diag: Any) -> None:
         self.diag = diag
         #: (namespace, stream, stamps, laws, laws × samples values), in arrival order.
         self.pending: list[tuple[str, str, Any, list[Any], Any]] = []
-
-    def wants(self, topic: str) -> bool:
-        return topic.rpartition("/")[2] in ("system_info", "energy", "invariants")
 
     def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
         self.deliver()  # a system_info applies to the samples after it

@@ -7,16 +7,15 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from mechsim.outputs.bag import cdr_bytes
-from mechsim.outputs.messages import column_rows
-from mechsim.outputs.sink import Sink
+from mechsim.outputs.sink import ChunkTopic, Sink, Sinks
+from mechsim.outputs.wire import encode
 
 # QoS by role (ROS_CONVENTIONS §1, §2, §5).
 STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -35,8 +34,8 @@ DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 
 #: History a publisher keeps for a reliable subscriber in a lossless run: a chunk is sent in
 #: slices of this many samples, each acknowledged by every such subscriber before the next
-#: (Fast DDS acknowledges about every heartbeat, 10 ms with the project's profile, so with
-#: the usual depth of 10 a topic could carry ~1700 messages per second at most).
+#: (Fast DDS acknowledges about once per heartbeat period of the project's profile, so with
+#: the usual depth of 10 a topic would carry about ten messages per heartbeat at most).
 LOSSLESS_DEPTH = 1000
 #: Longest wait for one slice's acknowledgments (a reader that stopped answering is given up
 #: on after it, with one warning).
@@ -92,17 +91,13 @@ def type_name(msg_type: type) -> str:
     return f"{module[0]}/msg/{msg_type.__name__}"
 
 
-class _SinkKinds(NamedTuple):
-    """What the sinks of an outlet take (``Outlet._sink_kinds``)."""
-
-    immediate: bool  # a sink takes every sample as it is published
-    rows: bool  # a sink records CDR bytes (``write_chunk``)
-    column_wants: list[Any]  # the ``wants`` (or None: every topic) of the column sinks
-    columns: dict[str, bool]  # per topic: does a column sink want it (filled as asked)
-
-
 class Outlet:
-    """Publishers of one node plus the process's sinks (shared list, attached by the runner)."""
+    """Publishers of one node plus the process's sinks (shared list, attached by the runner).
+
+    Everything handed to the sinks goes through one :class:`~mechsim.outputs.sink.Sinks`
+    (made again when the list changes): each sink gets, in the form it declares, only the
+    topics it wants, on every path (:meth:`publish`, :meth:`publish_chunk` and
+    :meth:`hand_over`, :meth:`publish_serialized`, :meth:`record`)."""
 
     def __init__(self, node: Node, sinks: list[Sink] | None = None,
                  lossless: bool = False) -> None:
@@ -125,8 +120,8 @@ class Outlet:
         #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
         self._live: list[tuple[_Channel, np.ndarray]] = []
         self._live_for: Any = None
-        self._kinds_for: tuple[int, ...] | None = None
-        self._kinds = _SinkKinds(False, False, [], {})
+        self._dispatch_for: tuple[int, ...] = ()
+        self._dispatch = Sinks([])
 
     def channel(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         resolved = self.node.resolve_topic_name(topic)
@@ -145,31 +140,31 @@ class Outlet:
             self.subscribers[topic] = ch.publisher.get_subscription_count()
         self._live_for = None
 
+    def _sinks(self) -> Sinks:
+        """The dispatch of the attached sinks, made again only when they change (what a sink
+        takes and wants is declared when it is made)."""
+        key = tuple(map(id, self.sinks))  # the sinks themselves, not the list holding them
+        if key != self._dispatch_for:
+            self._dispatch = Sinks(self.sinks)
+            self._dispatch_for = key
+        return self._dispatch
+
     def needs_rows(self, topic: str) -> bool:
         """Are the CDR bytes of ``topic``'s samples needed (a subscriber as counted at the
-        last ``refresh``, or a sink that records bytes: ``write_chunk``)? Other sinks take
-        values or messages, so a chunk nobody reads as bytes is not encoded."""
-        return self.subscribers.get(topic, 0) > 0 or self._sink_kinds().rows
+        last ``refresh``, or a sink that wants the topic as bytes)? Other sinks take values
+        or messages, so a chunk nobody reads as bytes is not encoded."""
+        return self.subscribers.get(topic, 0) > 0 or self._sinks().needs_rows(topic)
 
     def needs_columns(self, topic: str) -> bool:
-        """Are the evaluated values of ``topic``'s samples needed (a sink that takes them,
-        ``write_columns``, wants the topic)? Otherwise a chunk's values are not gathered
-        into columns: the sinks get CDR rows or messages."""
-        kinds = self._sink_kinds()
-        known = kinds.columns.get(topic)
-        if known is None:
-            known = kinds.columns[topic] = any(wants is None or wants(topic)
-                                               for wants in kinds.column_wants)
-        return known
+        """Are the evaluated values of ``topic``'s samples needed (a sink that takes columns
+        wants the topic)? Otherwise a chunk's values are not gathered into columns: the
+        sinks get CDR rows or messages."""
+        return self._sinks().needs_columns(topic)
 
     def wanted(self, topic: str) -> bool:
-        """Does anything consume ``topic`` (a sink, or a subscriber anywhere as counted at the
-        last ``refresh``)?"""
-        for sink in self.sinks:
-            wants = getattr(sink, "wants", None)
-            if wants is None or wants(topic):
-                return True
-        return self.subscribers.get(topic, 0) > 0
+        """Does anything consume ``topic`` (a sink that wants it, or a subscriber anywhere as
+        counted at the last ``refresh``)?"""
+        return self._sinks().wants(topic) or self.subscribers.get(topic, 0) > 0
 
     def publish_chunk(self, ns: np.ndarray,
                       topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]],
@@ -211,72 +206,29 @@ class Outlet:
         else:
             self.hand_over()
             self._held = [ns, topics, columns, a, b]
-        if self._immediate():
+        if self._sinks().immediate:
             self.hand_over()
-
-    def _sink_kinds(self) -> _SinkKinds:
-        """What the sinks take, asked again only when the sinks change (what a sink takes is
-        fixed when it is made)."""
-        key = tuple(map(id, self.sinks))  # the sinks themselves, not the list holding them
-        if key != self._kinds_for:
-            self._kinds_for = key
-            self._kinds = _SinkKinds(
-                any(getattr(sink, "immediate", False) for sink in self.sinks),
-                any(hasattr(sink, "write_chunk") for sink in self.sinks),
-                [getattr(sink, "wants", None) for sink in self.sinks
-                 if hasattr(sink, "write_columns")], {})
-        return self._kinds
-
-    def _immediate(self) -> bool:
-        """Does a sink take every sample as it is published (``immediate``)?"""
-        return self._sink_kinds().immediate
 
     def hand_over(self) -> None:
         """Hand the published samples held for the sinks over to them, in one call per sink
-        (per topic for ``write_columns``): ``write_chunk`` (the recorder) gets the CDR rows;
-        a sink with ``write_columns`` gets the evaluated values the rows were encoded from
-        (for the topics that have them) instead of messages; any other sink gets messages,
-        built only for the topics it wants, sample by sample in time order.
+        (``Sinks.chunk``: rows, columns or messages, each sink the topics it wants).
 
         Samples are held from their publication to the end of their chunk (``publish_chunk``),
         so a paced run that publishes a sample or two per tick hands each sink a whole chunk
         at once; every other message of this outlet (``publish``, ``record``) hands the held
         ones over first, so each sink sees this outlet's messages in the order they were
-        published. A sink that must see every sample as it is published (a live view) says
-        so with a true ``immediate`` attribute. The runner hands over what is held before it
-        reports diagnostics and when it stops: nothing published is left out."""
+        published. A sink declared ``immediate`` (a live view) gets every sample as it is
+        published. The runner hands over what is held before it reports diagnostics and when
+        it stops: nothing published is left out."""
         held, self._held = self._held, None
         if held is None:
             return
         ns, topics, columns, a, b = held
         part = None if a == 0 and b == len(ns) else slice(a, b)
-        if part is not None:
-            ns = ns[part]
-        n = b - a
-        columns = columns or {}
-        for sink in self.sinks:
-            write_chunk = getattr(sink, "write_chunk", None)
-            if write_chunk is not None:
-                write_chunk(ns, [(topic, self.channels[topic].type_name,
-                                  self.channels[topic].qos,
-                                  rows if part is None else rows[part])
-                                 for topic, rows, _ in topics])
-                continue
-            wants = getattr(sink, "wants", None)
-            chosen = [(topic, message) for topic, _, message in topics
-                      if wants is None or wants(topic)]
-            write_columns = getattr(sink, "write_columns", None)
-            if write_columns is not None:
-                for topic, _ in chosen:
-                    if topic in columns:
-                        values = columns[topic]
-                        write_columns(topic, ns, values if part is None
-                                      else column_rows(values, part))
-                chosen = [(t, m) for t, m in chosen if t not in columns]
-            for i in range(n):
-                for topic, message in chosen:
-                    sink.write(topic, self.channels[topic].type_name, message(a + i),
-                               self.channels[topic].qos, int(ns[i]))
+        channels = self.channels
+        self._sinks().chunk(ns, [ChunkTopic(topic, channels[topic].type_name,
+                                            channels[topic].qos, rows, message)
+                                 for topic, rows, message in topics], columns, part)
 
     def settle(self) -> None:
         """Wait for the acknowledgment of the last slice published (``lossless``; the runner
@@ -301,41 +253,28 @@ class Outlet:
                     f"{LOSSLESS_WAIT:g} s; no longer waiting for it (messages may be lost)")
 
     def publish(self, topic: str, msg: Any, ns: int) -> None:
+        """Publish one message: its CDR bytes (padding zero, reproducible) are made once,
+        published as they are and handed to the sinks that take bytes."""
         self.hand_over()
         ch = self.channels[topic]
-        # The CDR bytes with zero padding (reproducible), made once: published as they are
-        # and handed to a recorder.
-        data = cdr_bytes(msg)
+        data = encode(ch.type_name, msg)
         ch.publisher.publish(data)
         self.counts[topic] += 1
-        for sink in self.sinks:
-            if hasattr(sink, "write_serialized"):
-                sink.write_serialized(topic, ch.type_name, msg, ch.qos, ns, data)
-            else:
-                sink.write(topic, ch.type_name, msg, ch.qos, ns)
+        self._sinks().message(topic, ch.type_name, ch.qos, ns, msg=msg, data=data)
 
     def publish_serialized(self, topic: str, data: bytes, ns: int,
                            message: Callable[[], Any]) -> None:
         """Publish a message already encoded (``data``: CDR bytes, padding zero). A sink that
-        records bytes (``write_bytes``) gets them; any other gets ``message()``, made only if
-        it wants the topic. A volatile topic without a subscriber is not written to DDS (a
-        fast run reports a thousand times a second; nobody could receive it later)."""
+        takes bytes gets them; one that takes messages gets ``message()``, made only if such
+        a sink wants the topic. A volatile topic without a subscriber is not written to DDS
+        (a fast run reports many times a second; nobody could receive it later)."""
         self.hand_over()
         ch = self.channels[topic]
         if ch.qos.durability != DurabilityPolicy.VOLATILE \
                 or ch.publisher.get_subscription_count():
             ch.publisher.publish(data)
         self.counts[topic] += 1
-        msg = None
-        for sink in self.sinks:
-            write_bytes = getattr(sink, "write_bytes", None)
-            if write_bytes is not None:
-                write_bytes(topic, ch.type_name, ch.qos, ns, data)
-                continue
-            wants = getattr(sink, "wants", None)
-            if wants is None or wants(topic):
-                msg = message() if msg is None else msg
-                sink.write(topic, ch.type_name, msg, ch.qos, ns)
+        self._sinks().message(topic, ch.type_name, ch.qos, ns, data=data, make=message)
 
     def record(self, topic: str, msg: Any, qos: QoSProfile, ns: int) -> None:
         """Hand a message this node did not publish (an input it applied, such as an effort
@@ -343,8 +282,4 @@ class Outlet:
         with the published ones."""
         self.hand_over()
         self.counts[topic] = self.counts.get(topic, 0) + 1
-        name = type_name(type(msg))
-        for sink in self.sinks:
-            wants = getattr(sink, "wants", None)
-            if wants is None or wants(topic):
-                sink.write(topic, name, msg, qos, ns)
+        self._sinks().message(topic, type_name(type(msg)), qos, ns, msg=msg)

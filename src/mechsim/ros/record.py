@@ -45,39 +45,6 @@ def rerun_sink(path: str) -> Any | None:
     return RerunSink(path)
 
 
-class _Counted:
-    """A sink passed through, counting the messages it was given (has the recording begun?)."""
-
-    def __init__(self, sink: Any) -> None:
-        self.sink = sink
-        self.count = 0
-
-    def wants(self, topic: str) -> bool:
-        wants = getattr(self.sink, "wants", None)
-        return True if wants is None else bool(wants(topic))
-
-    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
-        self.count += 1
-        self.sink.write(topic, type_name, msg, qos, ns)
-
-    def write_serialized(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int,
-                         data: bytes) -> None:
-        self.count += 1
-        if hasattr(self.sink, "write_serialized"):
-            self.sink.write_serialized(topic, type_name, msg, qos, ns, data)
-        else:
-            self.sink.write(topic, type_name, msg, qos, ns)
-
-    def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
-        self.count += 1
-        self.sink.write_bytes(topic, type_name, qos, ns, data)
-
-    def write_chunk(self, ns: Any, topics: list[tuple[str, str, Any, Any]]) -> None:
-        """Serialized messages of a chunk (the recorder takes chunks: see the Outlet)."""
-        self.count += len(ns) * len(topics)
-        self.sink.write_chunk(ns, topics)
-
-
 @dataclass
 class Outputs:
     """The sinks of one run (bag, rrd, live Rerun stream) and how to finish them."""
@@ -88,19 +55,10 @@ class Outputs:
     live: Any = None  # RerunSink.live: what it sent stays in the viewer
     live_url: str | None = None
     notes: list[str] = field(default_factory=list)
-    _bag_counter: _Counted | None = None
 
     @property
     def sinks(self) -> list[Any]:
-        if self.bag is not None and self._bag_counter is None:
-            self._bag_counter = _Counted(self.bag)
-        return [s for s in (self._bag_counter if self.bag is not None else None, self.rrd,
-                            self.live) if s is not None]
-
-    @property
-    def recorded(self) -> int:
-        """Messages handed to the bag so far."""
-        return self._bag_counter.count if self._bag_counter is not None else 0
+        return [s for s in (self.bag, self.rrd, self.live) if s is not None]
 
     def close(self) -> list[str]:
         """Finish every output normally; lines describing them. A write error is raised (as
@@ -141,7 +99,7 @@ class Outputs:
         kept = []
         if self.bag is not None:
             bag, self.bag = self.bag, None
-            kept.append(_complete_bag(bag, self.recorded))
+            kept.append(_complete_bag(bag, bag.received))
         if self.rrd is not None:
             rrd, self.rrd = self.rrd, None
             try:

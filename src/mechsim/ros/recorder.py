@@ -28,7 +28,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from mechsim.errors import MechsimError
-from mechsim.outputs.bag import message_class
+from mechsim.outputs.sink import Sinks
+from mechsim.outputs.wire import message_class
 from mechsim.ros.graph_check import start_context
 from mechsim.ros.outlet import subscription_qos
 from mechsim.ros.process import drain, write_report
@@ -60,12 +61,13 @@ def stamp_ns(msg: Any) -> int | None:
 
 
 class RecorderNode(Node):
-    """Subscribes to the scene's topics as they appear and hands every message to ``sinks``."""
+    """Subscribes to the scene's topics as they appear and hands every message to ``sinks``
+    (each the topics it wants, in its form: ``mechsim.outputs.sink``)."""
 
     def __init__(self, instances: list[str], sinks: list[Any], *, context: Any = None) -> None:
         super().__init__(NODE_NAME, context=context)
         self.instances = list(instances)
-        self.sinks = sinks
+        self.sinks = Sinks(sinks)
         self.counts: dict[str, int] = {}
         #: Topics whose publishers deliver best effort (by convention: /clock).
         self.best_effort: set[str] = set()
@@ -103,10 +105,10 @@ class RecorderNode(Node):
             ns = self._last_ns if ns is None else ns
             self._last_ns = max(self._last_ns, ns)
             self.counts[topic] += 1
-            for sink in self.sinks:
-                # Re-encoded, not the received bytes: rmw's buffer may end in alignment
-                # padding that strict readers (rosbags) reject; the outlets' bytes do not.
-                sink.write(topic, type_name, msg, qos, ns)
+            # Re-encoded for the sinks that take bytes, not the received bytes: rmw's buffer
+            # may end in alignment padding that strict readers (rosbags) reject, and holds
+            # whatever the publisher left in its padding; the outlets' bytes do not.
+            self.sinks.message(topic, type_name, qos, ns, msg=msg)
         return receive
 
     def subscribed(self, topic: str) -> bool:

@@ -11,7 +11,9 @@ are the stamps the simulator wrote, so nodes with ``use_sim_time`` follow the re
 ``/clock`` stored in the bag is not republished (as ``ros2 bag play --clock``). With ``--loop``
 the bag starts over and the clock jumps back to its start, as with ``ros2 bag play --loop``.
 ``--delay`` (default 0.5 s) leaves time for discovery before the first message, so subscribers
-that were already running get the first messages too.
+that were already running get the first messages too. Each message is decoded (a corrupt bag
+is an error) and published as ``mechsim.outputs.wire`` encodes it, padding zero, as the
+simulator publishes it.
 """
 
 from __future__ import annotations
@@ -45,13 +47,8 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
     from rosgraph_msgs.msg import Clock
 
     from mechsim.outputs import messages
-    from mechsim.outputs.bag import (
-        message_class,
-        qos_profile,
-        read_messages,
-        read_metadata,
-        topic_qos,
-    )
+    from mechsim.outputs.bag import qos_profile, read_messages, read_metadata, topic_qos
+    from mechsim.outputs.wire import cdr_bytes, message_class
     from mechsim.ros.outlet import CLOCK_QOS, wait_acked
 
     d = Path(path)
@@ -88,7 +85,7 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
                     if wait > 0:
                         time.sleep(wait)
                 if m.log_time > last_clock:
-                    clock_pub.publish(messages.clock(m.log_time))
+                    clock_pub.publish(cdr_bytes(messages.clock(m.log_time)))
                     last_clock = m.log_time
                     stats.clock += 1
                 try:
@@ -96,7 +93,7 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
                 except Exception:  # noqa: BLE001 - rclpy raises plain exceptions on bad CDR
                     raise MechsimError(f"bag {d}: a {known[m.topic][0]} message on {m.topic} "
                                        "does not deserialize (corrupt bag)") from None
-                pubs[m.topic].publish(msg)
+                pubs[m.topic].publish(cdr_bytes(msg))  # decoded: checked, padding zero
                 stats.messages += 1
                 stats.per_topic[m.topic] = stats.per_topic.get(m.topic, 0) + 1
                 if t0 is not None:

@@ -1,8 +1,8 @@
 """An MCAP file written a batch of messages at a time (the bag writer's storage).
 
 ``mcap.writer.Writer`` takes one message per Python call (a record object, an index tuple and
-statistics updates each: ~4 µs a message). Here a batch of fixed-size payloads (the rows of a
-``mechsim.outputs.cdr`` layout, see ``Outlet.publish_chunk``) becomes its Message records in a
+statistics updates each). Here a batch of fixed-size payloads (the rows of a
+``mechsim.outputs.wire`` layout, see ``Outlet.publish_chunk``) becomes its Message records in a
 few numpy operations (:meth:`McapFile.layout`): one (N, record bytes) array, the topics of one
 sample side by side, so records in a chunk are in time order and any run of samples is one
 contiguous slice, compressed and checksummed in place. A chunk costs a fixed handful of Python

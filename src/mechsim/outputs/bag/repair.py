@@ -37,8 +37,8 @@ from mechsim.outputs.bag.metadata import (
     system_info_custom,
 )
 from mechsim.outputs.bag.reader import bag_dir, bag_files
-from mechsim.outputs.bag.typeinfo import message_class
 from mechsim.outputs.bag.writer import CHUNK_SIZE, PROFILE
+from mechsim.outputs.wire import message_class
 
 MAGIC = b"\x89MCAP0\r\n"
 _CHUNK, _FOOTER = 0x06, 0x02

@@ -1,4 +1,5 @@
-"""The bag writer: a sink (``mechsim.ros.outlet``) recording every message into a new bag.
+"""The bag writer: a sink taking CDR bytes (``mechsim.outputs.sink``) recording every message
+into a new bag.
 
 Files. The bag directory is claimed exclusively: created with ``mkdir`` (or, if it exists and is
 empty, claimed by creating its lock), then locked for the whole recording (see ``lock``) with
@@ -50,13 +51,14 @@ from mechsim.outputs.bag.metadata import (
     system_info_custom,
 )
 from mechsim.outputs.bag.qos import qos_dict
-from mechsim.outputs.bag.typeinfo import cdr_bytes, message_definition, type_description_hash
+from mechsim.outputs.sink import Capabilities, Takes
+from mechsim.outputs.wire import message_definition, type_description_hash, typestore_with
 
 PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"
 #: A chunk is closed at least this often [s of wall time], and when it passes ``CHUNK_SIZE``
 #: bytes. (Not by simulation time: a fast run would close a small chunk for every second it
-#: simulates, a thousand a second, and the writer, compressing and indexing each, would
+#: simulates, many a second, and the writer, compressing and indexing each, would
 #: hold the simulation back.)
 FLUSH_WALL_S = 1.0
 CHUNK_SIZE = 512 * 1024
@@ -115,14 +117,17 @@ def _remove_dir(d: Path, created: bool) -> None:
 
 
 class BagWriter:
-    """Sink writing every message into a new rosbag2 MCAP bag (a context manager).
+    """Sink writing every message, as CDR bytes, into a new rosbag2 MCAP bag (a context
+    manager).
 
     ``BagWriter(path)`` claims the directory (new or empty; MechsimError otherwise) and locks
     it; :meth:`close` finishes the MCAP, writes ``metadata.yaml`` and unlocks; :meth:`abort`
     stops after an error elsewhere, keeping what was recorded (see the module docstring). A
-    write error (a MechsimError naming the bag) is raised by the next :meth:`write` and by
-    :meth:`close`.
+    write error (a MechsimError naming the bag) is raised by the next :meth:`write_bytes` or
+    :meth:`write_rows` and by :meth:`close`.
     """
+
+    capabilities = Capabilities(Takes.BYTES)
 
     def __init__(self, path: str | Path, custom_data: dict[str, str] | None = None,
                  chunk_size: int = CHUNK_SIZE) -> None:
@@ -135,6 +140,8 @@ class BagWriter:
         self._held: list[tuple[str, int, bytes]] = []
         self._held_since = 0.0
         self.error: Exception | None = None
+        #: Messages handed to the bag so far (has the recording begun?).
+        self.received = 0
         self._closed = False
         self._finished = False
         self._chunk_size = chunk_size
@@ -149,26 +156,19 @@ class BagWriter:
             raise MechsimError(f"bag {self.path}: cannot write ({e.strerror or e})") from None
         self._thread.start()
 
-    # main thread: serialize and queue (never touches the file)
-    def write(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int) -> None:
-        self.write_serialized(topic, type_name, msg, qos, ns, cdr_bytes(msg))
-
-    def write_serialized(self, topic: str, type_name: str, msg: Any, qos: Any, ns: int,
-                         data: bytes) -> None:
-        """``write`` with the CDR payload already made (by the Outlet, which publishes the
-        same bytes, so each message is serialized once)."""
-        if type_name == SYSTEM_INFO and self.error is None and not self._closed:
-            for key, value in system_info_custom(msg).items():
-                self._put(("custom", key, value))
-        self.write_bytes(topic, type_name, qos, ns, data)
-
+    # main thread: queue (never touches the file)
     def write_bytes(self, topic: str, type_name: str, qos: Any, ns: int, data: bytes) -> None:
-        """One message already serialized (system_info goes through ``write_serialized``,
-        which also stores its fields in the bag's custom data)."""
+        """One message's CDR payload (a system_info's fields also go to the bag's custom
+        data)."""
         if self.error is not None:
             raise self.error
         if self._closed:
             return
+        self.received += 1
+        if type_name == SYSTEM_INFO:
+            info = typestore_with(SYSTEM_INFO).deserialize_cdr(data, SYSTEM_INFO)
+            for key, value in system_info_custom(info).items():
+                self._put(("custom", key, value))
         if topic not in self._types:
             self._types[topic] = type_name
             self._put(("channel", topic, type_name, qos_dict(qos)))
@@ -179,8 +179,8 @@ class BagWriter:
         if len(held) >= HELD_MESSAGES or time.monotonic() - self._held_since >= HELD_WALL_S:
             self._put_held()
 
-    def write_chunk(self, ns: np.ndarray, topics: list[tuple[str, str, Any, np.ndarray]]
-                    ) -> None:
+    def write_rows(self, ns: np.ndarray, topics: list[tuple[str, str, Any, np.ndarray]]
+                   ) -> None:
         """A chunk of N samples stamped ``ns`` (int64, in time order): for each (topic,
         type_name, qos, rows), rows is the (N, size) uint8 array of the topic's CDR payloads
         (none of them system_info). One hand-off to the writer thread for the whole chunk;
@@ -189,6 +189,7 @@ class BagWriter:
             raise self.error
         if self._closed or not topics or len(ns) == 0:
             return
+        self.received += len(ns) * len(topics)
         for topic, type_name, qos, _ in topics:
             if topic not in self._types:
                 self._types[topic] = type_name
