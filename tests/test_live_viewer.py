@@ -1,5 +1,6 @@
 """The live Rerun view (`mechsim run ... --viewer`), looked at in a real browser: headless
-Chromium (Debian's ``chromium``; tools/bootstrap.py installs it where it can) opens the printed
+Chromium (Debian's ``chromium``, unpacked into the checkout by tools/test_tools.py, which `make
+test` runs; else a ``chromium`` on PATH) opens the printed
 URL, and the test checks that the web viewer started, holds the whole run (read back from the
 viewer itself, ``WebHandle.save_recording``, and compared with the .rrd the same run wrote),
 applies the blueprint, and draws it (a screenshot with several distinct regions). The servers
@@ -33,14 +34,35 @@ from typing import Any
 import pytest
 
 MECHSIM = [sys.executable, "-m", "mechsim.cli"]
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+ROOT = Path(__file__).resolve().parents[1]
+#: Where tools/test_tools.py says it unpacked Chromium (executable, library path).
+CHROMIUM_INFO = ROOT / ".cache" / "test-tools" / "chromium.json"
 DEADLINE = 180.0  # generous: a cold Chromium renders the viewer with a software rasterizer
 DURATION, RATE = 3.0, 50.0
 
+
+def find_chromium() -> tuple[str | None, dict[str, str]]:
+    """(executable, extra environment) of the Chromium to drive: the checkout's (with its
+    libraries on LD_LIBRARY_PATH), else one on PATH; (None, {}) if there is none."""
+    try:
+        info = json.loads(CHROMIUM_INFO.read_text())
+        exe = ROOT / info["executable"]
+        if os.access(exe, os.X_OK):
+            libs = [str(ROOT / d) for d in info["library_path"]]
+            old = os.environ.get("LD_LIBRARY_PATH")
+            return str(exe), {"LD_LIBRARY_PATH": os.pathsep.join([*libs, *([old] if old
+                                                                           else [])])}
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return shutil.which("chromium"), {}
+
+
+CHROMIUM, CHROMIUM_ENV = find_chromium()
+
 needs_chromium = pytest.mark.skipif(
-    not os.access(CHROMIUM, os.X_OK),
-    reason="chromium not installed (Debian's `chromium`; tools/bootstrap.py installs it when "
-           "run as root with apt-get)")
+    CHROMIUM is None,
+    reason="no Chromium: `make test` unpacks Debian's chromium into the checkout where apt-get "
+           "can download it (see the output of tools/test_tools.py), else install `chromium`")
 
 
 def wait_until(what: str, check: Callable[[], Any], timeout: float = DEADLINE) -> Any:
@@ -89,6 +111,7 @@ class Chromium:
             os.dup2(to_child, 3)
             os.dup2(from_child, 4)
 
+        assert CHROMIUM is not None
         self.proc = subprocess.Popen(
             [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
              "--disable-quic", "--no-first-run", "--disable-background-networking",
@@ -96,6 +119,7 @@ class Chromium:
              f"--user-data-dir={profile}", f"--window-size={size[0]},{size[1]}",
              "--remote-debugging-pipe", "about:blank"],
             preexec_fn=pipes, close_fds=False, start_new_session=True,
+            env={**os.environ, **CHROMIUM_ENV},
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
             stderr=open(profile.parent / "chromium.log", "wb"))  # noqa: SIM115
         os.close(to_child)
