@@ -33,8 +33,9 @@ def run(args: list[str], env: dict[str, str], timeout: float = 120,
     (["run", "pendulum", "--duration", "nan"], "--duration: must be finite"),
     (["run", "pendulum", "--duration", "1e300"], "--duration: must be <= 1e+09"),
     (["record", "pendulum", "--duration", "inf"], "--duration: must be finite"),
-    (["run", "pendulum", "--rate", "0"], "--rate: must be >= 0.01"),
-    (["record", "pendulum", "--duration", "1", "--rate", "1e7"], "--rate: must be <= 10000"),
+    (["run", "pendulum", "--publish-rate", "0"], "--publish-rate: must be >= 0.01"),
+    (["record", "pendulum", "--duration", "1", "--publish-rate", "1e7"],
+     "--publish-rate: must be <= 10000"),
     (["run", "pendulum", "--set", "mass=" + "9" * 400], "mass: out of range"),
     (["run", "pendulum", "--name", "p\n"], "--name: must be a ROS name"),
     (["run", "pendulum", "--name", "p" * 300], "--name: must be a ROS name"),
@@ -108,7 +109,7 @@ def test_every_accepted_range_edge_runs(tmp_path: Path, ros_env: dict[str, str])
     assert r.returncode in (0, 1), r.stderr  # 1: the loose tolerance may fail its system
     assert "Traceback" not in r.stderr
     assert (tmp_path / "bag" / "metadata.yaml").exists()
-    slow = run(["run", "kepler", "--rate", "0.01", "--duration", "100", "--fast"], ros_env)
+    slow = run(["run", "kepler", "--publish-rate", "0.01", "--duration", "100", "--fast"], ros_env)
     assert slow.returncode == 0, slow.stderr
 
 

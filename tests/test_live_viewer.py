@@ -311,7 +311,7 @@ class ViewerRun:
 @needs_chromium
 def test_live_viewer_renders_the_run(ros_env: dict[str, str], tmp_path: Path) -> None:
     rrd = tmp_path / "run.rrd"
-    v = ViewerRun(["pendulum", "--fast", "--duration", str(DURATION), "--rate", str(RATE),
+    v = ViewerRun(["pendulum", "--fast", "--duration", str(DURATION), "--publish-rate", str(RATE),
                    "--rrd", str(rrd)], ros_env, tmp_path)
     run, out, err, web_port, grpc_port = v.run, v.out, v.err, v.web_port, v.grpc_port
     try:
@@ -388,7 +388,8 @@ def test_live_viewer_shows_a_real_time_run_as_it_happens(ros_env: dict[str, str]
     later; Ctrl-C then stops the run and the view together."""
     from mechsim.outputs.rerun import _FLUSH_ROWS
 
-    v = ViewerRun(["pendulum", "--duration", "3600", "--rate", str(RATE)], ros_env, tmp_path)
+    v = ViewerRun(["pendulum", "--duration", "3600", "--publish-rate", str(RATE)], ros_env,
+                  tmp_path)
     try:
         page = v.open_page()
         entity = "/plots/pendulum/energy/total"
@@ -473,7 +474,7 @@ def test_connect_streams_the_run_to_a_running_viewer(ros_env: dict[str, str],
         wait_until("Rerun's server to listen", lambda: listeners(port) == ["127.0.0.1"] or (
             server.poll() is not None and pytest.fail("rerun exited")))
         r = run_cli(["run", "pendulum", "--connect", f"rerun+http://127.0.0.1:{port}/proxy",
-                     "--fast", "--duration", str(DURATION), "--rate", str(RATE),
+                     "--fast", "--duration", str(DURATION), "--publish-rate", str(RATE),
                      "--rrd", str(rrd)], ros_env)
         assert r.returncode == 0, r.stderr
         assert f"live view rerun+http://127.0.0.1:{port}/proxy: " in r.stdout

@@ -289,7 +289,8 @@ class Graph:
         log = self.workdir / f"mechsim-run-{len(self._running)}.log"
         with open(log, "wb") as sink:  # the child's messages, quoted if a wait fails
             proc = subprocess.Popen([sys.executable, "-m", "mechsim.cli", "run", target,
-                                     "--duration", "1e9", "--rate", repr(publish_rate), *sets],
+                                     "--duration", "1e9", "--publish-rate", repr(publish_rate),
+                                     *sets],
                                     env=dict(os.environ), cwd=self.workdir,
                                     stdout=sink, stderr=subprocess.STDOUT)
         run = Running([i.name for i in scene.systems], process=proc, log=log)

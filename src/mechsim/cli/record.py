@@ -6,7 +6,13 @@ import argparse
 import sys
 from typing import Any
 
-from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
+from mechsim.cli.common import (
+    NODE_ENVIRONMENT,
+    add_scene_options,
+    print_summary,
+    progress_bar,
+    say,
+)
 from mechsim.ros.record import DEFAULT_BAG
 from mechsim.runcore.stops import stop_on_sigterm
 
@@ -50,11 +56,7 @@ def add_parser(sub: Any) -> None:
                        "message to a rosbag2 (MCAP) bag", epilog=NODE_ENVIRONMENT)
     r.add_argument("target", help="scene YAML file or system id")
     r.add_argument("--duration", type=float, help="simulated seconds (default: the scene's)")
-    r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter override; INSTANCE:NAME=VALUE for one instance")
-    r.add_argument("--name", metavar="NS", help="instance name (ROS namespace) of a single "
-                   "SYSTEM (default: the system id)")
-    r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
+    add_scene_options(r, "record")
     r.add_argument("--bag", metavar="DIR", help="new bag directory (strftime fields expanded; "
                    f"default: scene outputs.bag, else {DEFAULT_BAG.replace('%', '%%')})")
     r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording")

@@ -6,7 +6,13 @@ import argparse
 import sys
 from typing import Any
 
-from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
+from mechsim.cli.common import (
+    NODE_ENVIRONMENT,
+    add_scene_options,
+    print_summary,
+    progress_bar,
+    say,
+)
 from mechsim.outputs.rerun_live import DEFAULT_CONNECT
 from mechsim.runcore.stops import stop_on_sigterm
 
@@ -176,13 +182,9 @@ def add_parser(sub: Any) -> None:
     r = sub.add_parser("run", help="run a scene file or a single system",
                        epilog=NODE_ENVIRONMENT)
     r.add_argument("target", help="scene YAML file or system id")
-    r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter override; INSTANCE:NAME=VALUE for one instance")
-    r.add_argument("--name", metavar="NS", help="instance name (ROS namespace) of a single "
-                   "SYSTEM (default: the system id)")
+    add_scene_options(r, "run")
     r.add_argument("--duration", type=float, help="simulated seconds")
     r.add_argument("--fast", action="store_true", help="as fast as possible")
-    r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
     r.add_argument("--processes", action="store_true", help="one process per node")
     r.add_argument("--lossless", action="store_true", help="every reliable subscriber gets "
                    "every sample: the run waits for the slowest one's acknowledgments "
