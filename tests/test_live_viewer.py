@@ -489,3 +489,38 @@ def test_connect_streams_the_run_to_a_running_viewer(ros_env: dict[str, str],
     got = {e: v["rows"] for e, v in read_entities(saved).items() if v["rows"]}
     assert got == expected
     assert expected["/plots/pendulum/energy/total"] == round(DURATION * RATE) + 1
+
+
+def test_view_hint_serves_on_loopback_only(ros_env: dict[str, str], tmp_path: Path) -> None:
+    """Without a display `mechsim view` suggests a command for a browser: run as printed (on
+    free ports), its servers listen on 127.0.0.1 only."""
+    import shlex
+    import socket
+
+    rrd = tmp_path / "run.rrd"
+    r = run_cli(["run", "pendulum", "--fast", "--duration", "0.2", "--rrd", str(rrd)], ros_env)
+    assert r.returncode == 0, r.stderr
+    env = {k: v for k, v in ros_env.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    hint = run_cli(["view", str(rrd)], env)
+    assert hint.returncode == 0, hint.stderr
+    m = re.search(r"`(rerun [^`]*--web-viewer[^`]*)`", hint.stdout)
+    assert m, hint.stdout
+    ports = []
+    for _ in range(2):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            ports.append(s.getsockname()[1])
+    from mechsim.outputs.rerun_live import rerun_executable
+
+    cmd = shlex.split(m.group(1))
+    server = subprocess.Popen([rerun_executable(), *cmd[1:], "--port", str(ports[0]),
+                               "--web-viewer-port", str(ports[1])], env=env,
+                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        wait_until("the hinted command's servers", lambda: all(listeners(p) for p in ports)
+                   or (server.poll() is not None and pytest.fail("rerun exited")))
+        assert [listeners(p) for p in ports] == [["127.0.0.1"], ["127.0.0.1"]]
+    finally:
+        os.killpg(server.pid, signal.SIGKILL)
+        server.wait()

@@ -13,6 +13,13 @@ def one_line(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``n`` and ``noun`` in the number ``n`` asks for: ``1 system``, ``2 systems``."""
+    if n == 1:
+        return f"{n} {noun}"
+    return f"{n} {plural or (noun + 'es' if noun.endswith('s') else noun + 's')}"
+
+
 def did_you_mean(name: str, known: Iterable[str], what: str = "known") -> str:
     """What to say after an unknown ``name``: ``: did you mean 'x'? (known: a, b, c)`` where
     one of ``known`` is close, else `` (known: a, b, c)``."""

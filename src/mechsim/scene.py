@@ -285,8 +285,9 @@ def _instance_settings(where: str, data: dict[str, Any], flat: dict[str, Any],
             raw[o.name] = (o.value, _set_field(o))
     method, method_field = raw.pop("method", ("auto", f"{where}.method"))
     if not isinstance(method, str) or method not in METHODS:
-        raise ParameterError(method_field, "must be one of " + ", ".join(METHODS) +
-                             f" (got {shown(method)})")
+        raise ParameterError(method_field, f"unknown method {shown(method)}" +
+                             did_you_mean(method if isinstance(method, str) else "", METHODS,
+                                          "methods"))
     values = {key: setting(INSTANCE_SETTINGS[key], f, v) for key, (v, f) in raw.items()}
     tol = values.pop("tolerance", float(TOLERANCE.default))
     return method, tol, values

@@ -108,6 +108,24 @@ def check_outputs(scene: Any, bag: str | None, rrd: str | None) -> None:
             raise ParameterError("--rrd", f"{rrd} exists (add --force to replace it)")
 
 
+def refuse_existing(out: str, names: list[str], force: bool) -> None:
+    """Before a verb writes ``names`` into the directory ``out``: none of them may exist,
+    unless ``--force`` (ParameterError naming the first that does)."""
+    import os
+
+    from mechsim.errors import ParameterError
+    from mechsim.params import check_text
+
+    check_text("--out", out)
+    if force:
+        return
+    for name in names:
+        path = os.path.join(out, name)
+        if os.path.lexists(path):
+            raise ParameterError("--out", f"{path} exists (add --force to replace what this "
+                                 "command writes there)")
+
+
 def add_force(parser: Any, what: str) -> None:
     """The ``--force`` option of a verb that writes ``what``."""
     parser.add_argument("--force", action="store_true", help=f"replace {what} that exists "
@@ -143,6 +161,11 @@ def print_summary(run: Any) -> None:
     print(f"  {'system':<{w1}}  {'law':<{w2}}  {'max relative drift':>18}  level")
     for system, law, drift, level in rows:
         print(f"  {system:<{w1}}  {law:<{w2}}  {drift:>18.3e}  {LEVEL_NAMES[level]}")
+    for name in getattr(run, "efforts", []):
+        print(f"  {name}: an effort was applied, so only the laws that hold under an outside "
+              "force are checked from then on (work_balance, constraint residuals): energy, "
+              "energy_function and the invariants change with its work and impulse and are "
+              "left out")
     for name, reason in run.failures.items():
         print(f"  {name}: integration stopped: {reason}")
 

@@ -13,6 +13,7 @@ from mechsim.cli.common import (
     progress_bar,
     say,
 )
+from mechsim.errors import counted
 from mechsim.ros.record import DEFAULT_BAG
 from mechsim.runcore.stops import stop_on_sigterm
 
@@ -36,8 +37,8 @@ def cmd_record(a: argparse.Namespace) -> int:
     rrd = a.rrd or scene.rrd
     check_outputs(scene, bag, rrd)  # a bad path is refused before anything starts
     show = progress_bar(sys.stderr.isatty())
-    say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {scene.duration:g} s "
-        f"simulated, as fast as possible)")
+    say(f"recording scene {scene.name!r} ({counted(len(scene.systems), 'system')}, "
+        f"{scene.duration:g} s simulated, as fast as possible)")
     join_graph()  # everything validated: discovery runs while the models load
     run, lines = run_with_outputs(scene, fast=True, duration=scene.duration, bag=bag, rrd=rrd,
                                   progress=show, lossless=a.lossless)

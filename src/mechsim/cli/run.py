@@ -13,6 +13,7 @@ from mechsim.cli.common import (
     progress_bar,
     say,
 )
+from mechsim.errors import counted
 from mechsim.outputs.rerun_live import DEFAULT_CONNECT
 from mechsim.runcore.stops import stop_on_sigterm
 
@@ -98,7 +99,8 @@ def _processes(a: argparse.Namespace, scene: Any, bag: str | None, rrd: str | No
 
     consumers = "a diagnostics process" + (" and a recorder process"
                                            if bag is not None or rrd is not None else "")
-    say(f"{len(scene.systems)} simulator processes, {consumers} (Ctrl-C stops them)")
+    say(f"{counted(len(scene.systems), 'simulator process')}, {consumers} (Ctrl-C stops "
+        "them)")
     run, lines, status = run_processes(scene, bag=bag, rrd=rrd)
     if status == 2:  # a refused start: its process said why
         return status
@@ -119,7 +121,7 @@ def _in_process(a: argparse.Namespace, scene: Any, bag: str | None, rrd: str | N
     fast = True if a.fast else None
     show = progress_bar(sys.stderr.isatty() and duration is not None)
     pace = "as fast as possible" if (fast or scene.pacing == "fast") else "real time"
-    say(f"running scene {scene.name!r} ({len(scene.systems)} systems, {pace}"
+    say(f"running scene {scene.name!r} ({counted(len(scene.systems), 'system')}, {pace}"
         f"{f', {duration:g} s' if duration else ', until Ctrl-C'})")
     lines: list[str] = []
     server, live = _live_view(a)

@@ -50,6 +50,9 @@ class SceneRun:
     summary: list[tuple[str, str, float, int]] = field(default_factory=list)
     failures: dict[str, str] = field(default_factory=dict)
     interrupted: bool = False
+    #: The instances an effort acted on: from then on only the laws that hold under an
+    #: outside force were checked (``Model.laws_under_effort``).
+    efforts: list[str] = field(default_factory=list)
     #: Wall seconds per stage of the sample pipeline, all nodes together: integrate,
     #: evaluate, encode, publish (including the hand-off to sinks), diagnostics (the
     #: in-process law tracking and reports); a recording adds write (the bag writer thread).
@@ -293,7 +296,8 @@ class _SceneLoop:
                        samples={n.instance.name: n.samples_published for n in nodes},
                        messages={}, summary=diag.summary(),
                        failures={n.instance.name: n.failed for n in nodes if n.failed},
-                       interrupted=interrupted)
+                       interrupted=interrupted,
+                       efforts=[n.instance.name for n in nodes if n.run.effort.acted])
         for n in [*nodes, diag]:
             for topic, count in n.outlet.counts.items():
                 run.messages[topic] = run.messages.get(topic, 0) + count

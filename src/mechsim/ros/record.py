@@ -24,7 +24,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-from mechsim.errors import MechsimError, one_line
+from mechsim.errors import MechsimError, counted, one_line
 from mechsim.runcore.stops import held_signals
 
 DEFAULT_BAG = "runs/{scene}_%Y%m%d-%H%M%S"
@@ -112,8 +112,8 @@ class Outputs:
             bag, self.bag = self.bag, None
             try:
                 stats = bag.close()
-                lines.append(f"bag {bag.path}: {stats.message_count} messages on "
-                             f"{len(stats.topics)} topics")
+                lines.append(f"bag {bag.path}: {counted(stats.message_count, 'message')} "
+                             f"on {counted(len(stats.topics), 'topic')}")
             except Exception as e:  # noqa: BLE001 - the rrd is closed first, then raised
                 self.bag = bag
                 error = e
