@@ -6,7 +6,7 @@ viewer itself, ``WebHandle.save_recording``, and compared with the .rrd the same
 applies the blueprint, and draws it (a screenshot with several distinct regions). The servers
 must listen on 127.0.0.1 only, and Ctrl-C after the run ends stops them.
 
-``MECHSIM_LIVE_VIEWER_SCREENSHOT=docs/images/live_viewer.png`` also saves the screenshot (the
+``MECHSIM_LIVE_VIEWER_SCREENSHOT=docs/images/rerun_pendulum.png`` also saves the screenshot (the
 README's picture). Chromium is driven over its DevTools protocol on a pipe
 (``--remote-debugging-pipe``: JSON messages ending in NUL on file descriptors 3 and 4), so no
 WebDriver or websocket client is needed."""

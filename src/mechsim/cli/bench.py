@@ -40,7 +40,8 @@ def add_parser(sub: Any) -> None:
     b.add_argument("--steps", type=int, default=10_000_000,
                    help="steps per run for --brouwer (default 10^7)")
     b.add_argument("--runs", type=int, default=16, help="perturbed runs for --brouwer")
-    add_force(b, "the files of --out this command writes (other files there are kept)")
+    add_force(b, "replace the files this command writes in --out (other files there are "
+              "kept); without it an existing one is refused before anything runs")
     b.set_defaults(func=cmd_bench)
 
 

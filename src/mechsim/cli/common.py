@@ -44,7 +44,7 @@ def add_scene_options(parser: Any, verb: str) -> None:
                         "publish_rate setting)")
     # One name per meaning: `--rate` is replay's speed factor (as in `ros2 bag play`).
     parser.add_argument("--rate", type=float, dest="deprecated_rate", help=argparse.SUPPRESS)
-    add_force(parser, "an --rrd recording")
+    add_force(parser)
     parser.set_defaults(verb=verb)
 
 
@@ -78,10 +78,11 @@ def scene_of(a: Any, *, fast: bool = False) -> Any:
     return scene
 
 
-def check_outputs(scene: Any, bag: str | None, rrd: str | None) -> None:
+def check_outputs(scene: Any, bag: str | None, rrd: str | None) -> str | None:
     """The output paths of a run, refused before anything starts if they are no paths or
     would replace something: an existing .rrd without ``--force`` (``scene.force``), a bag
-    directory that exists with content (never replaced: a recording is never deleted)."""
+    directory that exists with content (never replaced: a recording is never deleted).
+    Returns the .rrd path with its strftime fields expanded (as a bag's are)."""
     import os
 
     from mechsim.errors import ParameterError
@@ -101,11 +102,12 @@ def check_outputs(scene: Any, bag: str | None, rrd: str | None) -> None:
                                  " (a bag is never replaced, not even with --force: choose a "
                                  "new path or remove it)")
     if rrd is not None:
-        check_text("--rrd", rrd)
+        rrd = str(expand_path(check_text("--rrd", rrd)))
         if os.path.isdir(rrd):
             raise ParameterError("--rrd", f"{rrd} is a directory")
         if os.path.lexists(rrd) and not scene.force:
             raise ParameterError("--rrd", f"{rrd} exists (add --force to replace it)")
+    return rrd
 
 
 def refuse_existing(out: str, names: list[str], force: bool) -> None:
@@ -126,10 +128,11 @@ def refuse_existing(out: str, names: list[str], force: bool) -> None:
                                  "command writes there)")
 
 
-def add_force(parser: Any, what: str) -> None:
-    """The ``--force`` option of a verb that writes ``what``."""
-    parser.add_argument("--force", action="store_true", help=f"replace {what} that exists "
-                        "(only once the new one is complete); without it nothing is replaced")
+def add_force(parser: Any, help_text: str = "replace an --rrd recording that exists, once "
+              "the new one is complete (without it nothing is replaced; a bag never is)"
+              ) -> None:
+    """The ``--force`` option of a verb that writes files."""
+    parser.add_argument("--force", action="store_true", help=help_text)
 
 
 def progress_bar(enabled: bool) -> Any:

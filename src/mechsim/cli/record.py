@@ -35,7 +35,7 @@ def cmd_record(a: argparse.Namespace) -> int:
                              "recording runs as fast as possible)")
     bag = a.bag or scene.bag or DEFAULT_BAG
     rrd = a.rrd or scene.rrd
-    check_outputs(scene, bag, rrd)  # a bad path is refused before anything starts
+    rrd = check_outputs(scene, bag, rrd)  # a bad path is refused before anything starts
     show = progress_bar(sys.stderr.isatty())
     say(f"recording scene {scene.name!r} ({counted(len(scene.systems), 'system')}, "
         f"{scene.duration:g} s simulated, as fast as possible)")
@@ -60,7 +60,8 @@ def add_parser(sub: Any) -> None:
     add_scene_options(r, "record")
     r.add_argument("--bag", metavar="DIR", help="new bag directory (strftime fields expanded; "
                    f"default: scene outputs.bag, else {DEFAULT_BAG.replace('%', '%%')})")
-    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording")
+    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (strftime "
+                   "fields expanded)")
     r.add_argument("--lossless", action="store_true", help="live reliable subscribers get "
                    "every sample too (the run waits for the slowest one's acknowledgments)")
     r.set_defaults(func=cmd_record)

@@ -27,7 +27,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     scene = scene_of(a, fast=a.fast)
     bag = a.bag or scene.bag
     rrd = a.rrd or scene.rrd
-    check_outputs(scene, bag, rrd)
+    rrd = check_outputs(scene, bag, rrd)
     if a.only is not None:  # one node of the scene, e.g. one per host
         return _only(a, scene, bag, rrd)
     if a.processes:
@@ -200,7 +200,8 @@ def add_parser(sub: Any) -> None:
                    "(nothing they would miss is sent before; repeatable)")
     r.add_argument("--bag", metavar="DIR", help="also record every message to a new rosbag2 "
                    "bag (strftime fields expanded)")
-    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd)")
+    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd; "
+                   "strftime fields expanded)")
     r.add_argument("--viewer", action="store_true", help="serve Rerun's web viewer of the run "
                    "on 127.0.0.1 (this machine only) and print its URL; it shows the run live "
                    "with the .rrd's blueprint and stays up after the run ends until Ctrl-C "

@@ -28,6 +28,7 @@ def add_parser(sub: Any) -> None:
                    help="report directory (stress.json, stress.md, PNG plots)")
     s.add_argument("--case", action="append", choices=list(CASES), default=None,
                    help="only this case (repeatable)")
-    add_force(s, "the report and plots in --out")
+    add_force(s, "replace the report and plots in --out (other files there are kept); "
+              "without it an existing one is refused before anything runs")
     s.set_defaults(func=cmd_stress)
 
