@@ -23,10 +23,17 @@ bootstrap:
 
 # What only the tests need, also inside the checkout: Foxglove's decoders (npm) and Debian's
 # chromium unpacked under .cache/test-tools (apt-get download, no root); skipped where it
-# cannot be installed, and the tests that need it skip with the reason.
+# cannot be installed (or with NO_TEST_TOOLS=1), and the tests that need it skip with the reason.
+NO_TEST_TOOLS ?=
 test-tools: bootstrap
-	@echo "make test: installing the test-only tools into the checkout (tools/test_tools.py)"
-	@$(VENV)/bin/python tools/test_tools.py
+	@if [ -n "$(NO_TEST_TOOLS)" ]; then \
+	  echo "make test: NO_TEST_TOOLS set: no test-only tools installed (their tests skip)"; \
+	else \
+	  echo "make test: installing the test-only tools into the checkout (tools/test_tools.py):"; \
+	  echo "  Foxglove's decoders (npm ci in tests/foxglove), Debian's chromium and the libraries"; \
+	  echo "  this machine lacks (apt-get download + dpkg -x into .cache/test-tools)"; \
+	  $(VENV)/bin/python tools/test_tools.py; \
+	fi
 
 run: bootstrap
 	$(VENV)/bin/mechsim run scenes/default.yaml

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Regenerate the systems table of README.md (between the systems-table markers) from the
-systems themselves: `python tools/readme_systems.py` (run with the project's venv)."""
+"""Regenerate the systems list of README.md (between the systems-table markers) from the
+systems themselves, id and title, two to a row: `python tools/readme_systems.py` (run with the
+project's venv). The full table (formulations, laws, oracles) is docs/systems.md."""
 
 from __future__ import annotations
 
@@ -13,16 +14,11 @@ BEGIN, END = "<!-- systems-table:begin -->", "<!-- systems-table:end -->"
 
 
 def table() -> str:
-    rows = ["| system | source | coordinates | conserved (checked live) | oracles tested |",
-            "|---|---|---|---|---|"]
-    for sid in system_ids():
-        cls = system_class(sid)
-        model = cls()
-        forms = f" ({', '.join(cls.formulations)})" if len(cls.formulations) > 1 else ""
-        coords = ", ".join(c.name for c in model.coordinates)
-        laws = ", ".join(law.key.replace("invariant:", "").replace("constraint:", "")
-                         for law in model.laws())
-        rows.append(f"| `{sid}`{forms} | {cls.source} | {coords} | {laws} | {cls.oracles} |")
+    entries = [f"`{sid}` | {system_class(sid).title}" for sid in system_ids()]
+    half = (len(entries) + 1) // 2
+    rows = ["| system | title | system | title |", "|---|---|---|---|"]
+    for left, right in zip(entries[:half], entries[half:] + [" | "], strict=False):
+        rows.append(f"| {left} | {right} |")
     return "\n".join(rows)
 
 

@@ -113,10 +113,15 @@ class SimulationResult:
     # Events met on the way, as (time, event name); the discrete mode entries at each sample.
     events: list[tuple[float, str]] = field(default_factory=list)
     modes: np.ndarray | None = None
-    # What the run cost and how good it is: right-hand-side (or force) evaluations, rejected
-    # steps, and the integrator's estimate of the error committed (relative to the state).
+    # What the run cost: right-hand-side (or force) evaluations and rejected steps.
     n_evaluations: int = 0
     n_rejected: int = 0
+    #: The integrator's own estimate of the error it committed: the sum over its steps of
+    #: the local error estimates, relative to the state's scale (1e-9: about a billionth of a
+    #: typical coordinate or rate). It assumes the errors add up: a chaotic system can
+    #: amplify them beyond it, and a symplectic method's energy error stays far below it;
+    #: the closed forms report 0. A diagnostic, not a bound: the contract is ``tolerance``
+    #: (see ``mechsim.integrators``; tests/test_tolerance.py checks it against references).
     error_estimate: float = 0.0
 
     @property

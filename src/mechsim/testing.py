@@ -118,7 +118,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def isolated(config: pytest.Config) -> bool:
-    """Whether the plugin isolates this session's DDS (the ``mechsim_isolation`` option)."""
+    """Whether the plugin isolates the pytest session's DDS (the ``mechsim_isolation`` option)."""
     return bool(config.getini(ISOLATION))
 
 
@@ -164,7 +164,7 @@ def ros_domain_id() -> int:
 @pytest.fixture
 def ros_env() -> dict[str, str]:
     """Environment for a child process (``subprocess.Popen(..., env=ros_env)``) that joins
-    this session's graph (profile, domain id, RMW, library path)."""
+    the pytest session's graph (profile, domain id, RMW, library path)."""
     return dict(os.environ)
 
 
