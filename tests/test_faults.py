@@ -190,7 +190,8 @@ def test_restart_recorder_after_kill_into_new_bag(ros_env: dict[str, str],
                             "--bag", str(first)], env=ros_env, capture_output=True, text=True,
                            timeout=120)
     last = again.stderr.strip().splitlines()[-1]
-    assert again.returncode == 2 and last.startswith("mechsim: error: bag ") and "not empty" in last
+    assert again.returncode == 2 and last.startswith("mechsim: error: --bag: ") \
+        and "not empty" in last
     second = tmp_path / "second"
     ok = subprocess.run([PY, "-m", "mechsim.cli", "record", "pendulum", "--duration", "1",
                          "--bag", str(second)], env=ros_env, capture_output=True, text=True,
