@@ -1,34 +1,30 @@
 #!/usr/bin/env python3
 """Create or update the project's virtual environment (stdlib only; run with the system python3).
 
+Everything it writes is inside the checkout (.venv, .cache): no system package, no npm, no
+browser. What only the tests need is installed by tools/test_tools.py (`make test`).
+
 Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-bootstrap.json):
 
 1. venv      create ./.venv with a Python 3.11 interpreter;
-2. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
-             with (skipped, with a note, where node or npm is missing; that test then skips);
-             in the background from here on;
-3. installer pip install the pinned uv (requirements.txt), which installs the rest: it
+2. installer pip install the pinned uv (requirements.txt), which installs the rest: it
              downloads in parallel and unpacks in native code, in a third of pip's time
              (pip does, where uv cannot be installed or fails);
    numerics  install the pins of numpy, scipy, sympy, numba and pyyaml from
              requirements.txt: what the next step imports;
-4. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
+3. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
              CPU, from the source tree) so that the first run of a system only compiles that
              system's kernels; in the background from here on, in two processes, beside pip
              and the interface builds;
-5. pip       install -r requirements.txt (steps 3 and 5 without byte-compiling: see 6);
-6. bytecode  byte-compile the venv's packages (not their own test suites) on every core, in
+4. pip       install -r requirements.txt (steps 2 and 4 without byte-compiling: see 5);
+5. bytecode  byte-compile the venv's packages (not their own test suites) on every core, in
              the background from here on;
-7. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
-             .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
-8. project   install -e . --no-deps --no-build-isolation;
-9. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
+6. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
+             .venv/share/*/cmake/*.cmake (files of the venv only) to this venv's real paths
+             (CMake rejects missing paths);
+7. project   install -e . --no-deps --no-build-isolation;
+8. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/).
-
-Then, every time: Debian's `chromium` (the headless browser tests/test_live_viewer.py opens the
-live Rerun view in) is installed with apt-get if /usr/bin/chromium is missing and this runs as
-root where apt-get exists, its progress shown; otherwise one line says so and the set-up goes
-on (that test is then skipped, with the reason).
 
 Usage: python3 tools/bootstrap.py [--force]. Logs go to .cache/bootstrap/<step>.log.
 """
@@ -360,18 +356,6 @@ LOOP_SOURCES = ("src/mechsim/integrators/kernels.py", "src/mechsim/integrators/s
                 "src/mechsim/codegen/support.py")
 
 
-FOXGLOVE = ROOT / "tests" / "foxglove"
-
-
-def step_foxglove() -> Pending | None:
-    npm = shutil.which("npm")
-    if npm is None or shutil.which("node") is None:
-        say("no node/npm: Foxglove's decoders not installed (their test will skip)")
-        return None
-    say("npm ci in tests/foxglove (Foxglove's ROS 2 decoders, in the background)")
-    return start_logged("foxglove", [npm, "ci", "--no-audit", "--no-fund", "--prefix",
-                                     str(FOXGLOVE)])
-
 
 def step_interface(pkg: str) -> None:
     say(f"building {pkg} (cmake, ~10 s)")
@@ -434,12 +418,10 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     build_key = hashlib.sha256(f"{venv_key}|{build_reqs}".encode()).hexdigest()[:16]
     numerics_key = hashlib.sha256("|".join([venv_key, requirement_pin("uv"), *numeric_pins()])
                                   .encode()).hexdigest()
-    # Background steps (npm, the loops) run beside the ones after them: npm from the start,
-    # the loops once the numerical packages are in, while pip installs the rest.
+    # The loops compile in the background, beside the steps after them: once the numerical
+    # packages are in, while pip installs the rest.
     steps: list[tuple[str, str, Callable[[], Pending | None]]] = [
         ("venv", venv_key, step_venv),
-        ("foxglove", sha256_files([FOXGLOVE / "package.json", FOXGLOVE / "package-lock.json"]),
-         step_foxglove),
         ("installer", hashlib.sha256(f"{venv_key}|{requirement_pin('uv')}".encode())
          .hexdigest()[:16], step_installer),
         ("numerics", numerics_key[:16], step_numerics),
@@ -510,32 +492,6 @@ def bootstrap(force: bool = False) -> int:
     return 0
 
 
-CHROMIUM = Path("/usr/bin/chromium")
-
-
-def ensure_chromium() -> None:
-    """Install Debian's chromium where it is missing and we can (root, apt-get); never fails
-    the set-up: one line says what was not done."""
-    if CHROMIUM.exists():
-        return
-    apt = shutil.which("apt-get")
-    if apt is None or os.geteuid() != 0:
-        why = "apt-get not found" if apt is None else "not running as root"
-        say(f"chromium: not installed ({why}); the live-viewer test will be skipped "
-            "(install Debian's `chromium` to run it)")
-        return
-    say("chromium: installing Debian's chromium (apt-get) for the live-viewer test")
-    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
-    install = [apt, "install", "-y", "--no-install-recommends", "chromium"]
-    try:
-        if subprocess.call(install, env=env) != 0:  # stale package lists: update, retry once
-            subprocess.call([apt, "update"], env=env)
-            subprocess.call(install, env=env)
-    except OSError as e:
-        say(f"chromium: apt-get failed to start ({e.strerror or e})")
-    if not CHROMIUM.exists():
-        say("chromium: could not be installed; the live-viewer test will be skipped")
-
 
 def main(argv: list[str]) -> int:
     if any(a in ("-h", "--help") for a in argv):
@@ -545,10 +501,7 @@ def main(argv: list[str]) -> int:
     if unknown:
         print(f"bootstrap: unknown argument(s): {' '.join(unknown)}", file=sys.stderr)
         return 2
-    rc = bootstrap(force="--force" in argv)
-    if rc == 0:
-        ensure_chromium()
-    return rc
+    return bootstrap(force="--force" in argv)
 
 
 if __name__ == "__main__":

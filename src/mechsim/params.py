@@ -16,7 +16,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from mechsim.errors import ParameterError
+from mechsim.errors import ParameterError, did_you_mean
 
 Value = float | int | str | bool
 
@@ -194,8 +194,9 @@ def resolve(spec: Iterable[Parameter], values: Mapping[str, Any]) -> dict[str, V
     for key in given:
         if key not in table:
             close = [n for n in table if n.split(".")[-1] == key.split(".")[-1]]
-            hint = f" (did you mean {close[0]}?)" if close else ""
             name = key if len(key) <= 60 else shown(key)
+            hint = (f": did you mean {close[0]!r}? (parameters: {', '.join(table)})" if close
+                    else did_you_mean(name, table, "parameters"))
             raise ParameterError(name, f"unknown parameter{hint}")
     return {name: (p.validate(given[name]) if name in given else p.default)
             for name, p in table.items()}

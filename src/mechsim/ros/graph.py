@@ -10,6 +10,7 @@ node or service that does not answer is one :class:`MechsimError` naming it.
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -118,7 +119,15 @@ def _current(node: Any, ex: Any, target: str, name: str, timeout: float) -> Any:
     values = _call(ex, g, GetParameters.Request(names=[name]), timeout,
                    f"{target}/get_parameters").values
     if not values or values[0].type == ParameterType.PARAMETER_NOT_SET:
-        raise ParameterError(name, f"not a parameter of {target}")
+        from rcl_interfaces.srv import ListParameters
+
+        from mechsim.errors import did_you_mean
+
+        c = _client(node, ex, ListParameters, f"{target}/list_parameters", timeout)
+        names = _call(ex, c, ListParameters.Request(), timeout,
+                      f"{target}/list_parameters").result.names
+        raise ParameterError(name, f"not a parameter of {target}"
+                             + did_you_mean(name, names, "parameters"))
     return values[0]
 
 
@@ -142,6 +151,9 @@ def _to_value(raw: str, current: Any) -> Any:
     except yaml.YAMLError:
         value = raw
     out = ParameterValue()
+    if current.type == T.PARAMETER_DOUBLE and isinstance(value, str) \
+            and re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+", value):
+        value = float(value)  # 1e-10: a number YAML 1.1 reads as text
     if current.type == T.PARAMETER_DOUBLE and isinstance(value, int) \
             and not isinstance(value, bool):
         if abs(value) > 2 ** 53:

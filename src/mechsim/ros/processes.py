@@ -180,6 +180,8 @@ def _merged(scene: Scene, got: dict[str, Any], wall: float, interrupted: bool) -
         run.samples[inst.name] = r["samples"]
         if r["failed"]:
             run.failures[inst.name] = r["failed"]
+        if r.get("effort_acted"):
+            run.efforts.append(inst.name)
         for topic, n in r["messages"].items():
             run.messages[topic] = run.messages.get(topic, 0) + n
     diag = got.get("diagnostics", {})
@@ -405,4 +407,5 @@ class _Simulator:
             pass
         write_report(report, {"t": node.t, "samples": node.samples_published,
                                "failed": node.failed, "startup": self.startup,
+                               "effort_acted": node.run.effort.acted,
                                "messages": node.outlet.counts})

@@ -121,9 +121,11 @@ class SimulatorNode(Node):
         published (a runner of separate processes waits there for its consumers).
         ``lossless``: every reliable subscriber receives every sample (``Outlet``)."""
         # Same ranges as the CLI and scenes: a bad value is a ParameterError, before ROS.
-        settings = Settings(tolerance=instance.tolerance, publish_rate=publish_rate,
-                            real_time_factor=real_time_factor,
-                            constraint_limit=constraint_limit).checked()
+        # (the instance's own settings, e.g. a scene's effort_timeout, over the defaults)
+        settings = Settings(**{"tolerance": instance.tolerance, "publish_rate": publish_rate,
+                               "real_time_factor": real_time_factor,
+                               "constraint_limit": constraint_limit,
+                               **instance.settings}).checked()
         instance_name("instance", instance.name)
         super().__init__("simulator", namespace=instance.name, context=context)
         self.instance = instance
@@ -152,7 +154,6 @@ class SimulatorNode(Node):
         self.run.start()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timer: Any = None
-        self.pacing: Pacing | None = None
         self._start_realtime()
 
     def _declare_parameters(self) -> None:
@@ -197,13 +198,20 @@ class SimulatorNode(Node):
         s = self.run.settings
         if self.run.stepped or s.real_time_factor <= 0:
             return
-        self.pacing = Pacing(s.real_time_factor, s.publish_rate, time.monotonic(), self.run.t)
-        self.run.lookahead = self.pacing.lookahead
-        self._timer = self.create_timer(self.pacing.period, self._on_tick, clock=self._steady)
+        pacing = self.run.pacing = Pacing(s.real_time_factor, s.publish_rate, time.monotonic(),
+                                          self.run.t)
+        self.run.lookahead = pacing.lookahead
+        self._timer = self.create_timer(pacing.period, self._on_tick, clock=self._steady)
+
+    @property
+    def pacing(self) -> Pacing | None:
+        """How this node's run follows the wall clock (None: stepped by its caller)."""
+        return self.run.pacing
 
     def _on_tick(self) -> None:
-        assert self.pacing is not None
-        self.run.advance_to(self.pacing.due(time.monotonic(), self.run.t))
+        pacing = self.run.pacing
+        if pacing is not None:
+            self.run.advance_to(pacing.due(time.monotonic(), self.run.t))
 
     # --- services -------------------------------------------------------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
@@ -221,7 +229,7 @@ class SimulatorNode(Node):
 
     def set_paused(self, paused: bool) -> None:
         """Pause or resume (pacing restarts from the current state, so no catching up)."""
-        self.run.paused = paused
+        self.run.set_paused(paused)
         self.outlet.hand_over()
         if not paused:
             self._start_realtime()
@@ -229,7 +237,9 @@ class SimulatorNode(Node):
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
         self.set_paused(bool(request.data))
         response.success = True
-        response.message = "paused" if self.run.paused else "running"
+        # Where the run stands: a resumed run goes on from this sample, paced from now.
+        response.message = (f"paused at t = {self.run.t:.12g} s" if self.run.paused
+                            else f"running from t = {self.run.t:.12g} s")
         return response
 
     # --- parameters: one transaction of the run per set -----------------------------------

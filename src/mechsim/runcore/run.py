@@ -27,7 +27,7 @@ from mechsim.runcore import guards
 from mechsim.runcore.change import Change, Settings, plan, reason
 from mechsim.runcore.effort import EffortHold
 from mechsim.runcore.equations import PREPARE_TIMEOUT
-from mechsim.runcore.pacing import BLOCK
+from mechsim.runcore.pacing import BLOCK, Pacing
 from mechsim.runcore.stops import held_signals, raise_if_stop
 from mechsim.simulate import OUTPUTS, OutputShape, evaluate_arrays
 from mechsim.systems.base import Model
@@ -126,6 +126,10 @@ class SystemRun:
         #: blocks over the ticks instead of computing them all in one).
         self.lookahead = 0
         self.stagger = 0
+        #: How this run follows the wall clock, set by whoever paces it (its node's timer, a
+        #: scene's loop); None: stepped as fast as possible. Restarted from the current
+        #: sample by every reset, resume and change of rate (``pacing``).
+        self.pacing: Pacing | None = None
         #: Set by a runner that steps this run: serve its callbacks (an effort command among
         #: them) once, waiting up to the given wall seconds.
         self.serve: Callable[[float], None] | None = None
@@ -147,6 +151,19 @@ class SystemRun:
         stepper = make_stepper(model, self.method, self.settings.tolerance)
         self.epoch += 1
         self._install(model, stepper, structural=True)
+        self.restart_pacing()
+
+    def set_paused(self, paused: bool) -> None:
+        """Pause, or resume with the pacing restarted from the current sample."""
+        self.paused = paused
+        if not paused:
+            self.restart_pacing()
+
+    def restart_pacing(self) -> None:
+        """The pacing (if any) restarts from the current sample and the wall clock's present,
+        at the current publish rate: what the run did not run is never caught up on."""
+        if self.pacing is not None:
+            self.pacing = self.pacing.restarted(self.t, self.settings.publish_rate)
 
     def _install(self, model: Model, stepper: Stepper, structural: bool) -> None:
         """Run ``model`` with ``stepper`` (at its initial state, t = 0)."""
@@ -191,6 +208,7 @@ class SystemRun:
             assert c.model is not None and c.stepper is not None
             self.epoch += 1
             self._install(c.model, c.stepper, structural=True)
+            self.restart_pacing()
             return True
         if c.model is not None:
             self.observer.model_changed(c.model, structural=False)
@@ -205,6 +223,8 @@ class SystemRun:
             # The current sample again, with the new parameters and the same time: a time
             # not later than the previous one's is a consumer's signal of a new epoch.
             self._emit(np.array([self.t]), self.y.copy()[None, :])
+        if repace:
+            self.restart_pacing()
         return repace
 
     def apply(self, c: Change) -> bool:
