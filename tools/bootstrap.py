@@ -23,7 +23,11 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
              .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
 8. project   install -e . --no-deps --no-build-isolation;
 9. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
-             src/mechsim_msgs into the venv (build trees under .cache/build/).
+             src/mechsim_msgs into the venv (build trees under .cache/build/);
+10. ros-package  make the venv a ROS prefix of the mechsim package, as `colcon build
+             --symlink-install` would: the ament index marker, share/mechsim/{package.xml,
+             launch,scenes,config} linked to the checkout, and the node executables (entry
+             point group mechsim.executables) under lib/mechsim, where `ros2 run` looks.
 
 Then, every time: Debian's `chromium` (the headless browser tests/test_live_viewer.py opens the
 live Rerun view in) is installed with apt-get if /usr/bin/chromium is missing and this runs as
@@ -394,6 +398,59 @@ def step_interface(pkg: str) -> None:
     run_logged(step, ["cmake", "--install", str(build)], append=True)
 
 
+#: share/mechsim/<entry> of the ROS package -> its source in the checkout (setup.cfg's
+#: [options.data_files] install the same for colcon and pip).
+ROS_SHARE = {"package.xml": "package.xml", "launch": "launch_scripts", "scenes": "scenes",
+             "config": "config"}
+
+
+def node_executables() -> dict[str, str]:
+    """name -> "module:function" of setup.cfg's entry point group mechsim.executables."""
+    import configparser
+
+    cfg = configparser.ConfigParser()
+    cfg.read(ROOT / "setup.cfg", encoding="utf-8")
+    text = cfg.get("options.entry_points", "mechsim.executables", fallback="")
+    pairs = (line.split("=", 1) for line in text.splitlines() if "=" in line)
+    return {name.strip(): target.strip() for name, target in pairs}
+
+
+def replace_path(path: Path, make: Callable[[Path], None]) -> None:
+    """Make ``path`` anew through a temporary beside it and one rename (a directory in the
+    way is removed first: only ever a link or file this step made)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    if tmp.is_symlink() or tmp.exists():
+        tmp.unlink()
+    make(tmp)
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    tmp.replace(path)
+
+
+def step_ros_package() -> None:
+    say("the venv as a ROS prefix of package mechsim (ament index, share/mechsim, lib/mechsim)")
+    marker = VENV / "share" / "ament_index" / "resource_index" / "packages" / "mechsim"
+    marker.parent.mkdir(parents=True, exist_ok=True)
+    replace_path(marker, lambda tmp: tmp.write_text(""))
+    share = VENV / "share" / "mechsim"
+    share.mkdir(parents=True, exist_ok=True)
+    for entry, source in ROS_SHARE.items():
+        replace_path(share / entry, lambda tmp, s=source: tmp.symlink_to(ROOT / s))
+    lib = VENV / "lib" / "mechsim"
+    lib.mkdir(parents=True, exist_ok=True)
+    for name, target in node_executables().items():
+        module, _, function = target.partition(":")
+        text = (f"#!{VENV_PY}\n# The mechsim node executable {name!r} (`ros2 run mechsim "
+                f"{name}`).\nimport sys\n\nfrom {module} import {function}\n\n"
+                f"if __name__ == \"__main__\":\n    sys.exit({function}())\n")
+
+        def write(tmp: Path, text: str = text) -> None:
+            tmp.write_text(text)
+            tmp.chmod(0o755)
+
+        replace_path(lib / name, write)
+
+
 # ----------------------------------------------------------------------------------- driver
 
 
@@ -453,6 +510,8 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
+    steps.append(("ros-package", sha256_files([ROOT / "setup.cfg", ROOT / "package.xml"],
+                                              f"{venv_key}|{ROOT}"), step_ros_package))
     return steps
 
 
