@@ -25,8 +25,9 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
 9. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/);
 10. ros-package  make the venv a ROS prefix of the mechsim package, as `colcon build
-             --symlink-install` would: the ament index marker, share/mechsim/{package.xml,
-             launch,scenes,config} linked to the checkout, and the node executables (entry
+             --symlink-install` would: setup.cfg's data files (the ament index marker,
+             share/mechsim/{package.xml,launch,scenes,config}) linked file by file to the
+             checkout (redone when one is added or removed), and the node executables (entry
              point group mechsim.executables) under lib/mechsim, where `ros2 run` looks.
 
 Then, every time: Debian's `chromium` (the headless browser tests/test_live_viewer.py opens the
@@ -398,28 +399,46 @@ def step_interface(pkg: str) -> None:
     run_logged(step, ["cmake", "--install", str(build)], append=True)
 
 
-#: share/mechsim/<entry> of the ROS package -> its source in the checkout (setup.cfg's
-#: [options.data_files] install the same for colcon and pip).
-ROS_SHARE = {"package.xml": "package.xml", "launch": "launch_scripts", "scenes": "scenes",
-             "config": "config"}
+def setup_cfg(section: str) -> dict[str, str]:
+    """One section of setup.cfg, as key -> value text."""
+    import configparser
+
+    cfg = configparser.ConfigParser()
+    cfg.optionxform = str  # type: ignore[assignment,method-assign]
+    cfg.read(ROOT / "setup.cfg", encoding="utf-8")
+    return dict(cfg[section]) if cfg.has_section(section) else {}
 
 
 def node_executables() -> dict[str, str]:
     """name -> "module:function" of setup.cfg's entry point group mechsim.executables."""
-    import configparser
-
-    cfg = configparser.ConfigParser()
-    cfg.read(ROOT / "setup.cfg", encoding="utf-8")
-    text = cfg.get("options.entry_points", "mechsim.executables", fallback="")
+    text = setup_cfg("options.entry_points").get("mechsim.executables", "")
     pairs = (line.split("=", 1) for line in text.splitlines() if "=" in line)
     return {name.strip(): target.strip() for name, target in pairs}
 
 
+def data_files() -> dict[str, list[Path]]:
+    """setup.cfg's [options.data_files]: directory under the prefix -> the checkout's files
+    (globs expanded), as colcon and pip install them."""
+    out: dict[str, list[Path]] = {}
+    for target, patterns in setup_cfg("options.data_files").items():
+        out[target] = sorted(p for pattern in patterns.replace(",", " ").split()
+                             for p in ROOT.glob(pattern) if p.is_file())
+    return out
+
+
+def ros_package_key(venv_key: str) -> str:
+    files = [p for group in data_files().values() for p in group]
+    return sha256_files([ROOT / "setup.cfg"], f"{venv_key}|{ROOT}|" + "|".join(
+        str(p.relative_to(ROOT)) for p in files))
+
+
 def replace_path(path: Path, make: Callable[[Path], None]) -> None:
     """Make ``path`` anew through a temporary beside it and one rename (a directory in the
-    way is removed first: only ever a link or file this step made)."""
+    way, made by this step, is removed first)."""
     tmp = path.with_name(f".{path.name}.tmp")
-    if tmp.is_symlink() or tmp.exists():
+    if tmp.is_dir() and not tmp.is_symlink():
+        shutil.rmtree(tmp)
+    elif tmp.is_symlink() or tmp.exists():
         tmp.unlink()
     make(tmp)
     if path.is_dir() and not path.is_symlink():
@@ -427,15 +446,25 @@ def replace_path(path: Path, make: Callable[[Path], None]) -> None:
     tmp.replace(path)
 
 
+def _linked_files(files: list[Path]) -> Callable[[Path], None]:
+    def make(tmp: Path) -> None:
+        tmp.mkdir()
+        for f in files:
+            (tmp / f.name).symlink_to(f)
+    return make
+
+
 def step_ros_package() -> None:
     say("the venv as a ROS prefix of package mechsim (ament index, share/mechsim, lib/mechsim)")
-    marker = VENV / "share" / "ament_index" / "resource_index" / "packages" / "mechsim"
-    marker.parent.mkdir(parents=True, exist_ok=True)
-    replace_path(marker, lambda tmp: tmp.write_text(""))
-    share = VENV / "share" / "mechsim"
-    share.mkdir(parents=True, exist_ok=True)
-    for entry, source in ROS_SHARE.items():
-        replace_path(share / entry, lambda tmp, s=source: tmp.symlink_to(ROOT / s))
+    for target, files in data_files().items():
+        where = VENV / target
+        if target.startswith("share/mechsim/"):  # whole directories of the package: anew
+            where.parent.mkdir(parents=True, exist_ok=True)
+            replace_path(where, _linked_files(files))
+            continue
+        where.mkdir(parents=True, exist_ok=True)  # shared ones (the ament index): one file
+        for f in files:
+            replace_path(where / f.name, lambda tmp, f=f: tmp.symlink_to(f))
     lib = VENV / "lib" / "mechsim"
     lib.mkdir(parents=True, exist_ok=True)
     for name, target in node_executables().items():
@@ -510,8 +539,7 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
-    steps.append(("ros-package", sha256_files([ROOT / "setup.cfg", ROOT / "package.xml"],
-                                              f"{venv_key}|{ROOT}"), step_ros_package))
+    steps.append(("ros-package", ros_package_key(venv_key), step_ros_package))
     return steps
 
 

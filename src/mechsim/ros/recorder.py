@@ -59,6 +59,8 @@ def stamp_ns(msg: Any) -> int | None:
         stamp = header.stamp
     elif getattr(msg, "transforms", None):
         stamp = msg.transforms[0].header.stamp
+    elif getattr(msg, "markers", None):
+        stamp = msg.markers[0].header.stamp
     elif hasattr(msg, "clock"):
         stamp = msg.clock
     else:

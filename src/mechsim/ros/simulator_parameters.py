@@ -28,7 +28,8 @@ from mechsim.scene import Instance
 from mechsim.systems import system_class, system_ids
 
 #: Parameters read once, when the node starts (read-only afterwards).
-START_ONLY = ("system", "origin", "time_offset", "duration", "publish_clock")
+START_ONLY = ("system", "origin", "time_offset", "duration", "publish_clock",
+              "wait_for_recorder")
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,7 @@ class Start:
     end_time: float | None
     publish_clock: bool
     unused: frozenset[str]
+    wait_for_recorder: bool = False
 
 
 def _number(name: str, value: Any) -> float:
@@ -123,14 +125,19 @@ def start_values(node: Node, instance: Instance, settings: Settings, *, stepped:
             raise ParameterError("time_offset", f"must be >= 0 (got {time_offset:g})")
     if "duration" in given:
         end_time = _end_time(given["duration"])
-    if "publish_clock" in given:
-        if not isinstance(given["publish_clock"], bool):
-            raise ParameterError("publish_clock", "must be true or false")
-        publish_clock = given["publish_clock"]
+    publish_clock = _flag(given, "publish_clock", publish_clock)
+    wait = _flag(given, "wait_for_recorder", False)
     known = {p.name for p in system_class(instance.system).parameter_spec()}
     known |= {"method", *SETTINGS, *START_ONLY}
     return Start(instance, settings, stepped, time_offset, end_time, publish_clock,
-                 frozenset(foreign(set(given) - known)))
+                 frozenset(foreign(set(given) - known)), wait)
+
+
+def _flag(given: dict[str, Any], name: str, default: bool) -> bool:
+    value = given.get(name, default)
+    if not isinstance(value, bool):
+        raise ParameterError(name, f"must be true or false (got {shown(value)})")
+    return value
 
 
 def declare(node: Node, start: Start, values: dict[str, Any], method: str) -> None:
@@ -169,3 +176,6 @@ def declare(node: Node, start: Start, values: dict[str, Any], method: str) -> No
     node.declare_parameter("publish_clock", bool(start.publish_clock), ro(
         description="this node publishes /clock (one clock per graph)", read_only=True),
         ignore_override=True)
+    node.declare_parameter("wait_for_recorder", bool(start.wait_for_recorder), ro(
+        description="started alone: the first sample waits (at most 60 s) until a recorder "
+        "subscribes to every topic of the node", read_only=True), ignore_override=True)

@@ -70,6 +70,23 @@ def _refuse_unknown(node: Any) -> None:
                          f"{hint}")
 
 
+def _recorder_listens(node: Any) -> None:
+    """Before the first sample: wait (at most ``CONSUMER_WAIT``) until a recorder subscribes
+    to every topic of ``node`` (a launch file starts both at once)."""
+    import time
+
+    from mechsim.ros.processes import CONSUMER_WAIT
+
+    end = time.monotonic() + CONSUMER_WAIT
+    channels = node.outlet.channels.values()
+    while time.monotonic() < end:
+        if all(ch.publisher.get_subscription_count() > 0 for ch in channels):
+            return
+        time.sleep(0.05)
+    node.get_logger().warning(f"no recorder subscribed to every topic within "
+                              f"{CONSUMER_WAIT:g} s; starting anyway")
+
+
 def simulator_alone() -> int:
     """The simulator node of the system its parameters name, until its duration or a stop."""
     from rclpy.executors import SingleThreadedExecutor
@@ -93,9 +110,11 @@ def simulator_alone() -> int:
                 graph.check([f"{namespace}/{name}"], clock, window)
             finally:
                 graph.close()
+        wait = values.get("wait_for_recorder", False) is True
         node = SimulatorNode(Instance(system, namespace.strip("/").split("/")[-1]),
                              context=context, publish_clock=clock, stepped=False,
-                             node_name=name)
+                             node_name=name,
+                             before_first_message=_recorder_listens if wait else None)
         _refuse_unknown(node)
         executor.add_node(node)
         while not node.finished:
