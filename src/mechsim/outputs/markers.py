@@ -186,14 +186,16 @@ class MarkerEncoder:
         now = pos[:, self.trails]
         stride = max(1, math.ceil(TRAIL_SPAN * self.time_scale * rate / TRAIL_POINTS))
         keep = np.rint(times * rate).astype(np.int64) % stride == 0
-        before = self.kept_t < times[0] - 0.5 / rate
+        before = np.flatnonzero(self.kept_t < times[0] - 0.5 / rate)[-TRAIL_POINTS:]
         kept_t = np.concatenate([self.kept_t[before], times[keep]])
         kept_p = np.concatenate([self.kept_p[before], now[keep]])
         if kept_t.size == 0:
             kept_t, kept_p = times[:1], now[:1]
         upto = np.searchsorted(kept_t, times, side="right")
         idx = np.clip(upto[:, None] - TRAIL_POINTS + np.arange(TRAIL_POINTS), 0, None)
-        self.kept_t, self.kept_p = kept_t[-TRAIL_POINTS:], kept_p[-TRAIL_POINTS:]
+        # Kept: the points before this block a trail needs, and the block's own (until the
+        # next block shows this one was not dropped): at most TRAIL_POINTS + a block.
+        self.kept_t, self.kept_p = kept_t, kept_p
         return np.concatenate([kept_p[idx], now[:, None]], axis=1)
 
     def message(self, row: np.ndarray) -> MarkerArray:
