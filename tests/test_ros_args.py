@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from rosuser import DEADLINE, Listener, finished, mechsim_command, process
 
 from mechsim_msgs.msg import SystemInfo
+from rosuser import DEADLINE, Listener, finished, mechsim_command, process
 
 
 def _env(**extra: str) -> dict[str, str]:

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-from test_runcore import RATE, _run
 
 from mechsim.errors import MechsimError, ParameterError
+from test_runcore import RATE, _run
 
 
 def test_step_takes_samples_of_the_grid_while_paused() -> None:
