@@ -11,6 +11,8 @@ import shutil
 import signal
 import subprocess
 import sys
+import sysconfig
+import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -20,7 +22,6 @@ from typing import Any
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "ros2cli"
 TOOLS = ROOT / ".ros2tools" / "venv" / "bin" / "ros2"
 #: Generous deadline of every wait [s]: a loaded machine is slow, a condition ends it early.
 DEADLINE = 120.0
@@ -34,17 +35,19 @@ def ros2_environment() -> tuple[dict[str, str] | None, str]:
     if not TOOLS.exists():
         return None, ("no ros2 command: none on PATH, and none built from ../shared/ros2cli "
                       "(tools/test_tools.sh builds it where that folder exists)")
-    if not (SHARED / "env.sh").exists():
-        return None, f"{TOOLS} exists but {SHARED}/env.sh, which sets it up, does not"
-    out = subprocess.run(["bash", "-c", f'. "{SHARED}/env.sh" "{ROOT}" >/dev/null && env -0'],
-                         env=env, capture_output=True, check=False)
-    if out.returncode != 0:
-        return None, f"{SHARED}/env.sh failed: {out.stderr.decode()[-200:]}"
-    made = dict(item.split("=", 1) for item in out.stdout.decode().split("\0") if "=" in item)
-    # This session's graph, not env.sh's defaults.
-    for key in ("ROS_DOMAIN_ID", "FASTDDS_DEFAULT_PROFILES_FILE"):
-        made[key] = os.environ[key]
-    return made, ""
+    # What ../shared/ros2cli/env.sh sets for the tools' venv over this checkout's venv, with
+    # this session's graph (domain, profile) kept.
+    tools = TOOLS.parent.parent
+    site = sysconfig.get_paths()["purelib"]
+    libs = [str(tools / "lib"), str(Path(sys.prefix) / "lib"),
+            *sorted(str(p) for p in Path(site).glob("ros_*.libs") if p.is_dir())]
+    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+    env.update(MECHSIM_PROJECT_SITE=site,
+               AMENT_PREFIX_PATH=f"{tools}{os.pathsep}{sys.prefix}",
+               LD_LIBRARY_PATH=os.pathsep.join([*libs, env.get("LD_LIBRARY_PATH", "")]),
+               PATH=os.pathsep.join([str(tools / "bin"), str(Path(sys.prefix) / "bin"),
+                                     env.get("PATH", "")]))
+    return env, ""
 
 
 @pytest.fixture(scope="session")
@@ -91,28 +94,58 @@ def mechsim_command(*args: str) -> list[str]:
 @contextmanager
 def process(cmd: list[str], env: dict[str, str], cwd: Path | None = None
             ) -> Iterator[subprocess.Popen[str]]:
-    """``cmd`` running for the block; stopped with SIGINT (as launch stops a node) after it."""
-    p = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    """``cmd`` running for the block, in a process group of its own, its output to a file
+    (``output(p)``: a pipe nobody reads would stall it); stopped after the block with SIGINT
+    to that group, as Ctrl-C in a terminal stops ``ros2 run`` and its node (and as launch
+    stops a node)."""
+    log = tempfile.TemporaryFile(mode="w+")
+    p = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=log, stderr=subprocess.STDOUT,
+                         text=True, start_new_session=True)
+    p.log = log  # type: ignore[attr-defined]
     try:
         yield p
     finally:
-        if p.poll() is None:
-            p.send_signal(signal.SIGINT)
-            try:
-                p.wait(timeout=60)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-        for stream in (p.stdout, p.stderr):
-            if stream is not None:
-                stream.close()
+        try:
+            os.killpg(p.pid, signal.SIGINT)
+        except ProcessLookupError:
+            pass  # the whole group has ended already
+        try:
+            p.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+        _group_gone(p.pid)
+        log.close()
 
 
-def finished(p: subprocess.Popen[str], timeout: float = DEADLINE) -> tuple[int, str, str]:
-    """(status, stdout, stderr) of ``p`` once it ended by itself."""
-    out, err = p.communicate(timeout=timeout)
-    return p.returncode, out, err
+def output(p: subprocess.Popen[str]) -> str:
+    """What a ``process`` wrote so far (stdout and stderr)."""
+    log = p.log  # type: ignore[attr-defined]
+    log.flush()
+    log.seek(0)
+    return str(log.read())
+
+
+def _group_gone(pgid: int, timeout: float = 60.0) -> None:
+    """Wait until no process of group ``pgid`` is left (a child of the stopped process, such
+    as the node ``ros2 run`` started, ends on the same SIGINT); SIGKILL at the deadline."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.05)
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
+def finished(p: subprocess.Popen[str], timeout: float = DEADLINE) -> tuple[int, str]:
+    """(status, output) of a ``process`` once it ended by itself."""
+    p.wait(timeout=timeout)
+    return p.returncode, output(p)
 
 
 class Listener:

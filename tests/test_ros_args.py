@@ -70,8 +70,8 @@ def test_the_installed_executable_ends_at_its_duration(ros_context: Any) -> None
                       str(params)], _env()) as p:
             info = _info(listener, "/orbit/system_info")
             assert info["system"] == "kepler" and info["eccentricity"] == 0.3
-            status, _, err = finished(p)
-            assert status == 0, err
+            status, said = finished(p)
+            assert status == 0, said
         def stamps() -> list[int]:
             return [s.header.stamp.sec * 10**9 + s.header.stamp.nanosec for s in states]
 
