@@ -41,7 +41,7 @@ def scene_path(name: str) -> Path:
 
 def _scene(scene_file: str | None, arguments: dict[str, str]) -> Scene:
     """The scene with the launch arguments applied (as ``mechsim run`` applies its options)."""
-    from mechsim.cli.common import check_duration, check_rate
+    from mechsim.params import DURATION, PUBLISH_RATE
 
     scene = single_system_scene(arguments["system"]) if scene_file is None \
         else load_scene(scene_path(scene_file))
@@ -49,10 +49,11 @@ def _scene(scene_file: str | None, arguments: dict[str, str]) -> Scene:
         raise ParameterError("pacing", f"scene {scene.name!r} runs as fast as possible: "
                              "launched simulators pace themselves (run it with mechsim run)")
     if arguments.get("rate"):
-        scene.publish_rate = check_rate(float(arguments["rate"]))
+        scene.publish_rate = float(PUBLISH_RATE.check(arguments["rate"], "rate"))
     if arguments.get("duration"):
         duration = float(arguments["duration"])
-        scene.duration = None if duration == 0 else check_duration(duration)
+        scene.duration = None if duration == 0 else float(DURATION.check(duration,
+                                                                           "duration"))
     for key in ("bag", "rrd"):
         value = arguments.get(key, "")
         if value:
