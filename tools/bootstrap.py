@@ -53,6 +53,8 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import ros_prefix  # tools/ros_prefix.py: the venv as a ROS prefix of the package
+
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / ".venv"
 VENV_PY = VENV / "bin" / "python"
@@ -399,85 +401,9 @@ def step_interface(pkg: str) -> None:
     run_logged(step, ["cmake", "--install", str(build)], append=True)
 
 
-def setup_cfg(section: str) -> dict[str, str]:
-    """One section of setup.cfg, as key -> value text."""
-    import configparser
-
-    cfg = configparser.ConfigParser()
-    cfg.optionxform = str  # type: ignore[assignment,method-assign]
-    cfg.read(ROOT / "setup.cfg", encoding="utf-8")
-    return dict(cfg[section]) if cfg.has_section(section) else {}
-
-
-def node_executables() -> dict[str, str]:
-    """name -> "module:function" of setup.cfg's entry point group mechsim.executables."""
-    text = setup_cfg("options.entry_points").get("mechsim.executables", "")
-    pairs = (line.split("=", 1) for line in text.splitlines() if "=" in line)
-    return {name.strip(): target.strip() for name, target in pairs}
-
-
-def data_files() -> dict[str, list[Path]]:
-    """setup.cfg's [options.data_files]: directory under the prefix -> the checkout's files
-    (globs expanded), as colcon and pip install them."""
-    out: dict[str, list[Path]] = {}
-    for target, patterns in setup_cfg("options.data_files").items():
-        out[target] = sorted(p for pattern in patterns.replace(",", " ").split()
-                             for p in ROOT.glob(pattern) if p.is_file())
-    return out
-
-
-def ros_package_key(venv_key: str) -> str:
-    files = [p for group in data_files().values() for p in group]
-    return sha256_files([ROOT / "setup.cfg"], f"{venv_key}|{ROOT}|" + "|".join(
-        str(p.relative_to(ROOT)) for p in files))
-
-
-def replace_path(path: Path, make: Callable[[Path], None]) -> None:
-    """Make ``path`` anew through a temporary beside it and one rename (a directory in the
-    way, made by this step, is removed first)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    if tmp.is_dir() and not tmp.is_symlink():
-        shutil.rmtree(tmp)
-    elif tmp.is_symlink() or tmp.exists():
-        tmp.unlink()
-    make(tmp)
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path)
-    tmp.replace(path)
-
-
-def _linked_files(files: list[Path]) -> Callable[[Path], None]:
-    def make(tmp: Path) -> None:
-        tmp.mkdir()
-        for f in files:
-            (tmp / f.name).symlink_to(f)
-    return make
-
-
 def step_ros_package() -> None:
     say("the venv as a ROS prefix of package mechsim (ament index, share/mechsim, lib/mechsim)")
-    for target, files in data_files().items():
-        where = VENV / target
-        if target.startswith("share/mechsim/"):  # whole directories of the package: anew
-            where.parent.mkdir(parents=True, exist_ok=True)
-            replace_path(where, _linked_files(files))
-            continue
-        where.mkdir(parents=True, exist_ok=True)  # shared ones (the ament index): one file
-        for f in files:
-            replace_path(where / f.name, lambda tmp, f=f: tmp.symlink_to(f))
-    lib = VENV / "lib" / "mechsim"
-    lib.mkdir(parents=True, exist_ok=True)
-    for name, target in node_executables().items():
-        module, _, function = target.partition(":")
-        text = (f"#!{VENV_PY}\n# The mechsim node executable {name!r} (`ros2 run mechsim "
-                f"{name}`).\nimport sys\n\nfrom {module} import {function}\n\n"
-                f"if __name__ == \"__main__\":\n    sys.exit({function}())\n")
-
-        def write(tmp: Path, text: str = text) -> None:
-            tmp.write_text(text)
-            tmp.chmod(0o755)
-
-        replace_path(lib / name, write)
+    ros_prefix.install(ROOT, VENV, VENV_PY)
 
 
 # ----------------------------------------------------------------------------------- driver
@@ -539,7 +465,7 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
-    steps.append(("ros-package", ros_package_key(venv_key), step_ros_package))
+    steps.append(("ros-package", ros_prefix.key(ROOT, venv_key), step_ros_package))
     return steps
 
 
