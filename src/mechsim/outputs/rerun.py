@@ -83,8 +83,8 @@ _FLUSH_ROWS = 4096
 #: changes how they are drawn: a system_info, /tf_static, a live send, the end).
 _DRAW_ROWS = 1024
 #: Topics published with every sample whose types nothing here draws: their messages are not
-#: made for this sink (``wants``).
-_NOT_DRAWN = ("clock", "pose", "twist")
+#: made for this sink (``wants``). (markers: the recording draws the model's look itself.)
+_NOT_DRAWN = ("clock", "pose", "twist", "markers")
 #: Live streams: buffered columns are sent at least this often [s of wall time].
 LIVE_PERIOD = 0.1
 #: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
@@ -287,7 +287,7 @@ class RerunSink:
 
     # --- sink protocol ------------------------------------------------------------------------
     def wants(self, topic: str) -> bool:
-        """Every topic but those of types never drawn (clock, pose, twist)."""
+        """Every topic but those of types never drawn (clock, pose, twist, markers)."""
         wanted = self._wanted.get(topic)
         if wanted is None:
             wanted = self._wanted[topic] = topic.rpartition("/")[2] not in _NOT_DRAWN
