@@ -42,6 +42,7 @@ run: bootstrap
 # 102..214 are unusable), unless the caller set one. Exit 5 (no tests collected) is a pass.
 test: test-tools
 	@$(VENV)/bin/ruff check src tests tools
+	@tools/test_tools.sh  # the real ros2 command (../shared/ros2cli) and colcon, for their tests
 	@export FASTDDS_DEFAULT_PROFILES_FILE="$(PROFILE)"; \
 	export ROS_DOMAIN_ID="$${ROS_DOMAIN_ID:-$$(( $$$$ % 101 + 1 ))}"; \
 	echo "make test: ROS_DOMAIN_ID=$$ROS_DOMAIN_ID"; \

@@ -25,6 +25,11 @@ Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-b
 7. project   install -e . --no-deps --no-build-isolation;
 8. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/).
+9. ros-package  make the venv a ROS prefix of the mechsim package, as `colcon build
+             --symlink-install` would: setup.cfg's data files (the ament index marker,
+             share/mechsim/{package.xml,launch,scenes,config}) linked file by file to the
+             checkout (redone when one is added or removed), and the node executables (entry
+             point group mechsim.executables) under lib/mechsim, where `ros2 run` looks.
 
 Usage: python3 tools/bootstrap.py [--force]. Logs go to .cache/bootstrap/<step>.log.
 """
@@ -43,6 +48,8 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+
+import ros_prefix  # tools/ros_prefix.py: the venv as a ROS prefix of the package
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / ".venv"
@@ -378,6 +385,11 @@ def step_interface(pkg: str) -> None:
     run_logged(step, ["cmake", "--install", str(build)], append=True)
 
 
+def step_ros_package() -> None:
+    say("the venv as a ROS prefix of package mechsim (ament index, share/mechsim, lib/mechsim)")
+    ros_prefix.install(ROOT, VENV, VENV_PY)
+
+
 # ----------------------------------------------------------------------------------- driver
 
 
@@ -435,6 +447,7 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
+    steps.append(("ros-package", ros_prefix.key(ROOT, venv_key), step_ros_package))
     return steps
 
 

@@ -27,7 +27,7 @@ EXIT_INTERRUPTED = 130
 VERBS = ("systems", "run", "record", "bag", "replay", "topic", "node", "param", "service",
          "view", "convert", "bench", "stress", "cache", "figures")
 #: The node processes' verbs (``executables``), not listed by ``mechsim --help``.
-NODE_VERBS = ("simulator", "diagnostics", "recorder")
+NODE_VERBS = ("simulator", "diagnostics", "recorder", "swing_up_controller")
 
 
 class Parser(argparse.ArgumentParser):

@@ -13,6 +13,7 @@ from mechsim.cli.common import (
     progress_bar,
     say,
 )
+from mechsim.cli.rosargs import add_ros_args, hand_over
 from mechsim.errors import counted
 from mechsim.ros.record import DEFAULT_BAG
 from mechsim.runcore.stops import stop_on_sigterm
@@ -23,6 +24,7 @@ EXIT_INTERRUPTED = 130
 
 def cmd_record(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
+    hand_over(a)  # --ros-args: checked by rcl, for every context this command starts
     from mechsim.cli.common import check_outputs, scene_of
     from mechsim.errors import ParameterError
     from mechsim.ros.graph_check import discovery_window, join_graph
@@ -64,4 +66,5 @@ def add_parser(sub: Any) -> None:
                    "fields expanded)")
     r.add_argument("--lossless", action="store_true", help="live reliable subscribers get "
                    "every sample too (the run waits for the slowest one's acknowledgments)")
+    add_ros_args(r)
     r.set_defaults(func=cmd_record)

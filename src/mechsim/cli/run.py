@@ -13,6 +13,7 @@ from mechsim.cli.common import (
     progress_bar,
     say,
 )
+from mechsim.cli.rosargs import add_ros_args, hand_over
 from mechsim.errors import counted
 from mechsim.outputs.rerun_live import DEFAULT_CONNECT
 from mechsim.runcore.stops import stop_on_sigterm
@@ -20,6 +21,7 @@ from mechsim.runcore.stops import stop_on_sigterm
 
 def cmd_run(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
+    hand_over(a)  # --ros-args: checked by rcl, for every context this command starts
     from mechsim.cli.common import check_outputs, scene_of
     from mechsim.ros.graph_check import discovery_window
 
@@ -212,4 +214,5 @@ def add_parser(sub: Any) -> None:
                    help="stream the run to a Rerun viewer already running (default URL: "
                    f"{DEFAULT_CONNECT}, where `rerun` listens); the viewer keeps it after "
                    "the run")
+    add_ros_args(r)
     r.set_defaults(func=cmd_run)

@@ -122,6 +122,24 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     return run
 
 
+def check_given(nodes: list[Any], *others: Any) -> None:
+    """The nodes of one process: no two of the same name (a ``-r __ns:=`` remap of a scene of
+    several systems), and every value given from outside (``--ros-args``) a parameter of one
+    of them (ParameterError naming it otherwise: a typo would silently do nothing)."""
+    from mechsim.errors import ParameterError
+
+    names = [n.get_fully_qualified_name() for n in nodes]
+    for name in names:
+        if names.count(name) > 1:
+            raise ParameterError("--ros-args", f"two simulator nodes named {name}: remap "
+                                 "the namespace only for a scene of one system")
+    unused = set.intersection(*(set(n.start.unused) for n in nodes)) if nodes else set()
+    for other in others:
+        unused = {name for name in unused if not other.has_parameter(name)}
+    if unused:
+        raise ParameterError(sorted(unused)[0], "not a parameter of any node of the scene")
+
+
 class _SceneLoop:
     """The nodes of one in-process scene and the loop that steps them."""
 
@@ -167,9 +185,11 @@ class _SceneLoop:
         for i, inst in enumerate(scene.systems):
             self.nodes.append(SimulatorNode(
                 inst, context=self.context, publish_rate=scene.publish_rate,
-                real_time_factor=0.0, publish_clock=(i == 0),
+                real_time_factor=0.0 if self.fast else scene.real_time_factor,
+                stepped=True, publish_clock=(i == 0),
                 sinks=[*self.sinks, self.feed], end_time=self.duration,
                 lossless=self.lossless, before_first_message=before_first_message))
+        check_given(self.nodes, self.diag)
         self.executor.add_node(self.diag)
         for n in self.nodes:
             self.executor.add_node(n)

@@ -21,7 +21,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from mechsim.errors import IntegrationError
+from mechsim.errors import IntegrationError, MechsimError, ParameterError
 from mechsim.integrators import Stepper, make_stepper
 from mechsim.runcore import guards
 from mechsim.runcore.change import Change, Settings, plan, reason
@@ -33,6 +33,8 @@ from mechsim.simulate import OUTPUTS, OutputShape, evaluate_arrays
 from mechsim.systems.base import Model
 
 _COLUMN = {name: i for i, name in enumerate(OUTPUTS)}  # in evaluate_arrays' result
+#: Most samples one ``SystemRun.step`` takes: a request is served in bounded time.
+MAX_STEP = 100_000
 
 
 @dataclass
@@ -91,10 +93,10 @@ class Observer(Protocol):
 class SystemRun:
     """One system instance run sample by sample (see the module docstring).
 
-    ``advance_to(t)`` integrates and releases every sample up to ``t``; ``plan``/``commit``
-    change parameters as one transaction; ``reset`` restarts at t = 0; ``offer`` takes an
-    effort command. ``start()`` releases the first sample (t = 0): call it once the observer
-    is ready."""
+    ``advance_to(t)`` integrates and releases every sample up to ``t``; ``step(n)`` advances
+    a paused run by n samples; ``plan``/``commit`` change parameters as one transaction;
+    ``reset`` restarts at t = 0; ``offer`` takes an effort command. ``start()`` releases the
+    first sample (t = 0): call it once the observer is ready."""
 
     def __init__(self, model: Model, method: str, settings: Settings, observer: Observer, *,
                  stepped: bool, end_time: float | None = None,
@@ -392,6 +394,29 @@ class SystemRun:
                 self._ahead = block
             released += self._release(block, min(due, block.left))
         return released
+
+    def step(self, samples: int) -> int:
+        """Advance a paused run by ``samples`` samples of its grid (released as any others:
+        the same times, stamps and /clock as a running system's), then stay paused. Returns
+        the samples taken: fewer where ``end_time`` comes first. Refused (MechsimError) unless
+        paused, for a stopped system, and for ``samples`` outside 1 … ``MAX_STEP``."""
+        if not 1 <= samples <= MAX_STEP:
+            raise ParameterError("samples", f"must be in 1 … {MAX_STEP} (got {samples})")
+        if self.failed:
+            raise MechsimError(f"stopped ({self.failed}); reset first")
+        if not self.paused:
+            raise MechsimError("running: pause it first (~/pause true), then step")
+        taken = 0
+        self.paused = False
+        try:
+            while taken < samples and not self.failed:
+                got = self.advance_to(self.t + (samples - taken) / self.settings.publish_rate)
+                if got == 0:
+                    break  # the end of the run
+                taken += got
+        finally:
+            self.paused = True
+        return taken
 
     def _samples_to(self, t: float) -> int:
         """Whole sample periods from the current time to ``t``."""
