@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
@@ -263,6 +263,62 @@ class StateLayout:
 
 
 @dataclass(frozen=True)
+class ParameterLayout:
+    """Where each entry of the kernels' parameter vector sits:
+    ``p = [block (offset), parameters, efforts (n_efforts), parameter constants (n_constants)]``.
+
+    ``parameters`` are the model's numeric parameters in the order of its ``parameter_spec``;
+    ``offset`` entries of derived data may come first (a direct model's, see
+    ``DirectModel.parameter_offset``); a Lagrangian model's effort (one generalized force per
+    coordinate) and its parameter constants (what the derivation computes once per parameter
+    vector) follow. The kernel source is generated from these places, and the model's
+    parameter vector is filled by them: this class is the one place that knows them.
+    """
+
+    parameters: tuple[str, ...]
+    n_efforts: int = 0
+    n_constants: int = 0
+    offset: int = 0
+
+    def index(self, name: str) -> int:
+        """The place of numeric parameter ``name``."""
+        return self.offset + self.parameters.index(name)
+
+    def indices(self) -> dict[str, int]:
+        """Every numeric parameter's place, by name."""
+        return {name: self.offset + i for i, name in enumerate(self.parameters)}
+
+    @property
+    def values(self) -> slice:
+        """The numeric parameters."""
+        return slice(self.offset, self.offset + len(self.parameters))
+
+    @property
+    def efforts(self) -> slice:
+        return slice(self.values.stop, self.values.stop + self.n_efforts)
+
+    def effort(self, i: int) -> int:
+        """The place of the effort on coordinate ``i``."""
+        return self.efforts.start + i
+
+    @property
+    def constants(self) -> slice:
+        return slice(self.efforts.stop, self.efforts.stop + self.n_constants)
+
+    def constant(self, i: int) -> int:
+        """The place of parameter constant ``i``."""
+        return self.constants.start + i
+
+    @property
+    def size(self) -> int:
+        return self.constants.stop
+
+    def with_constants(self, n_constants: int) -> ParameterLayout:
+        """This layout with ``n_constants`` parameter constants (known once derived)."""
+        return replace(self, n_constants=n_constants)
+
+
+@dataclass(frozen=True)
 class Event:
     """A state event: the kernel function ``event(t, y, p, out)`` gives one value per event and
     the event happens where ``out[index]`` changes sign in ``direction``: +1 rising (− to +),
@@ -500,8 +556,15 @@ class Model(ABC):
         return p
 
     def _make_parameter_vector(self) -> np.ndarray:
-        return np.array([float(self.values[p.name]) for p in self.parameter_spec()  # type: ignore[arg-type]
-                         if p.is_numeric], dtype=np.float64)
+        """The numeric parameters' values, in the order of ``parameter_layout.parameters``."""
+        return np.array([float(self.values[name])  # type: ignore[arg-type]
+                         for name in self.parameter_layout.parameters], dtype=np.float64)
+
+    @property
+    def parameter_layout(self) -> ParameterLayout:
+        """Where each parameter sits in the kernels' parameter vector (default: the numeric
+        parameters in the order of ``parameter_spec``, nothing else)."""
+        return ParameterLayout(tuple(p.name for p in self.parameter_spec() if p.is_numeric))
 
     @property
     def layout(self) -> StateLayout:

@@ -30,11 +30,12 @@ from __future__ import annotations
 import inspect
 import textwrap
 from collections.abc import Callable
+from dataclasses import replace
 from functools import cached_property
 from typing import ClassVar
 
 from mechsim import codegen
-from mechsim.systems.base import Model
+from mechsim.systems.base import Model, ParameterLayout
 
 
 class KernelContractError(ValueError):
@@ -73,16 +74,20 @@ class DirectModel(Model):
         """Constants of the kernel module besides the sizes and parameter indices."""
         return {}
 
+    @property
+    def parameter_layout(self) -> ParameterLayout:
+        """The derived block (``parameter_offset`` entries), then the numeric parameters."""
+        return replace(super().parameter_layout, offset=self.parameter_offset())
+
     def kernel_source(self) -> codegen.KernelSource:
-        numeric = [p.name for p in self.parameter_spec() if p.is_numeric]
-        offset = self.parameter_offset()
+        layout = self.parameter_layout
         n = len(self.coordinates)
         constants: dict[str, int | float] = {
             "N_Q": n, "N_Y": 2 * n + 2 + len(self.modes), "N_C": self.structure.n_constraints,
             "N_INV": len(self.invariants), "N_OBS": len(self.observables),
             "N_FRAMES": len(self.frames), "N_EV": len(self.events), "N_MODE": len(self.modes),
-            "N_P": offset + len(numeric)}
-        constants.update({parameter_constant(name): offset + i for i, name in enumerate(numeric)})
+            "N_P": layout.size}
+        constants.update({parameter_constant(name): i for name, i in layout.indices().items()})
         constants.update(self.kernel_constants())
         self._check_constants(constants)
         parts = []
