@@ -24,7 +24,7 @@ work_dissipated, modes (N_MODE)]``):
 
 A module leaves out what it does not have; ``NOTHING`` gives the no-op for each name.
 
-The shared loops (``mechsim.integrators.kernels``) are compiled once per machine and are
+The shared loops (``mechsim.integrators.compiled``) are compiled once per machine and are
 generic over the model: they receive a ``KernelSet``, a numba structure holding the model's
 compiled functions as first-class function values (calls through them stay compiled, no
 Python in between) and the model's sizes. It is built once per kernel module and set of
@@ -132,5 +132,7 @@ def make_kernel_set(functions: dict[str, object], sizes: dict[str, int]) -> Kern
     if unknown:
         raise ValueError(f"not kernel functions: {', '.join(sorted(unknown))}")
     chosen = [functions.get(n, NOTHING_POINTER if n in HOT else NOTHING[n]) for n in FUNCTIONS]
-    return _new_kernel_set(tuple(chosen),  # type: ignore[no-any-return]
-                           tuple(int(sizes[s]) for s in SIZES))
+    with warnings.catch_warnings():  # (a caller's filters may have brought it back)
+        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+        return _new_kernel_set(  # type: ignore[no-any-return]
+            tuple(chosen), tuple(int(sizes[s]) for s in SIZES))
