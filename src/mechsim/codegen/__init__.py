@@ -132,7 +132,7 @@ def decorator(name: str) -> str:
     nan, which the loops report as a non-finite state, instead of raising inside a loop).
 
     Numba gives every compiled function two entry points besides its own: one for calls from
-    Python and one for calls through a function value; building them is about a third of
+    Python and one for calls through a function value; building them is much of the work of
     compiling a small kernel. A helper (any name outside the contract) is only called from
     the module's compiled code, so it gets neither; a ``HOT`` function is called from Python
     and through its pointer wrapper (``KernelSource.text``), so it gets no function-value

@@ -12,9 +12,9 @@ under the names the kernel module gives them (``_vector``, ``_matrix``, ``_tenso
 ``_zero_vector``, ``_zero_matrix``, ``_solve``, …; import them under the same names). Allocating
 through these rather than ``np.empty``/``np.zeros`` spares each new model's compilation numba's
 own implementation of those, an element loop instead of a slice assignment
-``a[i, :] = b[j, :]`` spares it the shape check's error path (about two seconds), and products
+``a[i, :] = b[j, :]`` spares it the shape check's error path, and products
 instead of integer powers (``x * x`` for ``x ** 2``: the value numba computes for it) its
-compiled power subroutine (0.1 s). Missing contract functions do nothing.
+compiled power subroutine. Missing contract functions do nothing.
 
 The functions stay callable from Python too, with the constants of their own module. So that
 both agree, every upper-case constant a kernel function reads must be defined with the same

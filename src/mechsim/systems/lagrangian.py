@@ -35,7 +35,8 @@ reads its shape and structure (coordinates, invariants, frames, events, modes, s
 canonical form) and the derivation key of its kernels from a *summary*: made from the
 declaration the first time a class is built with these parameter values and this code, then
 recalled from the cache (``codegen.recall``), so that a model derived before is set up without
-importing sympy (``_symbolic``): a third of the CPU of a warm ``mechsim run``.
+importing sympy (``_symbolic``), which would otherwise be much of the CPU of a warm
+``mechsim run``.
 """
 
 from __future__ import annotations
@@ -262,7 +263,7 @@ class LagrangianModel(Model):
             [q.name for q in d.modes], sorted((k, sp.srepr(v)) for k, v in d.params.items()))
 
     def kernel_source(self) -> codegen.KernelSource:
-        """Derive the kernel functions (sympy; about a second for most systems)."""
+        """Derive the kernel functions (sympy: the slow part of a model's first run)."""
         from mechsim.systems.lagrangian_kernels import _derive
 
         d = self.declaration

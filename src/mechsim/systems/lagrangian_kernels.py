@@ -34,7 +34,7 @@ def _binary_power(base: str, n: int) -> str:
     """``base**n`` (n ≥ 1) written out as the products numba evaluates for it: repeated
     squaring, the powers of the set bits of n multiplied in increasing order (numba's
     ``int_power``), so the value is the same to the last bit. Numba compiles ``int_power`` as
-    a subroutine in every process that compiles a kernel using ``**`` (about 0.1 s)."""
+    a subroutine in every process that compiles a kernel using ``**``."""
     result = ""
     square = base
     while n:

@@ -60,8 +60,7 @@ PAIR_DOPRI5 = int(Pair.DOPRI5)
 @njit(inline="always")
 def _shrink(err, dopri5):
     """err^(−1/5) (DOPRI5) or err^(−1/8) (DOP853): the controller's step factor before its
-    safety factor and limits; DOP853's as three square roots, a third of the cost of
-    ``pow``."""
+    safety factor and limits; DOP853's as three square roots, cheaper than ``pow``."""
     if dopri5:
         return err ** -0.2
     return 1.0 / math.sqrt(math.sqrt(math.sqrt(err)))
