@@ -33,7 +33,7 @@ from mechsim.integrators.base import Request, Stepper
 from mechsim.integrators.closed_form import ClosedForm
 from mechsim.integrators.compiled import PRECOMPILE_PARTS, loop_signatures, precompile
 from mechsim.integrators.compiled import load as loops
-from mechsim.integrators.composition import Verlet, Yoshida6, Yoshida8
+from mechsim.integrators.composition import Composition, Verlet, Yoshida6, Yoshida8
 from mechsim.integrators.dop853 import DOP853
 from mechsim.integrators.dopri5 import DOPRI5
 from mechsim.integrators.errors import (
@@ -48,7 +48,7 @@ from mechsim.integrators.gauss6 import Gauss6
 from mechsim.integrators.model import SteppableModel as Model
 from mechsim.integrators.radau15 import Radau15
 
-__all__ = ["METHODS", "PRECOMPILE_PARTS", "Auto", "ClosedForm", "DOP853", "DOPRI5",
+__all__ = ["METHODS", "PRECOMPILE_PARTS", "Auto", "ClosedForm", "Composition", "DOP853", "DOPRI5",
            "EventAccumulationError", "Gauss6", "NonFiniteStateError", "NotConvergedError",
            "Radau15", "Request", "StepLimitError", "StepUnderflowError", "Stepper",
            "StiffnessError", "Verlet", "Yoshida6", "Yoshida8", "choose_method",
