@@ -12,8 +12,8 @@ import sympy as sp
 
 from mechsim.integrators import make_stepper
 from mechsim.systems import load_system
-from mechsim.systems.base import ParameterLayout
 from mechsim.systems.lagrangian_kernels import _ParameterConstants
+from mechsim.systems.layout import ParameterLayout
 
 
 def _index(model, name: str) -> int:  # type: ignore[no-untyped-def]

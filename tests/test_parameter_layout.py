@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from mechsim.systems import system_class, system_ids
-from mechsim.systems.base import ParameterLayout
 from mechsim.systems.direct import DirectModel, parameter_constant
 from mechsim.systems.lagrangian import LagrangianModel
+from mechsim.systems.layout import ParameterLayout
 
 _LOAD = re.compile(r"^ +(p_\w+|effort_\w+|pc_\d+) = p\[(\d+)\]$", re.MULTILINE)
 _FILL = re.compile(r"^ +p\[(\d+)\] = ", re.MULTILINE)

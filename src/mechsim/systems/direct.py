@@ -35,7 +35,8 @@ from functools import cached_property
 from typing import ClassVar
 
 from mechsim import codegen
-from mechsim.systems.base import Model, ParameterLayout
+from mechsim.systems.base import Model
+from mechsim.systems.layout import ParameterLayout
 
 
 class KernelContractError(ValueError):

@@ -50,16 +50,9 @@ import numpy as np
 
 from mechsim import codegen
 from mechsim.systems._symbolic import sympy as sp
-from mechsim.systems.base import (
-    Event,
-    FrameSpec,
-    Law,
-    Model,
-    ParameterLayout,
-    Quantity,
-    Structure,
-)
+from mechsim.systems.base import Event, FrameSpec, Law, Model, Quantity, Structure
 from mechsim.systems.declaration import LagrangianBuilder
+from mechsim.systems.layout import ParameterLayout
 
 #: Part of every derivation's cache key, with the source text of this module, of
 #: ``declaration`` (what a system declares) and of ``lagrangian_kernels`` (the derivation): any

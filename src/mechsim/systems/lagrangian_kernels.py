@@ -19,7 +19,8 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
 from mechsim.codegen import ARGUMENTS, FUNCTIONS
-from mechsim.systems.base import ParameterLayout, Structure
+from mechsim.systems.base import Structure
+from mechsim.systems.layout import ParameterLayout
 
 if TYPE_CHECKING:
     from sympy import Expr
