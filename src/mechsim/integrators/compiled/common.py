@@ -8,7 +8,7 @@ stages) numba cannot prune those counts, which cost an atomic increment and decr
 array, helper and step. A borrowed array has no reference to count, so the helpers cost
 nothing. A loop borrows only arrays its caller holds for the whole call: its arguments, and
 scratch arrays its entry point allocates and passes on (``erk._erk_work``,
-``radau.radau15_advance``)."""
+``radau.radau15_advance``, ``fixed.gauss_advance``, ``fixed.composition_advance``)."""
 
 import math
 

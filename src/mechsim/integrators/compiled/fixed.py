@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from mechsim.integrators.compiled.common import _add_compensated, _row
+from mechsim.integrators.compiled.common import _add_compensated, _borrowed, _copy_row, _row
 from mechsim.integrators.state import Status
 
 
@@ -47,10 +47,7 @@ def composition_advance(ks, state, y, p, n_out, n_sub, h, weights, Y_out, a, com
     coefficients (w_s + w_{s+1}) h / 2 inside a step, w h / 2 at its ends. Within a step the
     stages move q and v by increments dq, dv that start at zero (small numbers, added to
     without loss; the force is evaluated at q₀ + dq); the step's total increments are added
-    to the state once, compensated."""
-    s = state[0]
-    nq = ks.n_q
-    accel = ks.accel_q
+    to the state once, compensated. The steps are taken by ``_composition_steps``."""
     nw = weights.size
     kick = np.empty(nw + 1)
     drift = np.empty(nw)
@@ -60,8 +57,23 @@ def composition_advance(ks, state, y, p, n_out, n_sub, h, weights, Y_out, a, com
     kick[nw] = 0.5 * weights[nw - 1] * h
     for j in range(nw):
         drift[j] = weights[j] * h
-    q = np.empty(nq)
-    d = np.empty(2 * nq)  # [dq, dv]
+    nq = ks.n_q
+    return _composition_steps(ks, state, y, p, n_out, n_sub, h, Y_out, a, comp,
+                              (kick, drift, np.empty(nq), np.empty(2 * nq)))
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def _composition_steps(ks, state, y, p, n_out, n_sub, h, Y_out, a, comp, work):
+    """``composition_advance``'s steps, on the arrays borrowed (see ``common``); ``work``:
+    the kick and drift coefficients, scratch for q and for the increments [dq, dv]."""
+    y, p, Y_out, a, comp = (_borrowed(y), _borrowed(p), _borrowed(Y_out), _borrowed(a),
+                            _borrowed(comp))
+    kick, drift, q, d = (_borrowed(work[0]), _borrowed(work[1]), _borrowed(work[2]),
+                         _borrowed(work[3]))
+    s = state[0]
+    nq = ks.n_q
+    accel = ks.accel_q
+    nw = drift.size
     for k in range(n_out):
         for _ in range(n_sub):
             if nq == 1:
@@ -78,7 +90,7 @@ def composition_advance(ks, state, y, p, n_out, n_sub, h, weights, Y_out, a, com
         for i in range(2 * nq):
             if not math.isfinite(y[i]):
                 return Status.NOT_FINITE, k
-        Y_out[k, :] = y
+        _copy_row(Y_out, k, y)
     return Status.OK, n_out
 
 
@@ -96,14 +108,24 @@ def gauss_advance(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp):
     variables z = [q, p, work terms] of a conservative system, fixed step ``h``, stage
     equations solved by fixed-point iteration started from the last step's stages (``K``,
     shape (3, N_Y), kept between calls), z updated with compensation ``comp``. Writes
-    y = [q, q̇, ...] after each block of ``n_sub`` steps. Returns (status, written)."""
+    y = [q, q̇, ...] after each block of ``n_sub`` steps. Returns (status, written). The steps
+    are taken by ``_gauss_steps``, on the arrays borrowed (see ``common``)."""
+    n = z.size
+    return _gauss_steps(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp,
+                        (np.empty(n), np.empty(n), np.empty((3, n))))
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def _gauss_steps(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp, work):
+    """``gauss_advance``'s steps; ``work``: scratch (the stages' z, the increments, the new
+    stages)."""
+    z, p, Y_out, K, comp = (_borrowed(z), _borrowed(p), _borrowed(Y_out), _borrowed(K),
+                            _borrowed(comp))
+    zs, inc, Knew = _borrowed(work[0]), _borrowed(work[1]), _borrowed(work[2])
     s = state[0]
-    zs = np.empty(z.size)
     pp = p.ctypes
     zp = zs.ctypes
     n = z.size
-    inc = np.empty(n)
-    Knew = np.empty((3, n))
     for k in range(n_out):
         for _ in range(n_sub):
             t = s.t
