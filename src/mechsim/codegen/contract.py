@@ -42,6 +42,7 @@ import warnings
 
 from numba import cfunc, njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
+from numba.core.typing.templates import Signature
 from numba.experimental import structref
 
 from mechsim.codegen import support  # noqa: F401 - compiles the helpers kernels call
@@ -56,12 +57,12 @@ VEC = types.float64[::1]
 MAT = types.float64[:, ::1]
 
 
-def _signature(f: Function) -> types.Signature:
+def _signature(f: Function) -> Signature:
     return types.none(F8, *(MAT if a in f.matrices else VEC for a in f.arguments[1:]))
 
 
 #: name -> numba signature of each kernel function.
-SIGNATURES: dict[str, types.Signature] = {n: _signature(f) for n, f in CONTRACT.items()}
+SIGNATURES: dict[str, Signature] = {n: _signature(f) for n, f in CONTRACT.items()}
 #: How the ``HOT`` functions are called from the loops: (t, y, p, out) as (float64, double*,
 #: double*, double*), sizes fixed by the model (``codegen.KernelSource`` writes the wrappers).
 POINTER_SIGNATURE = types.none(F8, types.CPointer(F8), types.CPointer(F8), types.CPointer(F8))

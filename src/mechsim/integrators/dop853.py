@@ -101,7 +101,7 @@ class DOP853(Stepper):
         if self.kernels.n_c > 0:
             self._call(_NO_TIMES, np.empty((0, self.y.size)))
 
-    def _call(self, t_out: np.ndarray, Y: np.ndarray) -> tuple[int, int]:
+    def _call(self, t_out: np.ndarray, Y: np.ndarray) -> tuple[Status, int]:
         """One call of the compiled loop (the pending restart first)."""
         restart, self._restart = self._restart, _NO_RESTART
         return self._loop(  # type: ignore[no-any-return]

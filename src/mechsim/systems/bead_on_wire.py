@@ -77,10 +77,11 @@ MAX_CONSTANT_EXPONENT = 100.0  # |n| of x**n when n is a constant
 _BINARY: dict[type, Callable[[float, float], float]] = {
     ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
     ast.Div: operator.truediv, ast.Pow: operator.pow}
-_MATH = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
-         "sqrt": math.sqrt, "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh,
-         "atan": math.atan, "asin": math.asin, "acos": math.acos, "asinh": math.asinh,
-         "acosh": math.acosh, "atanh": math.atanh, "abs": abs}
+_MATH: dict[str, Callable[[float], float]] = {
+    "sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
+    "sqrt": math.sqrt, "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh,
+    "atan": math.atan, "asin": math.asin, "acos": math.acos, "asinh": math.asinh,
+    "acosh": math.acosh, "atanh": math.atanh, "abs": abs}
 
 
 def _bounded(node: ast.AST, text: str, depth: int = 0, powers: int = 0) -> float | None:
