@@ -36,7 +36,7 @@ def ros2_environment() -> tuple[dict[str, str] | None, str]:
         return None, ("no ros2 command: none on PATH, and none built from ../shared/ros2cli "
                       "(tools/test_tools.sh builds it where that folder exists)")
     # What ../shared/ros2cli/env.sh sets for the tools' venv over this checkout's venv, with
-    # this session's graph (domain, profile) kept.
+    # the test run's graph (domain, profile) kept.
     tools = TOOLS.parent.parent
     site = sysconfig.get_paths()["purelib"]
     libs = [str(tools / "lib"), str(Path(sys.prefix) / "lib"),
