@@ -398,7 +398,7 @@ class Graph:
         if srv_type is None:
             module = sys.modules[type(request).__module__]
             srv_type = getattr(module, type(request).__name__.split("_Request")[0])
-        client = self.probe.create_client(srv_type, service)
+        client: Any = self.probe.create_client(srv_type, service)
         self.spin_until(client.service_is_ready, timeout, f"{service}: service not available")
         future = client.call_async(request)
         self.spin_until(future.done, timeout, f"{service}: no answer")

@@ -10,6 +10,7 @@ from mechsim.figures.render import Drawn, label, new_figure
 from mechsim.simulate import simulate
 from mechsim.systems import load_system
 from mechsim.systems.curves import top_potential
+from mechsim.systems.symmetric_top import SymmetricTop
 
 PHYS = "PHYS0500 – Advanced Classical Mechanics"
 
@@ -18,6 +19,7 @@ def top_nutation(quick: bool) -> Drawn:
     """The symmetry axis of the heavy top seen from above for three starts (φ̇₀ between
     −½ and +½ of the slow precession rate): loops, cusps, waves; V(θ) with E′."""
     base = load_system("symmetric_top")
+    assert isinstance(base, SymmetricTop)  # the registry's class: its analyses below
     slow = min(base.steady_precession_rates(), key=abs)
     fig, ax = new_figure(1, 4, height=4.0, width=15.0)
     numbers = {"slow_precession_rad_s": slow}

@@ -8,10 +8,12 @@ import math
 
 import numpy as np
 
-from mechsim.figures.render import Drawn, label, new_figure
+from mechsim.figures.render import Drawn, label, load_as, new_figure
 from mechsim.simulate import simulate
 from mechsim.systems import load_system
+from mechsim.systems.central_force import CentralForce
 from mechsim.systems.curves import effective_potential, kepler_effective_potential
+from mechsim.systems.power_law_orbit import PowerLawOrbit
 
 NOTES = "Introduction to analytical mechanics, “Classification of the orbits”"
 PHYS = "PHYS0500 – Advanced Classical Mechanics"
@@ -62,7 +64,7 @@ def kepler_orbits(quick: bool) -> Drawn:
     numbers = {}
     for name, speed in (("circle", 1.0), ("ellipse", 1.2), ("parabola", math.sqrt(2.0)),
                         ("hyperbola", 1.6)):
-        m = load_system("central_force", formulation="polar", mass_1=1e6, mass_2=1.0,
+        m = load_as(CentralForce, "central_force", formulation="polar", mass_1=1e6, mass_2=1.0,
                         force_constant=k, **{"initial.r": r0, "initial_rate.r": 0.0,
                                              "initial_rate.theta": speed / r0,
                                              "initial_rate.cm_x": 0.0})
@@ -94,7 +96,7 @@ def power_law_orbits(quick: bool) -> Drawn:
     fig, ax = new_figure(1, 3, width=15.0)
     numbers = {}
     for n in (-2.5, -1.0, 2.0, -2.0, 1.0):
-        m = load_system("power_law_orbit", exponent=n, **{"initial_rate.theta": 0.6})
+        m = load_as(PowerLawOrbit, "power_law_orbit", exponent=n, **{"initial_rate.theta": 0.6})
         run = simulate(m, 6 * m.radial_period(), 0.01, tolerance=1e-10)
         r, th = run.coordinate("r"), run.coordinate("theta")
         aps = m.apsidal_angle()
@@ -115,7 +117,7 @@ def power_law_orbits(quick: bool) -> Drawn:
     for rdot in (0.2, 0.5):
         angles = []
         for n in ns:
-            m = load_system("power_law_orbit", exponent=float(n),
+            m = load_as(PowerLawOrbit, "power_law_orbit", exponent=float(n),
                             **{"initial_rate.theta": 1.0, "initial_rate.r": rdot})
             try:
                 angles.append(math.degrees(m.apsidal_angle()))
@@ -139,9 +141,10 @@ def radial_oscillations(quick: bool) -> Drawn:
     fig, ax = new_figure(1, 1, width=8.0)
     numbers = {}
     for n in (-2.5, -1.0, 1.0, 2.0):
-        base = load_system("power_law_orbit", exponent=n, **{"initial_rate.theta": 1.0})
+        base = load_as(PowerLawOrbit, "power_law_orbit", exponent=n,
+                       **{"initial_rate.theta": 1.0})
         r0 = base.circular_radius()
-        m = load_system("power_law_orbit", exponent=n, **{
+        m = load_as(PowerLawOrbit, "power_law_orbit", exponent=n, **{
             "initial.r": r0, "initial_rate.theta": 1.0 / r0**2, "initial_rate.r": 1e-3})
         w = m.radial_frequency()
         run = simulate(m, 10.0, 0.01, tolerance=1e-11)

@@ -10,10 +10,12 @@ import numpy as np
 
 from mechsim.experiments.phase_portrait import phase_portrait
 from mechsim.experiments.resonance import sweep
-from mechsim.figures.render import Drawn, label, new_figure
+from mechsim.figures.render import Drawn, label, load_as, new_figure
 from mechsim.simulate import simulate
 from mechsim.systems import load_system
+from mechsim.systems.coupled_oscillators import CoupledOscillators
 from mechsim.systems.curves import pendulum_separatrix, resonance_curves
+from mechsim.systems.oscillator_chain import OscillatorChain
 
 PHYS = "PHYS0500 – Advanced Classical Mechanics"
 
@@ -74,7 +76,7 @@ def resonance(quick: bool) -> Drawn:
 
 def coupled_beats(quick: bool) -> Drawn:
     """Two weakly coupled oscillators exchanging their energy (§8.2)."""
-    model = load_system("coupled_oscillators", count=2, coupling_constant=0.4)
+    model = load_as(CoupledOscillators, "coupled_oscillators", count=2, coupling_constant=0.4)
     t_swap = model.transfer_time()
     run = simulate(model, 2.2 * t_swap, 0.02, tolerance=1e-10)
     fig, ax = new_figure(1, 2)
@@ -101,7 +103,7 @@ def chain_frequencies(quick: bool) -> Drawn:
     for a, walls in zip(ax[0], ("both", "left", "none"), strict=True):
         holds = []
         for n in range(1, 13):
-            m = load_system("oscillator_chain", count=n, walls=walls)
+            m = load_as(OscillatorChain, "oscillator_chain", count=n, walls=walls)
             w = m.mode_frequencies() / m.held_frequency()
             a.plot([n] * n, w, "o", ms=3, color="tab:blue")
             holds.append(m.document_claim_holds())

@@ -8,9 +8,10 @@ import io
 import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from mechsim.files import write_atomic
+from mechsim.systems import Model, load_system
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -29,6 +30,18 @@ class Drawn:
     figure: Figure
     caption: str
     numbers: dict[str, float] = field(default_factory=dict)
+
+
+_System = TypeVar("_System", bound=Model)
+
+
+def load_as(kind: type[_System], system_id: str, **values: Any) -> _System:
+    """``load_system(system_id, **values)`` typed as the class whose analyses a figure draws
+    (a TypeError if the registry gives another)."""
+    model = load_system(system_id, **values)
+    if not isinstance(model, kind):
+        raise TypeError(f"{system_id}: a {type(model).__name__}, not a {kind.__name__}")
+    return model
 
 
 def new_figure(rows: int = 1, cols: int = 1, width: float = 11.0,
@@ -67,7 +80,7 @@ def constant_scale(ax: Axes, *series: Any) -> None:
 
 def caption(fig: Figure, text: str) -> None:
     """Print ``text`` under the axes, wrapped, and lay the axes out above it."""
-    lines = textwrap.wrap(text, CAPTION_WIDTH * fig.get_figwidth() / 11.0)
+    lines = textwrap.wrap(text, int(CAPTION_WIDTH * fig.get_figwidth() / 11.0))
     height = (0.12 + 0.15 * len(lines)) / fig.get_figheight()
     fig.text(0.01, 0.01, "\n".join(lines), fontsize=8.5, va="bottom", ha="left")
     fig.tight_layout(rect=(0.0, height, 1.0, 1.0))

@@ -14,17 +14,28 @@ if TYPE_CHECKING:
 
 
 class StructureLike(Protocol):
-    separable: bool  # H = T(p) + V(q): compositions of velocity Verlet apply
-    dissipative: bool  # a Rayleigh function acts: errors decay, damping may be stiff
+    @property
+    def separable(self) -> bool:
+        """H = T(p) + V(q): compositions of velocity Verlet apply."""
+    @property
+    def dissipative(self) -> bool:
+        """A Rayleigh function acts: errors decay, damping may be stiff."""
 
 
 class SteppableModel(Protocol):
-    id: str
-    formulation: str
-    coordinates: Sequence[Any]
-    events: Sequence[Any]
-    structure: StructureLike
-    kernels: Kernels
+    # Read-only: a model may hold them as attributes or compute them as properties.
+    @property
+    def id(self) -> str: ...
+    @property
+    def formulation(self) -> str: ...
+    @property
+    def coordinates(self) -> Sequence[Any]: ...
+    @property
+    def events(self) -> Sequence[Any]: ...
+    @property
+    def structure(self) -> StructureLike: ...
+    @property
+    def kernels(self) -> Kernels: ...
 
     def parameter_vector(self) -> np.ndarray: ...
     def complete_parameters(self, p: np.ndarray) -> np.ndarray: ...

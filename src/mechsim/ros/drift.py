@@ -108,17 +108,17 @@ def _drifts(laws: list[LawState], values: np.ndarray) -> np.ndarray:
         else:
             groups.setdefault(law.law.is_constraint, []).append(i)
     for rows in groups.values():
-        law = laws[rows[0]].law
+        kind = laws[rows[0]].law
         if len(rows) == 1:
             i = rows[0]
-            drifts[i] = law.drift(values[i], laws[i].initial, laws[i].scale)
+            drifts[i] = kind.drift(values[i], laws[i].initial, laws[i].scale)
             continue
         initial = np.array([[laws[i].initial] for i in rows])
         scale = np.array([[laws[i].scale] for i in rows])
         if len(rows) == len(laws):
-            drifts[:] = law.drift(values, initial, scale)
+            drifts[:] = kind.drift(values, initial, scale)
         else:
-            drifts[rows] = law.drift(values[rows], initial, scale)
+            drifts[rows] = kind.drift(values[rows], initial, scale)
     return drifts
 
 

@@ -66,8 +66,9 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
     stats = ReplayStats()
     start = 0.0
     try:
-        pubs = {t: node.create_publisher(classes[t], t, qos_profile(known[t][1], known[t][2]))
-                for t in selected}
+        pubs: dict[str, Any] = {
+            t: node.create_publisher(classes[t], t, qos_profile(known[t][1], known[t][2]))
+            for t in selected}
         clock_pub = node.create_publisher(Clock, "/clock", CLOCK_QOS)
         time.sleep(max(delay, 0.0))
         start = time.monotonic()
@@ -89,7 +90,7 @@ def replay(path: str | Path, *, rate: float = 1.0, loop: bool = False,
                     last_clock = m.log_time
                     stats.clock += 1
                 try:
-                    msg = deserialize_message(m.data, classes[m.topic])
+                    msg: Any = deserialize_message(m.data, classes[m.topic])
                 except Exception:  # noqa: BLE001 - rclpy raises plain exceptions on bad CDR
                     raise MechsimError(f"bag {d}: a {known[m.topic][0]} message on {m.topic} "
                                        "does not deserialize (corrupt bag)") from None

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,6 +18,10 @@ from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
 
 if TYPE_CHECKING:
     from sympy import Expr
+
+
+#: A function of the radius taking a float or an array of radii (numpy broadcasting).
+Radial = Callable[[Any], Any]
 
 
 def declare_orbit_quantities(b: LagrangianBuilder, mu: Expr, x: Expr, y: Expr, dx: Expr,
@@ -153,7 +157,7 @@ def radial_range(U: Callable[[float], float], mu: float, E: float, l: float, r0:
     return lo, hi
 
 
-def nearest_turning_points(gap: Callable[[float], float], r0: float, rdot0: float,
+def nearest_turning_points(gap: Radial, r0: float, rdot0: float,
                            r_min: float, r_max: float) -> tuple[float, float]:
     """(r_min, r_max) of the motion from (r₀, ṙ₀): the roots of gap(r) = E − V_eff(r) nearest
     to r₀ on each side, found by stepping away from r₀ in geometrically growing steps (from
@@ -191,7 +195,7 @@ def nearest_turning_points(gap: Callable[[float], float], r0: float, rdot0: floa
     return 0.0 if lo is None else lo, math.inf if hi is None else hi
 
 
-def orbit_integral(gap: Callable[[np.ndarray], np.ndarray], mu: float, lo: float, hi: float,
+def orbit_integral(gap: Radial, mu: float, lo: float, hi: float,
                    weight: Callable[[np.ndarray], np.ndarray] | None = None,
                    nodes: int = 256) -> float:
     """∫ w(r) dr / ṙ from the turning point ``lo`` to ``hi``, ṙ = √((2/μ) gap(r)) with
@@ -212,7 +216,7 @@ def orbit_integral(gap: Callable[[np.ndarray], np.ndarray], mu: float, lo: float
     return float(math.pi / nodes * np.sum(f))
 
 
-def apsidal_angle(gap: Callable[[np.ndarray], np.ndarray], mu: float, l: float, lo: float,
+def apsidal_angle(gap: Radial, mu: float, l: float, lo: float,
                   hi: float) -> float:
     """The angle swept from one apsis to the next, ½Δθ of PHYS0500 §4.4:
     ∫_{r_min}^{r_max} (l/r²) dr / √(2μ(E − U − l²/2μr²)) (``orbit_integral``). The orbit

@@ -53,8 +53,8 @@ class Part:
 
 def composite(parts: list[Part]) -> tuple[float, np.ndarray, np.ndarray]:
     """Total mass, centre of mass and inertia tensor about the centre of mass of ``parts``."""
-    total = sum(p.mass for p in parts)
-    cm = sum(p.mass * np.asarray(p.position, dtype=float) for p in parts) / total
+    total = float(sum(p.mass for p in parts))
+    cm = np.sum([p.mass * np.asarray(p.position, dtype=float) for p in parts], axis=0) / total
     inertia = np.zeros((3, 3))
     for p in parts:
         R = np.eye(3) if p.rotation is None else np.asarray(p.rotation, dtype=float)

@@ -9,6 +9,7 @@ underscore).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -116,7 +117,8 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
 _GL_BLOCK = 4096
 
 
-def cumulative_integral(f: object, t0: float, t: np.ndarray, max_piece: float) -> np.ndarray:
+def cumulative_integral(f: Callable[[np.ndarray], np.ndarray], t0: float, t: np.ndarray,
+                        max_piece: float) -> np.ndarray:
     """∫_{t₀}^{t_k} f(s) ds for increasing t_k ≥ t₀: 16-point Gauss–Legendre on pieces no
     longer than ``max_piece`` (exact to round-off for smooth f over a fraction of its period);
     f takes an array of times, and is called on blocks of pieces at once."""
@@ -134,7 +136,7 @@ def cumulative_integral(f: object, t0: float, t: np.ndarray, max_piece: float) -
     for k in range(0, owner.size, _GL_BLOCK):
         half = 0.5 * h[k:k + _GL_BLOCK]
         nodes = (lo[k:k + _GL_BLOCK] + half)[:, None] + half[:, None] * _GL_X
-        values = np.asarray(f(nodes.ravel()), dtype=float).reshape(nodes.shape)  # type: ignore[operator]
+        values = np.asarray(f(nodes.ravel()), dtype=np.float64).reshape(nodes.shape)
         pieces[k:k + _GL_BLOCK] = half * (values @ _GL_W)
     return np.cumsum(np.bincount(owner, weights=pieces, minlength=t.size))
 

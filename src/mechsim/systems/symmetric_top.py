@@ -353,10 +353,10 @@ class SymmetricTop(Model):
         target = _EulerAngleTop if chosen == "euler_angles" else _QuaternionTop
         return super().__new__(target)  # type: ignore[arg-type]
 
-    def with_values(self, **changes: Any) -> Model:
+    def with_values(self, **changes: Any) -> SymmetricTop:
         merged = dict(self.values)
         merged.update(changes)
-        return SymmetricTop(**merged)
+        return SymmetricTop(**merged)  # type: ignore[abstract]  # __new__ makes a concrete one
 
     def check(self) -> None:
         if self.formulation == "euler_angles" and math.sin(self.value("initial.theta")) < 0.01:

@@ -230,7 +230,10 @@ class McapFile:
     @staticmethod
     def _row_layout(key: tuple[tuple[int, int], ...]) -> _RowLayout:
         template = bytearray()
-        names, formats, offsets, columns = [], [], [], []
+        names: list[str] = []
+        formats: list[Any] = []
+        offsets: list[int] = []
+        columns: list[int] = []
         for i, (channel, size) in enumerate(key):
             columns.append(len(template))
             names.append(f"t{i}")
@@ -313,21 +316,21 @@ class McapFile:
             batch_channels = channels.tolist()
             if not singles.keys() & set(batch_channels):
                 by_channel = dict(zip(batch_channels, records, strict=True))
-                pieces: list[Any] = []
-                offsets: list[int] = []
+                made: list[Any] = []
+                placed: list[int] = []
                 for channel in sorted((*batch_channels, *singles)):
                     row = by_channel.get(channel)
                     if row is None:
-                        pairs = singles[channel]
-                        body = 16 * len(pairs)
+                        kept = singles[channel]
+                        body = 16 * len(kept)
                         row = _MESSAGE_INDEX_HEAD.pack(
                             _OP_MESSAGE_INDEX, 2 + 4 + body, channel, body) + struct.pack(
-                            f"<{2 * len(pairs)}Q", *(v for pair in pairs for v in pair))
-                    pieces.append(row)
-                    offsets += (channel, at)
+                            f"<{2 * len(kept)}Q", *(v for pair in kept for v in pair))
+                    made.append(row)
+                    placed += (channel, at)
                     at += len(row)
-                return (b"".join(pieces), struct.pack("<" + "HQ" * len(pieces), *offsets),
-                        len(pieces))
+                return (b"".join(made), struct.pack("<" + "HQ" * len(made), *placed),
+                        len(made))
         entries: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         for e in self._index:
             if len(e) == 4:
@@ -338,7 +341,8 @@ class McapFile:
                                 np.tile(batch.ns[start:end], batch.channels.shape[0]),
                                 (batch.columns[:, None] + rows[None, :]).reshape(-1)))
             else:
-                entries.append(tuple(np.array([v], dtype=np.int64) for v in e))
+                entries.append((np.array([e[0]], dtype=np.int64), np.array([e[1]], dtype=np.int64),
+                                np.array([e[2]], dtype=np.int64)))
         channels, stamps, offsets = (np.concatenate(a) for a in zip(*entries, strict=True))
         order = np.lexsort((offsets, channels))
         pairs = np.empty((channels.shape[0], 2), dtype="<u8")
@@ -348,15 +352,15 @@ class McapFile:
         bounds = np.flatnonzero(np.diff(channels)) + 1
         starts = [0, *bounds.tolist()]
         ends = [*bounds.tolist(), channels.shape[0]]
-        pieces: list[Any] = []
-        index_map: list[int] = []
+        indexes: list[Any] = []
+        where: list[int] = []
         for channel, lo, hi in zip(channels[starts].tolist(), starts, ends, strict=True):
             body = 16 * (hi - lo)
-            pieces += (_MESSAGE_INDEX_HEAD.pack(_OP_MESSAGE_INDEX, 2 + 4 + body, channel,
-                                                body), pairs[lo:hi])
-            index_map += (channel, at)
+            indexes += (_MESSAGE_INDEX_HEAD.pack(_OP_MESSAGE_INDEX, 2 + 4 + body, channel,
+                                                 body), pairs[lo:hi])
+            where += (channel, at)
             at += _MESSAGE_INDEX_HEAD.size + body
-        return (b"".join(pieces), struct.pack("<" + "HQ" * len(starts), *index_map),
+        return (b"".join(indexes), struct.pack("<" + "HQ" * len(starts), *where),
                 len(starts))
 
     @staticmethod

@@ -67,7 +67,7 @@ class _Plots:
         import rerun.blueprint as rrb
 
         entities = entities or []
-        colours = {e: rr.SeriesLines.from_fields(colors=[c])
+        colours: dict[Any, Any] = {e: rr.SeriesLines.from_fields(colors=[c])
                    for e, c in zip(entities, _colours(len(entities)), strict=True)}
         return rrb.TimeSeriesView(name=name, origin=origin, contents=contents,
                                   axis_x=self.axis_x, overrides=colours, **kw)
