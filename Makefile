@@ -21,9 +21,10 @@ unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 bootstrap:
 	@$(PYTHON3) tools/bootstrap.py
 
-# What only the tests need, also inside the checkout: Foxglove's decoders (npm) and Debian's
-# chromium unpacked under .cache/test-tools (apt-get download, no root); skipped where it
-# cannot be installed (or with NO_TEST_TOOLS=1), and the tests that need it skip with the reason.
+# What only the tests need, also inside the checkout: Foxglove's decoders (npm), Debian's
+# chromium unpacked under .cache/test-tools (apt-get download, no root), the ros2 command and
+# colcon; each skipped where it cannot be installed (or with NO_TEST_TOOLS=1), and the tests
+# that need it skip with the reason.
 NO_TEST_TOOLS ?=
 test-tools: bootstrap
 	@if [ -n "$(NO_TEST_TOOLS)" ]; then \
@@ -31,7 +32,8 @@ test-tools: bootstrap
 	else \
 	  echo "make test: installing the test-only tools into the checkout (tools/test_tools.py):"; \
 	  echo "  Foxglove's decoders (npm ci in tests/foxglove), Debian's chromium and the libraries"; \
-	  echo "  this machine lacks (apt-get download + dpkg -x into .cache/test-tools)"; \
+	  echo "  this machine lacks (apt-get download + dpkg -x into .cache/test-tools), the real"; \
+	  echo "  ros2 command (../shared/ros2cli, into .ros2tools) and colcon (.cache/colcon)"; \
 	  $(VENV)/bin/python tools/test_tools.py; \
 	fi
 
@@ -42,7 +44,6 @@ run: bootstrap
 # 102..214 are unusable), unless the caller set one. Exit 5 (no tests collected) is a pass.
 test: test-tools
 	@$(VENV)/bin/ruff check src tests tools
-	@tools/test_tools.sh  # the real ros2 command (../shared/ros2cli) and colcon, for their tests
 	@export FASTDDS_DEFAULT_PROFILES_FILE="$(PROFILE)"; \
 	export ROS_DOMAIN_ID="$${ROS_DOMAIN_ID:-$$(( $$$$ % 101 + 1 ))}"; \
 	echo "make test: ROS_DOMAIN_ID=$$ROS_DOMAIN_ID"; \

@@ -34,7 +34,7 @@ def ros2_environment() -> tuple[dict[str, str] | None, str]:
         return env, ""
     if not TOOLS.exists():
         return None, ("no ros2 command: none on PATH, and none built from ../shared/ros2cli "
-                      "(tools/test_tools.sh builds it where that folder exists)")
+                      "(tools/test_tools.py builds it where that folder exists)")
     # What ../shared/ros2cli/env.sh sets for the tools' venv over this checkout's venv, with
     # the test run's graph (domain, profile) kept.
     tools = TOOLS.parent.parent

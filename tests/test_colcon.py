@@ -3,7 +3,7 @@ the ROS install (``AMENT_PREFIX_PATH``/``CMAKE_PREFIX_PATH``, as a sourced insta
 with the command docs/ros2.md gives: the package is installed (marker, package.xml, launch
 files, scenes, executables), with its message package, and never a copy of the install's own
 ``tf2_msgs``. colcon-core and colcon-ros come from PyPI into ``.cache/colcon`` (the test
-command's tools/test_tools.sh); skipped, saying why, where colcon or cmake is missing."""
+command's tools/test_tools.py); skipped, saying why, where colcon or cmake is missing."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ COLCON = ROOT / ".cache" / "colcon" / "bin" / "colcon"
 def _colcon() -> str:
     found = shutil.which("colcon") or (str(COLCON) if COLCON.exists() else None)
     if found is None:
-        pytest.skip("no colcon: none on PATH and none in .cache/colcon (tools/test_tools.sh "
+        pytest.skip("no colcon: none on PATH and none in .cache/colcon (tools/test_tools.py "
                     "installs it from PyPI)")
     if shutil.which("cmake") is None:
         pytest.skip("no cmake: the message package cannot be built")

@@ -11,6 +11,13 @@ Nothing here is needed to run mechsim, and nothing is written outside the checko
              tests/test_live_viewer.py opens the live Rerun view in it, headless, with
              LD_LIBRARY_PATH pointing there. Needs apt-get and dpkg (a Debian-like system)
              with package lists; about 100 MB to download, 340 MB unpacked.
+3. ros2      the real ``ros2`` command, ``launch`` and ``launch_ros`` (not on PyPI), built by
+             ../shared/ros2cli/setup.sh into .ros2tools where that folder exists, unless a
+             ``ros2`` command is on PATH already (a ROS install); tests/test_ros2_cli.py,
+             tests/test_launch_files.py and others use it as a ROS user would.
+4. colcon    colcon-core and colcon-ros from PyPI (tools/colcon-requirements.txt) in a venv of
+             their own, .cache/colcon (never the project's: colcon brings pytest plugins and
+             its own setuptools pin); tests/test_colcon.py builds the repository with it.
 
 What cannot be installed is said in one line and skipped; the tests that need it then skip,
 with the reason. Each step is redone only when its inputs changed (the package lock; the
@@ -175,8 +182,57 @@ def chromium(force: bool) -> None:
     CHROMIUM_INFO.write_text(json.dumps(info, indent=1) + "\n")
 
 
+
+# ----------------------------------------------------------------------------- ros2, colcon
+
+ROS2TOOLS = ROOT / ".ros2tools"
+SHARED_ROS2CLI = ROOT.parent / "shared" / "ros2cli"
+COLCON = ROOT / ".cache" / "colcon"
+COLCON_PINS = ROOT / "tools" / "colcon-requirements.txt"
+
+
+def ros2(force: bool) -> None:
+    if shutil.which("ros2"):
+        say(f"ros2: on PATH ({shutil.which('ros2')})")
+        return
+    if (ROS2TOOLS / "venv" / "bin" / "ros2").exists() and not force:
+        return
+    setup = SHARED_ROS2CLI / "setup.sh"
+    if not setup.exists():
+        raise Skipped(f"no ros2 command on PATH and no {setup}")
+    say(f"ros2: building the ros2 command from {SHARED_ROS2CLI} (1-2 min, once)")
+    run("ros2", [str(setup), str(ROOT)])
+
+
+def colcon(force: bool) -> None:
+    stamp = COLCON / ".pins"
+    pins = COLCON_PINS.read_bytes()
+    if (COLCON / "bin" / "colcon").exists() and stamp.exists() and stamp.read_bytes() == pins \
+            and not force:
+        return
+    say("colcon: installing into .cache/colcon (PyPI)")
+    shutil.rmtree(COLCON, ignore_errors=True)
+    python = sys._base_executable  # the interpreter the project's venv was made from
+    uv = Path(sys.prefix) / "bin" / "uv"
+    try:
+        if uv.exists():
+            run("colcon", [python, "-m", "venv", "--without-pip", str(COLCON)])
+            run("colcon", [str(uv), "pip", "install", "-q", "--python",
+                           str(COLCON / "bin" / "python"), "-r", str(COLCON_PINS)], append=True)
+        else:
+            run("colcon", [python, "-m", "venv", str(COLCON)])
+            run("colcon", [str(COLCON / "bin" / "python"), "-m", "pip", "install", "-q",
+                           "--disable-pip-version-check", "-r", str(COLCON_PINS)], append=True)
+    except Skipped:
+        shutil.rmtree(COLCON, ignore_errors=True)
+        raise
+    stamp.write_bytes(pins)
+
+
 STEPS = (("foxglove", foxglove, "tests/test_plottable.py's Foxglove test"),
-         ("chromium", chromium, "tests/test_live_viewer.py's browser tests"))
+         ("chromium", chromium, "tests/test_live_viewer.py's browser tests"),
+         ("ros2", ros2, "the tests that use the ros2 command"),
+         ("colcon", colcon, "tests/test_colcon.py"))
 
 
 def main(argv: list[str]) -> int:
