@@ -16,6 +16,7 @@ Format (every field validated; unknown keys are errors)::
         method: auto            # auto | dop853 | yoshida8 | yoshida6 | verlet
         tolerance: 1.0e-10
         origin: [0.0, 0.0, 0.0] # where the system's world-rooted frames sit in the world
+        effort_limit: 1.0e+6    # largest |effort| accepted per coordinate (also --set)
 
 Ranges of the run settings are defined once in ``mechsim.params`` (shared with the CLI and the
 nodes' ROS parameters). Files are untrusted input: at most 1 MiB of UTF-8, YAML aliases are
@@ -35,6 +36,7 @@ from mechsim.files import load_yaml, read_bounded
 from mechsim.integrators import METHODS
 from mechsim.params import (
     DURATION,
+    EFFORT_LIMIT,
     ERROR_DRIFT,
     PUBLISH_RATE,
     REAL_TIME_FACTOR,
@@ -68,6 +70,7 @@ class Instance:
     method: str = "auto"
     tolerance: float = 1e-10
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    effort_limit: float = float(EFFORT_LIMIT.default)
     #: The model built from (system, parameters) and those inputs: built once, when the
     #: instance is parsed (every check of the model), and handed on to its run.
     _built: tuple[str, dict[str, Any], Model] | None = field(default=None, init=False,
@@ -184,7 +187,8 @@ def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) 
     where = f"systems[{index}]"
     if not isinstance(data, dict):
         raise ParameterError(where, "must be a mapping with at least `system`")
-    _keys(where, data, {"system", "name", "parameters", "method", "tolerance", "origin"})
+    _keys(where, data, {"system", "name", "parameters", "method", "tolerance", "origin",
+                        EFFORT_LIMIT.name})
     if "system" not in data:
         raise ParameterError(f"{where}.system", "missing")
     system = data["system"]
@@ -218,9 +222,20 @@ def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) 
     if not (isinstance(origin, list | tuple) and len(origin) == 3):
         raise ParameterError(f"{where}.origin", "must be a list of three numbers [x, y, z]")
     org = tuple(positive_number(f"{where}.origin", v, positive=False) for v in origin)
-    inst = Instance(system, name, flat, method, tol, org)  # type: ignore[arg-type]
+    inst = Instance(system, name, flat, method, tol, org,  # type: ignore[arg-type]
+                    _instance_setting(EFFORT_LIMIT, where, data, name, overrides))
     inst._built = (system, dict(flat), model)
     return inst
+
+
+def _instance_setting(p: Any, where: str, data: dict[str, Any], name: str,
+                      overrides: tuple[Override, ...]) -> float:
+    """An instance's run setting ``p`` (``effort_limit``): its key in the scene entry, or a
+    ``--set`` of the same name (for every instance, or ``NAME:`` for this one)."""
+    given = [o for o in overrides if o.name == p.name and o.instance in ("", name)]
+    if given:
+        return setting(p, f"--set {given[-1].key}", given[-1].value)
+    return setting(p, f"{where}.{p.name}", data.get(p.name, p.default))
 
 
 def _parameters(where: str, params: dict[str, Any]) -> dict[str, Any]:
@@ -297,6 +312,8 @@ def _check_overrides(instances: list[Instance], overrides: list[Override] | tupl
                      ) -> None:
     """Every ``--set`` names a parameter of an instance it is meant for."""
     for o in overrides:
+        if o.name == EFFORT_LIMIT.name and any(o.instance in ("", i.name) for i in instances):
+            continue  # a run setting of every instance
         if not any(o.instance in ("", inst.name) and o.name in
                    {p.name for p in system_class(inst.system).parameter_spec()}
                    for inst in instances):
@@ -370,7 +387,8 @@ def scene_data(scene: Scene) -> dict[str, Any]:
             "source": None if scene.source is None else str(scene.source),
             "systems": [{"system": i.system, "name": i.name, "parameters": i.parameters,
                          "method": i.method, "tolerance": i.tolerance,
-                         "origin": list(i.origin)} for i in scene.systems]}
+                         "origin": list(i.origin), "effort_limit": i.effort_limit}
+                        for i in scene.systems]}
 
 
 def _optional(value: Any, kind: type) -> Any:
@@ -387,7 +405,8 @@ def scene_from_data(data: Any) -> Scene:
             raise TypeError(data.get("format"))
         systems = [Instance(str(d["system"]), str(d["name"]), dict(d["parameters"]),
                             str(d["method"]), float(d["tolerance"]),
-                            tuple(float(x) for x in d["origin"]))  # type: ignore[arg-type]
+                            tuple(float(x) for x in d["origin"]),  # type: ignore[arg-type]
+                            float(d["effort_limit"]))
                    for d in data["systems"]]
         source = _optional(data["source"], str)
         return Scene(name=str(data["name"]), systems=systems, pacing=str(data["pacing"]),

@@ -22,15 +22,17 @@ Topics (stamped with simulation time + ``time_offset``, so /clock never starts a
 Energy, invariants, observables and frames are computed only while something consumes them.
 Parameters: every model parameter (same names as scenes and --set), plus method, tolerance,
 publish_rate, real_time_factor (0: stepped by the caller, as fast as possible; then read-only),
-constraint_limit, effort_timeout and effort_wait; their ranges are the ones of
+constraint_limit, effort_timeout, effort_wait and effort_limit; their ranges are the ones of
 ``mechsim.params`` (shared with the CLI and scene files), in the descriptors. A set is
 validated completely and then applied as a whole, or refused with its reason
 (``mechsim.runcore.change``); epochs, guards: ``mechsim.runcore``.
 Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
 Effort input: ``<ns>/effort`` (std_msgs/Float64MultiArray, one generalized force per
-coordinate; semantics in ``mechsim.runcore.effort``); a refused command is ignored with a
-one-line warning (throttled). Each change of the applied effort goes to the sinks (a
-recording) as a message on ``<ns>/effort`` stamped with the sample from which it applies.
+coordinate; semantics and what no peer can do with it in ``mechsim.runcore.effort``); a refused
+command is ignored with a one-line warning (throttled), a dropped effort or a silent controller
+is a WARN on /diagnostics (``mechsim/<ns>/effort``). Each change of the applied effort goes to
+the sinks (a recording) as a message on ``<ns>/effort`` stamped with the sample from which it
+applies.
 """
 
 from __future__ import annotations
@@ -123,7 +125,8 @@ class SimulatorNode(Node):
         # Same ranges as the CLI and scenes: a bad value is a ParameterError, before ROS.
         settings = Settings(tolerance=instance.tolerance, publish_rate=publish_rate,
                             real_time_factor=real_time_factor,
-                            constraint_limit=constraint_limit).checked()
+                            constraint_limit=constraint_limit,
+                            effort_limit=instance.effort_limit).checked()
         instance_name("instance", instance.name)
         super().__init__("simulator", namespace=instance.name, context=context)
         self.instance = instance
