@@ -15,18 +15,34 @@ PYTEST_ARGS ?= -n 3
 # inherited from another environment it would stop this venv's python from doing so.
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
-.PHONY: bootstrap run test lint
+.PHONY: bootstrap test-tools run test lint
 
+# The venv and mechsim in it: everything inside the checkout (no system package, no npm).
 bootstrap:
 	@$(PYTHON3) tools/bootstrap.py
+
+# What only the tests need, also inside the checkout: Foxglove's decoders (npm) and Debian's
+# chromium unpacked under .cache/test-tools (apt-get download, no root); skipped where it
+# cannot be installed (or with NO_TEST_TOOLS=1), and the tests that need it skip with the reason.
+NO_TEST_TOOLS ?=
+test-tools: bootstrap
+	@if [ -n "$(NO_TEST_TOOLS)" ]; then \
+	  echo "make test: NO_TEST_TOOLS set: no test-only tools installed (their tests skip)"; \
+	else \
+	  echo "make test: installing the test-only tools into the checkout (tools/test_tools.py):"; \
+	  echo "  Foxglove's decoders (npm ci in tests/foxglove), Debian's chromium and the libraries"; \
+	  echo "  this machine lacks (apt-get download + dpkg -x into .cache/test-tools)"; \
+	  $(VENV)/bin/python tools/test_tools.py; \
+	fi
 
 run: bootstrap
 	$(VENV)/bin/mechsim run scenes/default.yaml
 
 # Per-run ROS_DOMAIN_ID from the shell's PID, in 1..101 (0 is everyone's default;
 # 102..214 are unusable), unless the caller set one. Exit 5 (no tests collected) is a pass.
-test: bootstrap
+test: test-tools
 	@$(VENV)/bin/ruff check src tests tools
+	@tools/test_tools.sh  # the real ros2 command (../shared/ros2cli) and colcon, for their tests
 	@export FASTDDS_DEFAULT_PROFILES_FILE="$(PROFILE)"; \
 	export ROS_DOMAIN_ID="$${ROS_DOMAIN_ID:-$$(( $$$$ % 101 + 1 ))}"; \
 	echo "make test: ROS_DOMAIN_ID=$$ROS_DOMAIN_ID"; \

@@ -300,7 +300,7 @@ def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
     bag = tmp_path / "killed"
     f = bag / "killed_0.mcap"
     # 10 Hz: the recorder runs as fast as it can until the kill; fewer messages to read back.
-    proc = subprocess.Popen([*MECHSIM, "record", "pendulum", "--duration", "1000", "--rate",
+    proc = subprocess.Popen([*MECHSIM, "record", "pendulum", "--duration", "1000", "--publish-rate",
                              "10", "--bag", str(bag)], env=ros_env, cwd=REPO, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:

@@ -5,11 +5,15 @@ the CLI or a scene accepts is accepted by the nodes too (one definition of each 
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
+
+from mechsim.cli import NODE_VERBS
 
 MECHSIM = [sys.executable, "-m", "mechsim.cli"]
 
@@ -25,6 +29,14 @@ def run(args: list[str], env: dict[str, str], timeout: float = 120,
     (["run", "pendulum", "--set", "mass=-1"], "mass: must be > 0"),
     (["run", "pendulum", "--set", "mass=nan"], "mass: must be finite"),
     (["run", "pendulum", "--set", "lenght=2"], "not a parameter"),
+    # Did you mean: the close name, then every valid one.
+    (["run", "pendlum"], "unknown system 'pendlum': did you mean 'pendulum'? (known: atwood,"),
+    (["systems", "keplr"], "did you mean 'kepler'?"),
+    (["run", "pendulum", "--set", "lenght=2"], "did you mean 'length'? (names: "),
+    (["run", "pendulum", "--set", "method=dop85"], "did you mean 'dop853'? (methods: "),
+    (["run", "pendulum", "--set", "pendulm:mass=2"],
+     "no instance 'pendulm' in the scene: did you mean 'pendulum'? (instances: pendulum)"),
+    (["run", "pendulum", "--set", "pendulum:publish_rate=5"], "a setting of the whole scene"),
     (["run", "pendulum", "--set", "formulation=x"], "formulation: must be one of"),
     (["run", "kepler", "--set", "eccentricity=1.5"], "eccentricity: must be < 1"),
     (["run", "missing_scene.yaml"], "cannot read"),
@@ -33,8 +45,9 @@ def run(args: list[str], env: dict[str, str], timeout: float = 120,
     (["run", "pendulum", "--duration", "nan"], "--duration: must be finite"),
     (["run", "pendulum", "--duration", "1e300"], "--duration: must be <= 1e+09"),
     (["record", "pendulum", "--duration", "inf"], "--duration: must be finite"),
-    (["run", "pendulum", "--rate", "0"], "--rate: must be >= 0.01"),
-    (["record", "pendulum", "--duration", "1", "--rate", "1e7"], "--rate: must be <= 10000"),
+    (["run", "pendulum", "--publish-rate", "0"], "--publish-rate: must be >= 0.01"),
+    (["record", "pendulum", "--duration", "1", "--publish-rate", "1e7"],
+     "--publish-rate: must be <= 10000"),
     (["run", "pendulum", "--set", "mass=" + "9" * 400], "mass: out of range"),
     (["run", "pendulum", "--name", "p\n"], "--name: must be a ROS name"),
     (["run", "pendulum", "--name", "p" * 300], "--name: must be a ROS name"),
@@ -53,6 +66,9 @@ def test_bad_input_is_one_line(args: list[str], expected: str, ros_env: dict[str
 @pytest.mark.parametrize("text, expected", [
     ("systems: [\n  - system: pendulum\n  bad", "not valid YAML"),
     ("systems:\n  - system: pendulum\n    colour: red\n", "systems[0].colour: unknown key"),
+    ("sytems:\n  - system: pendulum\n", "sytems: unknown key: did you mean 'systems'?"),
+    ("systems:\n  - system: pendulum\n    methd: dop853\n",
+     "systems[0].methd: unknown key: did you mean 'method'?"),
     ("systems: []\n", "systems: must be a non-empty list"),
     ("pacing: warp\nsystems:\n  - system: pendulum\n", "pacing: must be realtime or fast"),
     ("systems:\n  - {system: pendulum}\n  - {system: pendulum}\n", "used twice"),
@@ -108,7 +124,7 @@ def test_every_accepted_range_edge_runs(tmp_path: Path, ros_env: dict[str, str])
     assert r.returncode in (0, 1), r.stderr  # 1: the loose tolerance may fail its system
     assert "Traceback" not in r.stderr
     assert (tmp_path / "bag" / "metadata.yaml").exists()
-    slow = run(["run", "kepler", "--rate", "0.01", "--duration", "100", "--fast"], ros_env)
+    slow = run(["run", "kepler", "--publish-rate", "0.01", "--duration", "100", "--fast"], ros_env)
     assert slow.returncode == 0, slow.stderr
 
 
@@ -163,3 +179,65 @@ def test_bad_discovery_window_is_one_line(args: list[str], ros_env: dict[str, st
     assert r.returncode == 2 and "Traceback" not in r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("mechsim: error: MECHSIM_GRAPH_WAIT:"), lines
+
+
+def _options(parser: Any, path: str = "") -> list[tuple[str, str]]:
+    """(verb path, option) of every option a user can give, sub-commands included."""
+    import argparse
+
+    found = []
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                if name not in NODE_VERBS:
+                    found.append((path, name))
+                    found += _options(sub, f"{path} {name}".strip())
+        elif action.help != argparse.SUPPRESS and action.option_strings:
+            found += [(path, o) for o in action.option_strings if o.startswith("--")
+                      and o != "--help"]
+    return found
+
+
+def test_the_command_reference_names_every_verb_and_option() -> None:
+    """docs/cli.md is the reference of every verb and option the parser has."""
+    from pathlib import Path
+
+    from mechsim.cli import build_parser
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "cli.md").read_text()
+
+    def named(path: str, name: str) -> bool:
+        if name.startswith("--"):  # an option, as a whole word
+            return re.search(rf"(?<![\w-]){re.escape(name)}(?![\w-])", text) is not None
+        # a verb ("mechsim run") or sub-command ("bag info", "cache info|clear")
+        verb = f"mechsim {path} {name}".replace("  ", " ") if path else f"mechsim {name}"
+        return verb in text or re.search(rf"mechsim {path} [\w|\\]*\b{name}\b", text) \
+            is not None
+
+    missing = [f"{path} {name}".strip() for path, name in _options(build_parser())
+               if not named(path, name)]
+    assert not missing, f"docs/cli.md does not mention: {missing}"
+
+
+def test_version_and_verb_suggestions() -> None:
+    from mechsim import __version__
+
+    r = subprocess.run([*MECHSIM, "--version"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.strip() == f"mechsim {__version__}"
+    r = subprocess.run([*MECHSIM, "rn"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert "invalid choice: 'rn': did you mean 'run'? (choose from: bag," in r.stderr
+    assert "simulator" not in r.stderr.splitlines()[-1]  # the node processes' verbs stay unlisted
+
+
+def test_counts_and_the_deprecated_rate(ros_env: dict[str, str]) -> None:
+    """One system is "1 system"; `run --rate` still works, with a warning naming the option
+    that replaced it (in replay --rate is the speed factor)."""
+    r = run(["run", "pendulum", "--fast", "--duration", "0.1", "--rate", "20"], ros_env)
+    assert r.returncode == 0, r.stderr
+    assert "(1 system, as fast as possible" in r.stderr
+    warning = [ln for ln in r.stderr.splitlines() if "deprecated" in ln]
+    assert len(warning) == 1 and "--publish-rate" in warning[0], r.stderr
+    assert "0.1 s simulated" in r.stdout
+    r = run(["run", "pendulum", "--rate", "20", "--publish-rate", "20"], ros_env)
+    assert r.returncode == 2 and "--rate: not with --publish-rate" in r.stderr

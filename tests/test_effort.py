@@ -255,8 +255,8 @@ class DampingController:
         self.node.destroy_node()
 
 
-def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any, tmp_path: Any
-                                                         ) -> None:
+def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any, tmp_path: Any,
+                                                         capsys: Any) -> None:
     scene = single_system_scene("pendulum", dict(PENDULUM))
     ns = scene.systems[0].name
     controller = DampingController(ros_context, ns, c=0.8)
@@ -296,6 +296,14 @@ def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any, tmp_p
     # Diagnostics: every law of the (effort) set OK, and only those that hold.
     laws = {(law, level) for system, law, _, level in run.summary if system == ns}
     assert laws == {("work_balance", 0)}, run.summary
+    # ... and the conservation table says why the others are not in it.
+    from mechsim.cli.common import print_summary
+
+    assert run.efforts == [ns]
+    capsys.readouterr()
+    print_summary(run)
+    said = [ln for ln in capsys.readouterr().out.splitlines() if "effort was applied" in ln]
+    assert len(said) == 1 and said[0].strip().startswith(f"{ns}: ") and "energy" in said[0]
     # Lockstep: the effort applied from each sample is the controller's answer to it.
     applied = {t: m.data[0] for t, m in rec.topic("effort")}
     offset = messages.DEFAULT_TIME_OFFSET

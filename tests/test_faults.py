@@ -190,7 +190,8 @@ def test_restart_recorder_after_kill_into_new_bag(ros_env: dict[str, str],
                             "--bag", str(first)], env=ros_env, capture_output=True, text=True,
                            timeout=120)
     last = again.stderr.strip().splitlines()[-1]
-    assert again.returncode == 2 and last.startswith("mechsim: error: bag ") and "not empty" in last
+    assert again.returncode == 2 and last.startswith("mechsim: error: --bag: ") \
+        and "not empty" in last
     second = tmp_path / "second"
     ok = subprocess.run([PY, "-m", "mechsim.cli", "record", "pendulum", "--duration", "1",
                          "--bag", str(second)], env=ros_env, capture_output=True, text=True,
@@ -349,7 +350,7 @@ def test_hostile_parameter_sets_during_a_recording(ros_env: dict[str, str], tmp_
         return value
 
     bag = tmp_path / "bag"
-    proc = _record(bag, ros_env, "--set", "formulation=multiplier", "--rate", "2")
+    proc = _record(bag, ros_env, "--set", "formulation=multiplier", "--publish-rate", "2")
     node = "/pendulum/simulator"
     try:
         _wait_recording(bag, proc)
@@ -467,12 +468,12 @@ def _pause(node: str) -> None:
 
 
 def test_processes_options_and_exit_status(ros_env: dict[str, str], tmp_path: Path) -> None:
-    """``run --processes`` passes --rate and --fast to its nodes (their parameters say so),
+    """``run --processes`` passes --publish-rate and --fast to its nodes (their parameters say so),
     stops at --duration by itself (exit 0) or on Ctrl-C (130), and exits with its children's
     status: a system that fails gives 1, a refused start (duplicate name) gives 2. Its own
     instance name: a pendulum another test left in this worker's graph must not answer."""
     first = subprocess.Popen([PY, "-m", "mechsim.cli", "run", "pendulum", "--processes",
-                              "--name", "rated", "--fast", "--rate", "40"], env=ros_env,
+                              "--name", "rated", "--fast", "--publish-rate", "40"], env=ros_env,
                              cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                              text=True)
     try:

@@ -138,12 +138,12 @@ def test_a_step_failing_under_an_effort_drops_it_and_goes_on() -> None:
 def test_effort_limit_is_a_scene_and_set_setting() -> None:
     scene = parse_scene({"systems": [{"system": "pendulum", "effort_limit": 5.0},
                                      {"system": "pendulum", "name": "other"}]})
-    assert [i.effort_limit for i in scene.systems] == [5.0, 1e6]
+    assert [i.settings.get("effort_limit") for i in scene.systems] == [5.0, None]
     scene = scene_from_target("pendulum", ["effort_limit=2.5"])
-    assert scene.systems[0].effort_limit == 2.5
+    assert scene.systems[0].settings["effort_limit"] == 2.5
     for sets, field in ((["effort_limit=-1"], "--set effort_limit"),
                         (["effort_limit=nan"], "--set effort_limit"),
-                        (["nowhere:effort_limit=1"], "--set 'effort_limit'")):
+                        (["nowhere:effort_limit=1"], "--set nowhere:effort_limit")):
         with pytest.raises(ParameterError) as e:
             scene_from_target("pendulum", sets)
         assert e.value.field == field, (sets, e.value)

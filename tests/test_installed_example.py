@@ -25,10 +25,12 @@ def test_example_passes_with_pip_installed_mechsim() -> None:
         # package is made of, so the repository stays untouched.
         project = work / "project"
         project.mkdir()
-        for name in ("pyproject.toml", "setup.cfg", "README.md"):
+        for name in ("pyproject.toml", "setup.cfg", "setup.py", "README.md", "package.xml"):
             shutil.copy(REPO / name, project / name)
-        shutil.copytree(REPO / "src", project / "src",
-                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+        # The code, and the ROS package's data files (setup.cfg's [options.data_files]).
+        for tree in ("src", "resource", "launch_scripts", "scenes", "config"):
+            shutil.copytree(REPO / tree, project / tree,
+                            ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
         site = work / "site"
         build = subprocess.run(
             [sys.executable, "-m", "pip", "install", "--no-deps", "--no-build-isolation",

@@ -1,11 +1,12 @@
 """The live Rerun view (`mechsim run ... --viewer`), looked at in a real browser: headless
-Chromium (Debian's ``chromium``; tools/bootstrap.py installs it where it can) opens the printed
+Chromium (Debian's ``chromium``, unpacked into the checkout by tools/test_tools.py, which `make
+test` runs; else a ``chromium`` on PATH) opens the printed
 URL, and the test checks that the web viewer started, holds the whole run (read back from the
 viewer itself, ``WebHandle.save_recording``, and compared with the .rrd the same run wrote),
 applies the blueprint, and draws it (a screenshot with several distinct regions). The servers
 must listen on 127.0.0.1 only, and Ctrl-C after the run ends stops them.
 
-``MECHSIM_LIVE_VIEWER_SCREENSHOT=docs/images/live_viewer.png`` also saves the screenshot (the
+``MECHSIM_LIVE_VIEWER_SCREENSHOT=docs/images/rerun_pendulum.png`` also saves the screenshot (the
 README's picture). Chromium is driven over its DevTools protocol on a pipe
 (``--remote-debugging-pipe``: JSON messages ending in NUL on file descriptors 3 and 4), so no
 WebDriver or websocket client is needed."""
@@ -33,14 +34,35 @@ from typing import Any
 import pytest
 
 MECHSIM = [sys.executable, "-m", "mechsim.cli"]
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+ROOT = Path(__file__).resolve().parents[1]
+#: Where tools/test_tools.py says it unpacked Chromium (executable, library path).
+CHROMIUM_INFO = ROOT / ".cache" / "test-tools" / "chromium.json"
 DEADLINE = 180.0  # generous: a cold Chromium renders the viewer with a software rasterizer
 DURATION, RATE = 3.0, 50.0
 
+
+def find_chromium() -> tuple[str | None, dict[str, str]]:
+    """(executable, extra environment) of the Chromium to drive: the checkout's (with its
+    libraries on LD_LIBRARY_PATH), else one on PATH; (None, {}) if there is none."""
+    try:
+        info = json.loads(CHROMIUM_INFO.read_text())
+        exe = ROOT / info["executable"]
+        if os.access(exe, os.X_OK):
+            libs = [str(ROOT / d) for d in info["library_path"]]
+            old = os.environ.get("LD_LIBRARY_PATH")
+            return str(exe), {"LD_LIBRARY_PATH": os.pathsep.join([*libs, *([old] if old
+                                                                           else [])])}
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return shutil.which("chromium"), {}
+
+
+CHROMIUM, CHROMIUM_ENV = find_chromium()
+
 needs_chromium = pytest.mark.skipif(
-    not os.access(CHROMIUM, os.X_OK),
-    reason="chromium not installed (Debian's `chromium`; tools/bootstrap.py installs it when "
-           "run as root with apt-get)")
+    CHROMIUM is None,
+    reason="no Chromium: `make test` unpacks Debian's chromium into the checkout where apt-get "
+           "can download it (see the output of tools/test_tools.py), else install `chromium`")
 
 
 def wait_until(what: str, check: Callable[[], Any], timeout: float = DEADLINE) -> Any:
@@ -89,6 +111,7 @@ class Chromium:
             os.dup2(to_child, 3)
             os.dup2(from_child, 4)
 
+        assert CHROMIUM is not None
         self.proc = subprocess.Popen(
             [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
              "--disable-quic", "--no-first-run", "--disable-background-networking",
@@ -96,6 +119,7 @@ class Chromium:
              f"--user-data-dir={profile}", f"--window-size={size[0]},{size[1]}",
              "--remote-debugging-pipe", "about:blank"],
             preexec_fn=pipes, close_fds=False, start_new_session=True,
+            env={**os.environ, **CHROMIUM_ENV},
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
             stderr=open(profile.parent / "chromium.log", "wb"))  # noqa: SIM115
         os.close(to_child)
@@ -287,7 +311,7 @@ class ViewerRun:
 @needs_chromium
 def test_live_viewer_renders_the_run(ros_env: dict[str, str], tmp_path: Path) -> None:
     rrd = tmp_path / "run.rrd"
-    v = ViewerRun(["pendulum", "--fast", "--duration", str(DURATION), "--rate", str(RATE),
+    v = ViewerRun(["pendulum", "--fast", "--duration", str(DURATION), "--publish-rate", str(RATE),
                    "--rrd", str(rrd)], ros_env, tmp_path)
     run, out, err, web_port, grpc_port = v.run, v.out, v.err, v.web_port, v.grpc_port
     try:
@@ -364,7 +388,8 @@ def test_live_viewer_shows_a_real_time_run_as_it_happens(ros_env: dict[str, str]
     later; Ctrl-C then stops the run and the view together."""
     from mechsim.outputs.rerun.series import FLUSH_ROWS
 
-    v = ViewerRun(["pendulum", "--duration", "3600", "--rate", str(RATE)], ros_env, tmp_path)
+    v = ViewerRun(["pendulum", "--duration", "3600", "--publish-rate", str(RATE)], ros_env,
+                  tmp_path)
     try:
         page = v.open_page()
         entity = "/plots/pendulum/energy/total"
@@ -449,7 +474,7 @@ def test_connect_streams_the_run_to_a_running_viewer(ros_env: dict[str, str],
         wait_until("Rerun's server to listen", lambda: listeners(port) == ["127.0.0.1"] or (
             server.poll() is not None and pytest.fail("rerun exited")))
         r = run_cli(["run", "pendulum", "--connect", f"rerun+http://127.0.0.1:{port}/proxy",
-                     "--fast", "--duration", str(DURATION), "--rate", str(RATE),
+                     "--fast", "--duration", str(DURATION), "--publish-rate", str(RATE),
                      "--rrd", str(rrd)], ros_env)
         assert r.returncode == 0, r.stderr
         assert f"live view rerun+http://127.0.0.1:{port}/proxy: " in r.stdout
@@ -464,3 +489,38 @@ def test_connect_streams_the_run_to_a_running_viewer(ros_env: dict[str, str],
     got = {e: v["rows"] for e, v in read_entities(saved).items() if v["rows"]}
     assert got == expected
     assert expected["/plots/pendulum/energy/total"] == round(DURATION * RATE) + 1
+
+
+def test_view_hint_serves_on_loopback_only(ros_env: dict[str, str], tmp_path: Path) -> None:
+    """Without a display `mechsim view` suggests a command for a browser: run as printed (on
+    free ports), its servers listen on 127.0.0.1 only."""
+    import shlex
+    import socket
+
+    rrd = tmp_path / "run.rrd"
+    r = run_cli(["run", "pendulum", "--fast", "--duration", "0.2", "--rrd", str(rrd)], ros_env)
+    assert r.returncode == 0, r.stderr
+    env = {k: v for k, v in ros_env.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    hint = run_cli(["view", str(rrd)], env)
+    assert hint.returncode == 0, hint.stderr
+    m = re.search(r"`(rerun [^`]*--web-viewer[^`]*)`", hint.stdout)
+    assert m, hint.stdout
+    ports = []
+    for _ in range(2):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            ports.append(s.getsockname()[1])
+    from mechsim.outputs.rerun_live import rerun_executable
+
+    cmd = shlex.split(m.group(1))
+    server = subprocess.Popen([rerun_executable(), *cmd[1:], "--port", str(ports[0]),
+                               "--web-viewer-port", str(ports[1])], env=env,
+                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        wait_until("the hinted command's servers", lambda: all(listeners(p) for p in ports)
+                   or (server.poll() is not None and pytest.fail("rerun exited")))
+        assert [listeners(p) for p in ports] == [["127.0.0.1"], ["127.0.0.1"]]
+    finally:
+        os.killpg(server.pid, signal.SIGKILL)
+        server.wait()

@@ -1,7 +1,7 @@
 """Messages users can plot by name, read back from a recorded bag by decoders that are not ours:
 rosbags, PlotJuggler's parser (``rosx_introspection``, the flattening library PlotJuggler
 uses) and Foxglove's ROS 2 decoding stack (``@mcap/core``, ``@foxglove/rosmsg``,
-``@foxglove/rosmsg2-serialization``, installed by set-up in tests/foxglove; run with node).
+``@foxglove/rosmsg2-serialization``, installed by `make test` in tests/foxglove; run with node).
 An invariant is selected by its name ("angular_momentum"), never by its index; an attitude
 system publishes geometry_msgs pose and twist, and no quaternion in JointState.
 
@@ -119,8 +119,8 @@ def _foxglove(path: Path, topic: str) -> list[dict[str, Any]]:
     """Every message of ``topic`` as Foxglove's decoders give it (``{log_time, message}``)."""
     node = shutil.which("node")
     if node is None or not (FOXGLOVE / "node_modules" / "@foxglove" / "rosmsg").is_dir():
-        pytest.skip("Foxglove's decoders are not installed (node and `npm ci` in "
-                    "tests/foxglove, done by tools/bootstrap.py)")
+        pytest.skip("Foxglove's decoders are not installed (`make test` runs `npm ci` in "
+                    "tests/foxglove where node and npm exist: tools/test_tools.py)")
     out = subprocess.run([node, str(FOXGLOVE / "read.cjs"), str(_mcap(path)), topic],
                          capture_output=True, text=True, timeout=120, check=False)
     assert out.returncode == 0, out.stderr

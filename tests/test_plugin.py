@@ -121,3 +121,41 @@ def test_workers_get_their_own_domain_and_a_nested_run_keeps_it(tmp_path: Path) 
             assert set(mine) == {"gw0", "gw1"}, inner
             assert mine["gw0"] == domain and mine["gw1"] not in domains.values(), (
                 outer, inner)
+
+
+PROBE_TEST = """\
+import json, os
+def test_env():
+    with open(os.environ["SEEN"], "w") as f:
+        json.dump({k: os.environ.get(k) for k in ("ROS_DOMAIN_ID",
+                                                 "FASTDDS_DEFAULT_PROFILES_FILE")}, f)
+"""
+
+
+@pytest.mark.parametrize("opt_out", [None, "-p no:mechsim", "ini", "-o"])
+def test_the_plugin_can_be_told_to_leave_dds_alone(tmp_path: Path, opt_out: str | None) -> None:
+    """By default a pytest session gets the loopback profile and a domain of its own; with
+    ``-p no:mechsim`` or the ``mechsim_isolation = false`` option (ini file or ``-o``) it keeps
+    the environment's DDS settings: a test against a real robot sees its graph."""
+    (tmp_path / "test_probe.py").write_text(PROBE_TEST)
+    ini = tmp_path / "pytest.ini"
+    ini.write_text("[pytest]\n" + ("mechsim_isolation = false\n" if opt_out == "ini" else ""))
+    args = {None: [], "-p no:mechsim": ["-p", "no:mechsim"], "ini": [],
+            "-o": ["-o", "mechsim_isolation=false"]}[opt_out]
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTEST_XDIST_WORKER", "PYTEST_XDIST_WORKER_COUNT", "PYTEST_ADDOPTS",
+                        "_MECHSIM_DOMAIN_SET_BY", "_MECHSIM_TAKEN_DOMAINS", "ROS_DOMAIN_ID",
+                        "FASTDDS_DEFAULT_PROFILES_FILE")}
+    env["SEEN"] = str(tmp_path / "seen.json")
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                          "-c", str(ini), *args, "test_probe.py"], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    import json
+
+    seen = json.loads((tmp_path / "seen.json").read_text())
+    if opt_out is None:
+        assert seen["ROS_DOMAIN_ID"] is not None
+        assert seen["FASTDDS_DEFAULT_PROFILES_FILE"].endswith("fastdds_loopback.xml")
+    else:
+        assert seen == {"ROS_DOMAIN_ID": None, "FASTDDS_DEFAULT_PROFILES_FILE": None}

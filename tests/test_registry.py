@@ -1,9 +1,11 @@
 """The explicit system registry, and a system added from outside the package the public way.
 
-The throw-away system below (a particle on a zero-length spring in a gravity field) is one
-class and one ``register`` call; its energy, conservation laws, ``simulate`` output, frames and
-a diagnostics-checked run through the node graph come for free. Everything is checked against
-the closed-form solution, not against the engine that produced it."""
+The throw-away system below (a particle on a zero-length spring in a gravity field, the system
+of docs/adding_a_system.md under an id of its own, so that adding the example to the package
+leaves these tests as they are) is one class and one ``register`` call; its energy,
+conservation laws, ``simulate`` output, frames and a diagnostics-checked run through the node
+graph come for free. Everything is checked against the closed-form solution, not against the
+engine that produced it."""
 
 from __future__ import annotations
 
@@ -31,9 +33,9 @@ class SpringParticle(LagrangianModel):
     """A particle of mass m on a spring of zero rest length anchored at the origin, in gravity
     g along −z: ẍ = −ω²x, z̈ = −ω²z − g with ω² = k/m (the test's own example system)."""
 
-    id = "spring_particle"
+    id = "test_spring_particle"
     title = "Particle on a spring in a gravity field"
-    source = "tests/test_registry.py (worked example)"
+    source = "tests/test_registry.py (the worked example of docs/adding_a_system.md)"
     parameters = (
         positive("mass", 2.0, "kg", "mass m"),
         positive("spring_constant", 8.0, "N/m", "spring constant k (rest length 0)"),
@@ -75,11 +77,11 @@ def closed_form(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
 
 @pytest.fixture
 def spring_particle() -> Iterator[None]:
-    systems.register("spring_particle", SpringParticle)
+    systems.register("test_spring_particle", SpringParticle)
     try:
         yield
     finally:
-        systems.unregister("spring_particle")
+        systems.unregister("test_spring_particle")
 
 
 def test_every_system_module_is_registered() -> None:
@@ -111,8 +113,8 @@ def test_registry_rejects_bad_entries() -> None:
 
 
 def test_registered_system_simulates_like_its_closed_form(spring_particle: None) -> None:
-    assert "spring_particle" in mechsim.system_ids()
-    model = mechsim.load_system("spring_particle")
+    assert "test_spring_particle" in mechsim.system_ids()
+    model = mechsim.load_system("test_spring_particle")
     assert [law.key for law in model.laws()] == [
         "energy", "energy_function", "work_balance", "invariant:angular_momentum"]
     run = mechsim.simulate(model, 10.0, 0.01, tolerance=1e-12)
@@ -150,7 +152,7 @@ def test_registered_system_runs_through_the_node_graph(spring_particle: None,
     from mechsim.scene import single_system_scene
 
     cap = Capture()
-    run = run_scene(single_system_scene("spring_particle"), fast=True, duration=3.0,
+    run = run_scene(single_system_scene("test_spring_particle"), fast=True, duration=3.0,
                     context=ros_context, sinks=[cap])
     assert not run.failures
     levels = {law: level for _, law, _, level in run.summary}
@@ -158,7 +160,7 @@ def test_registered_system_runs_through_the_node_graph(spring_particle: None,
                       "invariant:angular_momentum": 0}
     poses = [(tr.header.stamp, tr.transform.translation) for topic, m in cap.messages
              if topic == "/tf" for tr in m.transforms
-             if tr.child_frame_id == "spring_particle/particle"]
+             if tr.child_frame_id == "test_spring_particle/particle"]
     assert len(poses) == 301
     t = np.array([s.sec + 1e-9 * s.nanosec - DEFAULT_TIME_OFFSET for s, _ in poses])
     x, z, _, _ = closed_form(t)

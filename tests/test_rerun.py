@@ -267,7 +267,7 @@ def test_view_without_display_prints_how(tmp_path: Path, recorded: dict[str, Any
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     assert main(["view", str(rrd)]) == 0
     out = capsys.readouterr().out.strip().splitlines()
-    assert len(out) == 1 and f"rerun {rrd}" in out[0] and "--web-viewer" in out[0]
+    assert len(out) == 1 and f"rerun --bind 127.0.0.1 --web-viewer {rrd}" in out[0]
     assert main(["view", str(tmp_path / "missing.rrd")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("mechsim: error:")

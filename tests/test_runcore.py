@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from mechsim.errors import MechsimError
+from mechsim.outputs.sink import Capabilities
 from mechsim.runcore.change import Settings
 from mechsim.runcore.run import Block, SystemRun
 from mechsim.scene import Instance
@@ -135,6 +136,8 @@ def test_the_node_publishes_what_its_core_releases(ros_context: Any) -> None:
     from mechsim.ros.simulator import SimulatorNode
 
     class Sink:
+        capabilities = Capabilities()  # every message of every topic
+
         def __init__(self) -> None:
             self.got: dict[str, list[tuple[int, Any]]] = {}
 

@@ -16,7 +16,7 @@ from mechsim.integrators import make_stepper
 def test_the_work_terms_leave_the_step_control_and_the_outputs(method: str) -> None:
     """The benchmark's CR3BP orbit (about both primaries from r = 1.8): the primaries work on
     the particle (W_ext ≠ 0), and the work term's error estimate, not the state's, rejects
-    steps (session 10: 20 of DOP853's 34 rejections at 1e-4). Without it the controller
+    steps (at 1e-4, 20 of DOP853's 34 rejections). Without it the controller
     rejects fewer; the state stays within the tolerance of the full run's."""
     model = mechsim.load_system("cr3bp", **{"initial.x": 1.8, "initial_rate.y": 0.7453559925})
     n = len(model.coordinates)

@@ -1,34 +1,35 @@
 #!/usr/bin/env python3
 """Create or update the project's virtual environment (stdlib only; run with the system python3).
 
+Everything it writes is inside the checkout (.venv, .cache): no system package, no npm, no
+browser. What only the tests need is installed by tools/test_tools.py (`make test`).
+
 Steps, each redone only when its inputs changed (hashes kept in .venv/.mechsim-bootstrap.json):
 
 1. venv      create ./.venv with a Python 3.11 interpreter;
-2. foxglove  `npm ci` in tests/foxglove: Foxglove's ROS 2 decoders, which a test reads bags
-             with (skipped, with a note, where node or npm is missing; that test then skips);
-             in the background from here on;
-3. installer pip install the pinned uv (requirements.txt), which installs the rest: it
+2. installer pip install the pinned uv (requirements.txt), which installs the rest: it
              downloads in parallel and unpacks in native code, in a third of pip's time
              (pip does, where uv cannot be installed or fails);
    numerics  install the pins of numpy, scipy, sympy, numba and pyyaml from
              requirements.txt: what the next step imports;
-4. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
+3. loops     compile mechsim's shared integrator loops (numba, once per machine, ~40 s of
              CPU, from the source tree) so that the first run of a system only compiles that
              system's kernels; in the background from here on, in two processes, beside pip
              and the interface builds;
-5. pip       install -r requirements.txt (steps 3 and 5 without byte-compiling: see 6);
-6. bytecode  byte-compile the venv's packages (not their own test suites) on every core, in
+4. pip       install -r requirements.txt (steps 2 and 4 without byte-compiling: see 5);
+5. bytecode  byte-compile the venv's packages (not their own test suites) on every core, in
              the background from here on;
-7. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
-             .venv/share/*/cmake/*.cmake to this venv's real paths (CMake rejects missing paths);
-8. project   install -e . --no-deps --no-build-isolation;
-9. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
+6. cmake     rewrite the wheels' hard-coded /opt/python/cp311-cp311/... include directories in
+             .venv/share/*/cmake/*.cmake (files of the venv only) to this venv's real paths
+             (CMake rejects missing paths);
+7. project   install -e . --no-deps --no-build-isolation;
+8. <pkg>     build and install the ament_cmake interface packages src/tf2_msgs and
              src/mechsim_msgs into the venv (build trees under .cache/build/).
-
-Then, every time: Debian's `chromium` (the headless browser tests/test_live_viewer.py opens the
-live Rerun view in) is installed with apt-get if /usr/bin/chromium is missing and this runs as
-root where apt-get exists, its progress shown; otherwise one line says so and the set-up goes
-on (that test is then skipped, with the reason).
+9. ros-package  make the venv a ROS prefix of the mechsim package, as `colcon build
+             --symlink-install` would: setup.cfg's data files (the ament index marker,
+             share/mechsim/{package.xml,launch,scenes,config}) linked file by file to the
+             checkout (redone when one is added or removed), and the node executables (entry
+             point group mechsim.executables) under lib/mechsim, where `ros2 run` looks.
 
 Usage: python3 tools/bootstrap.py [--force]. Logs go to .cache/bootstrap/<step>.log.
 """
@@ -47,6 +48,8 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+
+import ros_prefix  # tools/ros_prefix.py: the venv as a ROS prefix of the package
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / ".venv"
@@ -353,24 +356,12 @@ def step_loops() -> Pending:
                                     f"i.precompile({part})"] for part in (0, 1)), env=env)
 
 
-#: What the compiled loops are made from (their cache key inside mechsim covers the same).
-LOOP_SOURCES = ("src/mechsim/integrators/kernels.py", "src/mechsim/integrators/state.py",
-                "src/mechsim/integrators/dop853_tableau.py", "src/mechsim/integrators/__init__.py",
-                "src/mechsim/codegen/__init__.py", "src/mechsim/codegen/contract.py",
-                "src/mechsim/codegen/support.py")
+#: What the compiled loops are made from (their cache key inside mechsim covers the same): the
+#: integrators package (the loops' fragments, the tableaus, the state records, the steppers)
+#: and the code generator, every module of both.
+LOOP_SOURCES = tuple(sorted(str(p.relative_to(ROOT)) for d in ("integrators", "codegen")
+                            for p in (ROOT / "src" / "mechsim" / d).rglob("*.py")))
 
-
-FOXGLOVE = ROOT / "tests" / "foxglove"
-
-
-def step_foxglove() -> Pending | None:
-    npm = shutil.which("npm")
-    if npm is None or shutil.which("node") is None:
-        say("no node/npm: Foxglove's decoders not installed (their test will skip)")
-        return None
-    say("npm ci in tests/foxglove (Foxglove's ROS 2 decoders, in the background)")
-    return start_logged("foxglove", [npm, "ci", "--no-audit", "--no-fund", "--prefix",
-                                     str(FOXGLOVE)])
 
 
 def step_interface(pkg: str) -> None:
@@ -392,6 +383,11 @@ def step_interface(pkg: str) -> None:
     ])
     run_logged(step, ["cmake", "--build", str(build), "-j", jobs], append=True)
     run_logged(step, ["cmake", "--install", str(build)], append=True)
+
+
+def step_ros_package() -> None:
+    say("the venv as a ROS prefix of package mechsim (ament index, share/mechsim, lib/mechsim)")
+    ros_prefix.install(ROOT, VENV, VENV_PY)
 
 
 # ----------------------------------------------------------------------------------- driver
@@ -434,12 +430,10 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     build_key = hashlib.sha256(f"{venv_key}|{build_reqs}".encode()).hexdigest()[:16]
     numerics_key = hashlib.sha256("|".join([venv_key, requirement_pin("uv"), *numeric_pins()])
                                   .encode()).hexdigest()
-    # Background steps (npm, the loops) run beside the ones after them: npm from the start,
-    # the loops once the numerical packages are in, while pip installs the rest.
+    # The loops compile in the background, beside the steps after them: once the numerical
+    # packages are in, while pip installs the rest.
     steps: list[tuple[str, str, Callable[[], Pending | None]]] = [
         ("venv", venv_key, step_venv),
-        ("foxglove", sha256_files([FOXGLOVE / "package.json", FOXGLOVE / "package-lock.json"]),
-         step_foxglove),
         ("installer", hashlib.sha256(f"{venv_key}|{requirement_pin('uv')}".encode())
          .hexdigest()[:16], step_installer),
         ("numerics", numerics_key[:16], step_numerics),
@@ -453,6 +447,7 @@ def plan() -> list[tuple[str, str, Callable[[], Pending | None]]]:
     for pkg in INTERFACE_PACKAGES:
         steps.append((pkg, sha256_files(package_files(pkg), build_key),
                       lambda pkg=pkg: step_interface(pkg)))
+    steps.append(("ros-package", ros_prefix.key(ROOT, venv_key), step_ros_package))
     return steps
 
 
@@ -510,32 +505,6 @@ def bootstrap(force: bool = False) -> int:
     return 0
 
 
-CHROMIUM = Path("/usr/bin/chromium")
-
-
-def ensure_chromium() -> None:
-    """Install Debian's chromium where it is missing and we can (root, apt-get); never fails
-    the set-up: one line says what was not done."""
-    if CHROMIUM.exists():
-        return
-    apt = shutil.which("apt-get")
-    if apt is None or os.geteuid() != 0:
-        why = "apt-get not found" if apt is None else "not running as root"
-        say(f"chromium: not installed ({why}); the live-viewer test will be skipped "
-            "(install Debian's `chromium` to run it)")
-        return
-    say("chromium: installing Debian's chromium (apt-get) for the live-viewer test")
-    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
-    install = [apt, "install", "-y", "--no-install-recommends", "chromium"]
-    try:
-        if subprocess.call(install, env=env) != 0:  # stale package lists: update, retry once
-            subprocess.call([apt, "update"], env=env)
-            subprocess.call(install, env=env)
-    except OSError as e:
-        say(f"chromium: apt-get failed to start ({e.strerror or e})")
-    if not CHROMIUM.exists():
-        say("chromium: could not be installed; the live-viewer test will be skipped")
-
 
 def main(argv: list[str]) -> int:
     if any(a in ("-h", "--help") for a in argv):
@@ -545,10 +514,7 @@ def main(argv: list[str]) -> int:
     if unknown:
         print(f"bootstrap: unknown argument(s): {' '.join(unknown)}", file=sys.stderr)
         return 2
-    rc = bootstrap(force="--force" in argv)
-    if rc == 0:
-        ensure_chromium()
-    return rc
+    return bootstrap(force="--force" in argv)
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ venv):
     python tools/readme_systems.py                 # docs/systems.md and docs/bibliography.md
     python tools/readme_systems.py systems         # docs/systems.md: id, title, source, oracles
     python tools/readme_systems.py bibliography    # docs/bibliography.md: the four documents
-    python tools/readme_systems.py readme          # the table between README.md's markers
+    python tools/readme_systems.py readme          # the id/title list between README.md's markers
     python tools/readme_systems.py --check         # exit 1 if a docs page is out of date
 """
 
@@ -26,19 +26,14 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def readme_table() -> str:
-    """The README's table: id, source, coordinates, the laws checked live, the oracles."""
-    rows = ["| system | source | coordinates | conserved (checked live) | oracles tested |",
-            "|---|---|---|---|---|"]
-    for sid in system_ids():
-        cls = system_class(sid)
-        model = cls()
-        forms = f" ({', '.join(cls.formulations)})" if len(cls.formulations) > 1 else ""
-        coords = ", ".join(c.name for c in model.coordinates)
-        laws = ", ".join(law.key.replace("invariant:", "").replace("constraint:", "")
-                         for law in model.laws())
-        rows.append(f"| `{sid}`{forms} | {_cell(cls.source)} | {coords} | {laws} | "
-                    f"{_cell(cls.oracles)} |")
+def table() -> str:
+    """The README's systems list: id and title, two to a row (the full table is
+    docs/systems.md)."""
+    entries = [f"`{sid}` | {system_class(sid).title}" for sid in system_ids()]
+    half = (len(entries) + 1) // 2
+    rows = ["| system | title | system | title |", "|---|---|---|---|"]
+    for left, right in zip(entries[:half], entries[half:] + [" | "], strict=False):
+        rows.append(f"| {left} | {right} |")
     return "\n".join(rows)
 
 
@@ -109,7 +104,7 @@ def write_readme() -> int:
         return 1
     head, rest = text.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
-    readme.write_text(f"{head}{BEGIN}\n{readme_table()}\n{END}{tail}")
+    readme.write_text(f"{head}{BEGIN}\n{table()}\n{END}{tail}")
     return 0
 
 

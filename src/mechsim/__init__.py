@@ -9,8 +9,8 @@ Pure-Python API (no ROS needed)::
 """
 
 from mechsim.errors import IntegrationError, MechsimError, ParameterError, UnknownSystemError
-from mechsim.simulate import SimulationResult, simulate
-from mechsim.systems import load_system, system_ids
+from mechsim.simulate import SimulationResult, load_system, simulate
+from mechsim.systems import system_ids
 
 __version__ = "0.1.0"
 __all__ = ["IntegrationError", "MechsimError", "ParameterError", "SimulationResult",

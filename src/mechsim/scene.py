@@ -13,14 +13,22 @@ Format (every field validated; unknown keys are errors)::
       - system: pendulum        # system id (`mechsim systems`)
         name: pendulum          # namespace, default the system id; unique in the scene
         parameters: {initial.angle: 2.0}
-        method: auto            # auto | dop853 | yoshida8 | yoshida6 | verlet
+        method: auto            # auto or a method of mechsim.integrators (dop853, radau15, ...)
         tolerance: 1.0e-10
+        constraint_limit: 1.0e-2   # optional, as the node's ROS parameters of these names
+        effort_timeout: 0.5
+        effort_wait: 1.0
+        effort_limit: 1.0e+6   # largest |effort| accepted, per coordinate
         origin: [0.0, 0.0, 0.0] # where the system's world-rooted frames sit in the world
-        effort_limit: 1.0e+6    # largest |effort| accepted per coordinate (also --set)
 
-Ranges of the run settings are defined once in ``mechsim.params`` (shared with the CLI and the
-nodes' ROS parameters). Files are untrusted input: at most 1 MiB of UTF-8, YAML aliases are
-refused, names are checked before they reach ROS or a path.
+The run settings go by the names of the nodes' ROS parameters everywhere: an instance's
+``method``, ``tolerance``, ``constraint_limit``, ``effort_timeout``, ``effort_wait`` and
+``effort_limit`` (keys of its entry, or names in its ``parameters``), the scene's ``publish_rate``,
+``real_time_factor``, ``warn_drift`` and ``error_drift``; ``--set NAME=VALUE`` takes all of
+them (``INSTANCE:NAME=VALUE`` for one instance's). Their ranges are defined once in
+``mechsim.params`` (shared with the CLI and the nodes' ROS parameters). Files are untrusted
+input: at most 1 MiB of UTF-8, YAML aliases are refused, names are checked before they reach
+ROS or a path.
 """
 
 from __future__ import annotations
@@ -31,17 +39,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mechsim.errors import MechsimError, ParameterError, UnknownSystemError
+from mechsim.errors import MechsimError, ParameterError, UnknownSystemError, did_you_mean
 from mechsim.files import load_yaml, read_bounded
 from mechsim.integrators import METHODS
 from mechsim.params import (
+    CONSTRAINT_LIMIT,
     DURATION,
     EFFORT_LIMIT,
+    EFFORT_TIMEOUT,
+    EFFORT_WAIT,
     ERROR_DRIFT,
     PUBLISH_RATE,
     REAL_TIME_FACTOR,
     TOLERANCE,
     WARN_DRIFT,
+    Parameter,
     check_text,
     flatten,
     shown,
@@ -57,6 +69,19 @@ _SCENE_NAME = re.compile(rf"[A-Za-z0-9_][A-Za-z0-9_.-]{{0,{MAX_NAME - 1}}}")
 #: Largest scene file (bytes) and ``--set`` value (characters) read.
 MAX_SCENE_BYTES = 1 << 20
 MAX_SET_CHARS = 10_000
+#: A number YAML 1.1 reads as text (``1e-10``: no dot), taken as the number it spells.
+_NUMBER_TEXT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+#: Run settings of one instance (besides ``method``), under the names of the simulator node's
+#: ROS parameters: keys of a ``systems`` entry, names in its ``parameters``, and ``--set``
+#: names (every instance, or ``INSTANCE:NAME``).
+INSTANCE_SETTINGS: dict[str, Parameter] = {
+    p.name: p for p in (TOLERANCE, CONSTRAINT_LIMIT, EFFORT_TIMEOUT, EFFORT_WAIT,
+                         EFFORT_LIMIT)}
+#: Settings of the whole scene (every instance), under the names of the nodes' ROS
+#: parameters: top-level keys (the drifts under ``diagnostics``), and ``--set`` names.
+SCENE_SETTINGS: dict[str, Parameter] = {
+    p.name: p for p in (PUBLISH_RATE, REAL_TIME_FACTOR, WARN_DRIFT, ERROR_DRIFT)}
 
 
 @dataclass
@@ -70,7 +95,9 @@ class Instance:
     method: str = "auto"
     tolerance: float = 1e-10
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    effort_limit: float = float(EFFORT_LIMIT.default)
+    #: The other run settings given for this instance (``constraint_limit``,
+    #: ``effort_timeout``, ``effort_wait``); the rest are the defaults of ``mechsim.params``.
+    settings: dict[str, float] = field(default_factory=dict)
     #: The model built from (system, parameters) and those inputs: built once, when the
     #: instance is parsed (every check of the model), and handed on to its run.
     _built: tuple[str, dict[str, Any], Model] | None = field(default=None, init=False,
@@ -100,6 +127,8 @@ class Scene:
     bag: str | None = None
     rrd: str | None = None
     source: Path | None = None
+    #: Existing outputs may be replaced (``--force``): an .rrd, once the new one is complete.
+    force: bool = False
 
 
 def positive_number(field_name: str, value: Any, positive: bool = True) -> float:
@@ -116,8 +145,11 @@ def positive_number(field_name: str, value: Any, positive: bool = True) -> float
 
 
 def setting(p: Any, field_name: str, value: Any) -> float:
-    """A scene's number for the run setting ``p`` (``mechsim.params``): numbers only (no
-    strings), in the one range the CLI and the nodes share."""
+    """A scene's number for the run setting ``p`` (``mechsim.params``): a number (or the text
+    of one that YAML 1.1 reads as text, such as ``1e-10``), in the one range the CLI and the
+    nodes share."""
+    if isinstance(value, str) and _NUMBER_TEXT.fullmatch(value):
+        value = float(value)
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ParameterError(field_name, f"must be a number (got {shown(value)})")
     return float(p.check(value, field_name))
@@ -148,8 +180,8 @@ def _keys(where: str, data: dict[str, Any], allowed: set[str]) -> None:
     for key in data:
         if key not in allowed:
             text = key if isinstance(key, str) and len(key) <= 60 else shown(key)
-            raise ParameterError(f"{where}.{text}" if where else text,
-                                 f"unknown key (allowed: {', '.join(sorted(allowed))})")
+            raise ParameterError(f"{where}.{text}" if where else text, "unknown key" +
+                                 did_you_mean(text, allowed, "allowed"))
 
 
 @dataclass(frozen=True)
@@ -181,14 +213,17 @@ def parse_sets(sets: list[str]) -> list[Override]:
     return out
 
 
+#: The keys of a scene's ``systems`` entry.
+INSTANCE_KEYS = {"system", "name", "parameters", "method", "origin", *INSTANCE_SETTINGS}
+
+
 def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) -> Instance:
     """One entry of a scene's ``systems`` with the ``overrides`` that concern it applied,
     validated (its model built: every check) once."""
     where = f"systems[{index}]"
     if not isinstance(data, dict):
         raise ParameterError(where, "must be a mapping with at least `system`")
-    _keys(where, data, {"system", "name", "parameters", "method", "tolerance", "origin",
-                        EFFORT_LIMIT.name})
+    _keys(where, data, INSTANCE_KEYS)
     if "system" not in data:
         raise ParameterError(f"{where}.system", "missing")
     system = data["system"]
@@ -201,9 +236,11 @@ def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) 
         raise ParameterError(f"{where}.parameters", "must be a mapping name: value")
     flat = _parameters(where, params)
     given = {p.name for p in cls.parameter_spec()}
+    ours = [o for o in overrides if o.instance in ("", name)]
+    method, tol, settings = _instance_settings(where, data, flat, given, ours)
     applied: dict[str, Override] = {}
-    for o in overrides:
-        if o.name in given and o.instance in ("", name):
+    for o in ours:
+        if o.name in given:
             flat[o.name] = o.value
             applied[o.name] = o
     try:
@@ -211,31 +248,52 @@ def parse_instance(data: Any, index: int, overrides: tuple[Override, ...] = ()) 
     except ParameterError as e:
         given_by = applied.get(e.field)  # a --set: named as the user wrote it
         field_name = f"{where}.parameters.{e.field}" if given_by is None else \
-            f"--set {given_by.key if len(given_by.key) <= 60 else shown(given_by.key)}"
+            _set_field(given_by)
         raise ParameterError(field_name, e.reason) from None
-    method = data.get("method", "auto")
-    if not isinstance(method, str) or method not in METHODS:
-        raise ParameterError(f"{where}.method", f"must be one of {', '.join(METHODS)} "
-                             f"(got {shown(method)})")
-    tol = setting(TOLERANCE, f"{where}.tolerance", data.get("tolerance", TOLERANCE.default))
     origin = data.get("origin", [0.0, 0.0, 0.0])
     if not (isinstance(origin, list | tuple) and len(origin) == 3):
         raise ParameterError(f"{where}.origin", "must be a list of three numbers [x, y, z]")
     org = tuple(positive_number(f"{where}.origin", v, positive=False) for v in origin)
-    inst = Instance(system, name, flat, method, tol, org,  # type: ignore[arg-type]
-                    _instance_setting(EFFORT_LIMIT, where, data, name, overrides))
+    inst = Instance(system, name, flat, method, tol, org, settings)  # type: ignore[arg-type]
     inst._built = (system, dict(flat), model)
     return inst
 
 
-def _instance_setting(p: Any, where: str, data: dict[str, Any], name: str,
-                      overrides: tuple[Override, ...]) -> float:
-    """An instance's run setting ``p`` (``effort_limit``): its key in the scene entry, or a
-    ``--set`` of the same name (for every instance, or ``NAME:`` for this one)."""
-    given = [o for o in overrides if o.name == p.name and o.instance in ("", name)]
-    if given:
-        return setting(p, f"--set {given[-1].key}", given[-1].value)
-    return setting(p, f"{where}.{p.name}", data.get(p.name, p.default))
+def _set_field(o: Override) -> str:
+    """How a ``--set`` is named in a message: as the user wrote it (bounded)."""
+    return f"--set {o.key if len(o.key) <= 60 else shown(o.key)}"
+
+
+def _instance_settings(where: str, data: dict[str, Any], flat: dict[str, Any],
+                       given: set[str], overrides: list[Override]
+                       ) -> tuple[str, float, dict[str, float]]:
+    """(method, tolerance, other settings) of an instance: its keys, the run settings among
+    its ``parameters`` (taken out of ``flat``) and the ``--set`` overrides, each checked
+    where it was given."""
+    raw: dict[str, tuple[Any, str]] = {}
+    for key in ("method", *INSTANCE_SETTINGS):
+        if key in data:
+            raw[key] = (data[key], f"{where}.{key}")
+        if key in flat and key not in given:
+            if key in data:
+                raise ParameterError(f"{where}.parameters.{key}", f"given twice (also as "
+                                     f"{where}.{key})")
+            raw[key] = (flat.pop(key), f"{where}.parameters.{key}")
+    for key in SCENE_SETTINGS:
+        if key in flat and key not in given:
+            raise ParameterError(f"{where}.parameters.{key}", "a setting of the whole scene "
+                                 f"(its top-level `{key}`), not of one system")
+    for o in overrides:
+        if o.name not in given and (o.name == "method" or o.name in INSTANCE_SETTINGS):
+            raw[o.name] = (o.value, _set_field(o))
+    method, method_field = raw.pop("method", ("auto", f"{where}.method"))
+    if not isinstance(method, str) or method not in METHODS:
+        raise ParameterError(method_field, f"unknown method {shown(method)}" +
+                             did_you_mean(method if isinstance(method, str) else "", METHODS,
+                                          "methods"))
+    values = {key: setting(INSTANCE_SETTINGS[key], f, v) for key, (v, f) in raw.items()}
+    tol = values.pop("tolerance", float(TOLERANCE.default))
+    return method, tol, values
 
 
 def _parameters(where: str, params: dict[str, Any]) -> dict[str, Any]:
@@ -260,6 +318,7 @@ def parse_scene(data: Any, default_name: str = "scene",
         raise ParameterError("systems", "must be a non-empty list of system instances")
     instances = [parse_instance(s, i, tuple(overrides)) for i, s in enumerate(systems)]
     _check_overrides(instances, overrides)
+    data = _with_scene_overrides(data, overrides)
     names = [i.name for i in instances]
     for n in names:
         if names.count(n) > 1:
@@ -308,17 +367,44 @@ def _outputs(scene: Scene, outputs: Any) -> None:
     scene.bag, scene.rrd = outputs.get("bag"), outputs.get("rrd")
 
 
+def _with_scene_overrides(data: dict[str, Any],
+                          overrides: list[Override] | tuple[Override, ...]) -> dict[str, Any]:
+    """The scene's data with the ``--set`` of scene settings (``SCENE_SETTINGS``) in it, each
+    checked and named as given."""
+    out = dict(data)
+    for o in overrides:
+        p = SCENE_SETTINGS.get(o.name)
+        if p is None:
+            continue
+        if o.instance:
+            raise ParameterError(_set_field(o), "a setting of the whole scene: give it without "
+                                 "an instance")
+        value = setting(p, _set_field(o), o.value)
+        if o.name in ("warn_drift", "error_drift"):
+            diag = out.get("diagnostics") or {}
+            out["diagnostics"] = {**(diag if isinstance(diag, dict) else {}), o.name: value}
+        else:
+            out[o.name] = value
+    return out
+
+
 def _check_overrides(instances: list[Instance], overrides: list[Override] | tuple[Override, ...]
                      ) -> None:
-    """Every ``--set`` names a parameter of an instance it is meant for."""
+    """Every ``--set`` names a parameter or run setting of an instance it is meant for, or a
+    setting of the scene; else the names it could have meant."""
+    names = {inst.name for inst in instances}
     for o in overrides:
-        if o.name == EFFORT_LIMIT.name and any(o.instance in ("", i.name) for i in instances):
-            continue  # a run setting of every instance
-        if not any(o.instance in ("", inst.name) and o.name in
-                   {p.name for p in system_class(inst.system).parameter_spec()}
-                   for inst in instances):
+        if o.instance and o.instance not in names:
+            raise ParameterError(_set_field(o), f"no instance {shown(o.instance)} in the scene"
+                                 + did_you_mean(o.instance, names, "instances"))
+        targets = [inst for inst in instances if o.instance in ("", inst.name)]
+        params = {p.name for inst in targets
+                  for p in system_class(inst.system).parameter_spec()}
+        known = params | {"method", *INSTANCE_SETTINGS} | set(SCENE_SETTINGS)
+        if o.name not in known:
             where = f"instance {shown(o.instance)}" if o.instance else "any system of the scene"
-            raise ParameterError(f"--set {shown(o.name)}", f"not a parameter of {where}")
+            raise ParameterError(f"--set {shown(o.name)}", f"not a parameter of {where} nor a "
+                                 f"run setting{did_you_mean(o.name, known, 'names')}")
 
 
 def load_scene(path: str | Path, overrides: list[Override] | tuple[Override, ...] = ()
@@ -384,10 +470,10 @@ def scene_data(scene: Scene) -> dict[str, Any]:
             "real_time_factor": scene.real_time_factor, "duration": scene.duration,
             "publish_rate": scene.publish_rate, "warn_drift": scene.warn_drift,
             "error_drift": scene.error_drift, "bag": scene.bag, "rrd": scene.rrd,
-            "source": None if scene.source is None else str(scene.source),
+            "force": scene.force, "source": None if scene.source is None else str(scene.source),
             "systems": [{"system": i.system, "name": i.name, "parameters": i.parameters,
                          "method": i.method, "tolerance": i.tolerance,
-                         "origin": list(i.origin), "effort_limit": i.effort_limit}
+                         "origin": list(i.origin), "settings": dict(i.settings)}
                         for i in scene.systems]}
 
 
@@ -406,7 +492,7 @@ def scene_from_data(data: Any) -> Scene:
         systems = [Instance(str(d["system"]), str(d["name"]), dict(d["parameters"]),
                             str(d["method"]), float(d["tolerance"]),
                             tuple(float(x) for x in d["origin"]),  # type: ignore[arg-type]
-                            float(d["effort_limit"]))
+                            {str(k): float(v) for k, v in d["settings"].items()})
                    for d in data["systems"]]
         source = _optional(data["source"], str)
         return Scene(name=str(data["name"]), systems=systems, pacing=str(data["pacing"]),
@@ -416,7 +502,8 @@ def scene_from_data(data: Any) -> Scene:
                      warn_drift=float(data["warn_drift"]),
                      error_drift=float(data["error_drift"]),
                      bag=_optional(data["bag"], str), rrd=_optional(data["rrd"], str),
-                     source=None if source is None else Path(source))
+                     source=None if source is None else Path(source),
+                     force=_optional(data["force"], bool) is True)
     except (AttributeError, KeyError, TypeError, ValueError):
         raise ParameterError("scene", f"not a scene written by mechsim ({SCENE_FORMAT})"
                              ) from None

@@ -10,7 +10,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mechsim.errors import ParameterError
-from mechsim.integrators import Stepper, loops, make_stepper
+from mechsim.integrators import METHODS, Stepper, loops, make_stepper
+from mechsim.params import PUBLISH_RATE, TOLERANCE, shown
+from mechsim.systems import load_system as _load_model
 from mechsim.systems.base import Law, Model
 
 OUTPUTS = ("energy", "invariants", "observables", "frames")
@@ -111,10 +113,15 @@ class SimulationResult:
     # Events met on the way, as (time, event name); the discrete mode entries at each sample.
     events: list[tuple[float, str]] = field(default_factory=list)
     modes: np.ndarray | None = None
-    # What the run cost and how good it is: right-hand-side (or force) evaluations, rejected
-    # steps, and the integrator's estimate of the error committed (relative to the state).
+    # What the run cost: right-hand-side (or force) evaluations and rejected steps.
     n_evaluations: int = 0
     n_rejected: int = 0
+    #: The integrator's own estimate of the error it committed: the sum over its steps of
+    #: the local error estimates, relative to the state's scale (1e-9: about a billionth of a
+    #: typical coordinate or rate). It assumes the errors add up: a chaotic system can
+    #: amplify them beyond it, and a symplectic method's energy error stays far below it;
+    #: the closed forms report 0. A diagnostic, not a bound: the contract is ``tolerance``
+    #: (see ``mechsim.integrators``; tests/test_tolerance.py checks it against references).
     error_estimate: float = 0.0
 
     @property
@@ -178,6 +185,55 @@ class SimulationResult:
         return self.v[:, names.index(name)]
 
 
+#: The run settings :func:`load_system` takes beside a system's parameters, under the names of
+#: the nodes' ROS parameters: the defaults of :func:`simulate` for that model.
+API_SETTINGS = ("method", "tolerance", "publish_rate")
+#: Settings of a running node only, with why ``simulate`` has no use for them.
+NODE_SETTINGS = {
+    "real_time_factor": "simulate() runs as fast as possible",
+    "constraint_limit": "simulate() has no constraint guard (see the invariants instead)",
+    "effort_timeout": "simulate() takes no effort commands",
+    "effort_wait": "simulate() takes no effort commands",
+    "warn_drift": "a threshold of the diagnostics node",
+    "error_drift": "a threshold of the diagnostics node",
+}
+_SETTINGS: weakref.WeakKeyDictionary[Model, dict[str, float | str]] = \
+    weakref.WeakKeyDictionary()
+
+
+def load_system(system_id: str, **values: object) -> Model:
+    """A model of ``system_id`` with its parameters ``values`` (validated: ParameterError),
+    and run settings under the names the nodes' ROS parameters use: ``method``,
+    ``tolerance`` and ``publish_rate`` (samples per simulated second) are what
+    :func:`simulate` uses for this model unless it is given others."""
+    settings: dict[str, float | str] = {}
+    for name in list(values):
+        if name in NODE_SETTINGS:
+            raise ParameterError(name, f"a setting of a running node (scenes, --set, ROS "
+                                 f"parameters): {NODE_SETTINGS[name]}")
+        if name in API_SETTINGS:
+            settings[name] = _setting(name, values.pop(name))
+    model = _load_model(system_id, **values)
+    if settings:
+        _SETTINGS[model] = settings
+    return model
+
+
+def _setting(name: str, value: object) -> float | str:
+    """A run setting given to the API, checked against its one range."""
+    if name == "method":
+        if not isinstance(value, str) or value not in METHODS:
+            raise ParameterError("method", f"must be one of {', '.join(METHODS)} (got "
+                                 f"{shown(value)})")
+        return value
+    return float((TOLERANCE if name == "tolerance" else PUBLISH_RATE).check(value, name))
+
+
+def run_settings(model: Model) -> dict[str, float | str]:
+    """The run settings :func:`load_system` was given for ``model`` (empty if none)."""
+    return dict(_SETTINGS.get(model, {}))
+
+
 def output_times(t_end: float, output_dt: float, t0: float = 0.0) -> np.ndarray:
     if not (math.isfinite(t_end) and t_end > t0):
         raise ParameterError("t_end", f"must be a finite time after {t0:g} (got {t_end!r})")
@@ -190,12 +246,18 @@ def output_times(t_end: float, output_dt: float, t0: float = 0.0) -> np.ndarray:
     return t
 
 
-def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e-10,
-             method: str = "auto", outputs: tuple[str, ...] = OUTPUTS,
-             step: float | None = None, closed_form: bool = False,
-             work_terms: bool = True) -> SimulationResult:
-    """Integrate ``model`` from its initial state to ``t_end``, sampling every ``output_dt``.
+def simulate(model: Model, t_end: float, output_dt: float | None = None,
+             tolerance: float | None = None, method: str | None = None,
+             outputs: tuple[str, ...] = OUTPUTS, step: float | None = None,
+             closed_form: bool = False, work_terms: bool = True,
+             publish_rate: float | None = None) -> SimulationResult:
+    """Integrate ``model`` from its initial state to ``t_end``, sampling every ``output_dt``
+    (or ``publish_rate`` samples per simulated second, as the nodes' setting of that name).
 
+    Unless given here, ``method``, ``tolerance`` and the sampling are the ones
+    :func:`load_system` was given for the model, else ``auto``, 1e-10 and 100 per second.
+    ``tolerance`` is a contract on the end-point error of the state (relative and absolute),
+    not a per-step setting: see ``mechsim.integrators``.
     ``method``: "auto", "dop853", "dopri5", "radau15", "gauss6", "exact", "yoshida8",
     "yoshida6" or "verlet" (see mechsim.integrators; ``auto`` knows the horizon ``t_end``);
     ``closed_form=True`` lets "auto" use the exact propagator.
@@ -210,6 +272,16 @@ def simulate(model: Model, t_end: float, output_dt: float, tolerance: float = 1e
             if o not in OUTPUTS:
                 raise ParameterError("outputs",
                                      f"unknown output {o!r} (known: {', '.join(OUTPUTS)})")
+    given = _SETTINGS.get(model, {})
+    tolerance = float(given.get("tolerance", TOLERANCE.default) if tolerance is None
+                      else tolerance)
+    method = str(given.get("method", "auto") if method is None else method)
+    if output_dt is not None and publish_rate is not None:
+        raise ParameterError("publish_rate", "not with output_dt (the same sampling)")
+    if output_dt is None:
+        rate = given.get("publish_rate", PUBLISH_RATE.default) if publish_rate is None \
+            else _setting("publish_rate", publish_rate)
+        output_dt = 1.0 / float(rate)
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
     stepper: Stepper = make_stepper(model, method, tolerance, step=step,

@@ -6,6 +6,13 @@ profile and gives the session its own ``ROS_DOMAIN_ID`` (``ROS_DOMAIN_ID`` if se
 derived from the process id; each pytest-xdist worker is moved to a different one), so tests
 never see another run's nodes and never leave the machine.
 
+Opting out, for a session whose tests must see a real ROS graph (a robot, another host):
+``-p no:mechsim`` leaves the plugin out entirely (no fixtures either); the ini option
+``mechsim_isolation = false`` (in pytest.ini, or ``-o mechsim_isolation=false``) keeps the
+fixtures but changes nothing at start-up: the session keeps its own DDS settings and domain.
+The fixtures' nodes then still use the loopback profile, as every mechsim process does (set in
+this process when the first fixture imports rclpy).
+
 Fixtures:
 
 - ``ros_domain_id``: the session's domain id.
@@ -100,9 +107,27 @@ def session_domain_id(worker: str | None = None, count: int = 1) -> int:
     return ids[int(worker[2:])]
 
 
+#: The ini option that turns the session's isolation off (see the module docstring).
+ISOLATION = "mechsim_isolation"
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addini(ISOLATION, type="bool", default=True,
+                  help="mechsim: give the session the loopback-only DDS profile and a ROS "
+                  "domain of its own (default true; false: leave DDS settings as they are)")
+
+
+def isolated(config: pytest.Config) -> bool:
+    """Whether the plugin isolates the pytest session's DDS (the ``mechsim_isolation`` option)."""
+    return bool(config.getini(ISOLATION))
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """Before collection (so before any test module imports rclpy): the loopback profile and
-    the session's domain id, also for child processes started with ``os.environ``."""
+    the session's domain id, also for child processes started with ``os.environ`` (unless
+    ``mechsim_isolation = false``)."""
+    if not isolated(config):
+        return
     if os.environ.get("_MECHSIM_DOMAIN_SET_BY") == str(os.getpid()):
         return  # this process is configured already (the plugin loaded twice)
     # ``workerinput`` exists only in a pytest-xdist worker process.
@@ -113,6 +138,8 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_report_header(config: pytest.Config) -> str:
+    if not isolated(config):
+        return f"mechsim: {ISOLATION} = false: DDS settings and ROS domain left as they are"
     return (f"mechsim: ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')} "
             f"FASTDDS_DEFAULT_PROFILES_FILE={os.environ.get('FASTDDS_DEFAULT_PROFILES_FILE')}")
 
@@ -130,14 +157,14 @@ def wait_until(executor: Any, done: Callable[[], bool], timeout: float = 120.0) 
 
 @pytest.fixture(scope="session")
 def ros_domain_id() -> int:
-    """The ROS domain id of this test session."""
-    return int(os.environ["ROS_DOMAIN_ID"])
+    """The ROS domain id of this test session (0, ROS's default, where none is set)."""
+    return int(os.environ.get("ROS_DOMAIN_ID", "0"))
 
 
 @pytest.fixture
 def ros_env() -> dict[str, str]:
     """Environment for a child process (``subprocess.Popen(..., env=ros_env)``) that joins
-    this session's graph (profile, domain id, RMW, library path)."""
+    the pytest session's graph (profile, domain id, RMW, library path)."""
     return dict(os.environ)
 
 
@@ -289,7 +316,8 @@ class Graph:
         log = self.workdir / f"mechsim-run-{len(self._running)}.log"
         with open(log, "wb") as sink:  # the child's messages, quoted if a wait fails
             proc = subprocess.Popen([sys.executable, "-m", "mechsim.cli", "run", target,
-                                     "--duration", "1e9", "--rate", repr(publish_rate), *sets],
+                                     "--duration", "1e9", "--publish-rate", repr(publish_rate),
+                                     *sets],
                                     env=dict(os.environ), cwd=self.workdir,
                                     stdout=sink, stderr=subprocess.STDOUT)
         run = Running([i.name for i in scene.systems], process=proc, log=log)

@@ -15,6 +15,7 @@ import importlib
 import os
 import signal
 import sys
+from typing import Any
 
 from mechsim.errors import MechsimError, one_line
 
@@ -26,12 +27,30 @@ EXIT_INTERRUPTED = 130
 VERBS = ("systems", "run", "record", "bag", "replay", "topic", "node", "param", "service",
          "view", "convert", "bench", "stress", "cache", "figures")
 #: The node processes' verbs (``executables``), not listed by ``mechsim --help``.
-NODE_VERBS = ("simulator", "diagnostics", "recorder")
+NODE_VERBS = ("simulator", "diagnostics", "recorder", "swing_up_controller")
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, whose refusal of a choice (a verb, a method) says the close one:
+    ``invalid choice: 'rn': did you mean 'run'? (choose from ...)``."""
+
+    def _check_value(self, action: argparse.Action, value: Any) -> None:
+        choices = action.choices
+        if choices is None or value in choices:
+            return
+        from mechsim.errors import did_you_mean
+
+        shown = [str(c) for c in choices if str(c) not in NODE_VERBS]
+        raise argparse.ArgumentError(action, f"invalid choice: {value!r}"
+                                     + did_you_mean(str(value), shown, "choose from"))
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="mechsim", description="Simulated classical mechanics "
-                                 "streamed as ROS 2 topics.")
+    from mechsim import __version__
+
+    ap = Parser(prog="mechsim", description="Simulated classical mechanics streamed as ROS 2 "
+                "topics.")
+    ap.add_argument("--version", action="version", version=f"mechsim {__version__}")
     # (the metavar names the verbs users run; the node processes' verbs stay unlisted)
     sub = ap.add_subparsers(dest="command", required=True, metavar=f"{{{','.join(VERBS)}}}")
     for verb in VERBS:  # each module registers its parser; heavy imports wait for the run

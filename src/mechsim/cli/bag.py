@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mechsim.errors import counted
+
 
 def add_parser(sub: Any) -> None:
     b = sub.add_parser("bag", help="inspect or repair a recorded bag")
@@ -54,7 +56,8 @@ def cmd_bag_repair(a: argparse.Namespace) -> int:
         state = "was truncated; readable chunks kept"
     if r.cut and not r.complete:
         state += f"; the file ends early ({r.cut})"
-    print(f"bag {r.path}: {r.messages} messages on {r.topics} topics ({state}); "
+    print(f"bag {r.path}: {counted(r.messages, 'message')} on {counted(r.topics, 'topic')} "
+          f"({state}); "
           "metadata.yaml written")
     return 0
 

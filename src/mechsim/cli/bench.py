@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from mechsim.cli.common import add_force, refuse_existing
+
 
 def add_parser(sub: Any) -> None:
     b = sub.add_parser("bench", help="work-precision benchmark against scipy, REBOUND, MuJoCo, "
@@ -38,6 +40,8 @@ def add_parser(sub: Any) -> None:
     b.add_argument("--steps", type=int, default=10_000_000,
                    help="steps per run for --brouwer (default 10^7)")
     b.add_argument("--runs", type=int, default=16, help="perturbed runs for --brouwer")
+    add_force(b, "replace the files this command writes in --out (other files there are "
+              "kept); without it an existing one is refused before anything runs")
     b.set_defaults(func=cmd_bench)
 
 
@@ -54,6 +58,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
             raise ParameterError("--runs", f"must be at least 2 (got {a.runs})")
         from mechsim.bench.brouwer import run_brouwer
 
+        refuse_existing(a.out, ["brouwer.json", "brouwer.png"], a.force)
         run_brouwer(out, n_steps=a.steps, runs=a.runs)
         return 0
     if a.derive:
@@ -64,11 +69,13 @@ def cmd_bench(a: argparse.Namespace) -> int:
             if s not in system_ids():
                 raise ParameterError("PROBLEM", f"--derive: no system {s!r} (have: "
                                      f"{', '.join(system_ids())})")
+        refuse_existing(a.out, ["derive.json", "derive.md"], a.force)
         run_derive(out, list(a.systems))
         return 0
     if a.streaming:
         from mechsim.bench.streaming import run_streaming
 
+        refuse_existing(a.out, ["streaming.json", "streaming.md"], a.force)
         run_streaming(out, list(a.systems), duration=a.duration or 1000.0)
         return 0
     if a.scene:
@@ -76,6 +83,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
             raise ParameterError("--scene", "takes no PROBLEM arguments")
         from mechsim.bench.scene_cost import run_scene_cost
 
+        refuse_existing(a.out, ["scene_cost.json", "scene_cost.md"], a.force)
         run_scene_cost(a.scene, out, duration=a.duration)
         return 0
     from mechsim.bench.run import known_systems, run_bench
@@ -89,6 +97,8 @@ def cmd_bench(a: argparse.Namespace) -> int:
     if a.repeats < 1:
         raise ParameterError("--repeats", "must be at least 1")
     families = tuple(a.peers.split(",")) if a.peers else None
+    refuse_existing(a.out, ["results.json", "results.md",
+                            *([] if a.no_plots else [f"{s}.png" for s in systems])], a.force)
     run_bench(systems, out, quick=a.quick, repeats=a.repeats, budget_s=a.budget,
               families=families, cold=False if a.no_cold else None, plots=not a.no_plots)
     return 0

@@ -6,6 +6,8 @@ import argparse
 import json
 from typing import Any
 
+from mechsim.errors import counted
+
 
 def _size(n: int) -> str:
     return f"{n / 1e6:.1f} MB" if n >= 100_000 else f"{n / 1e3:.1f} kB"
@@ -45,7 +47,7 @@ def cmd_cache_warm(a: argparse.Namespace) -> int:
 
     n = warm(a.systems, a.quiet)
     if not a.quiet:
-        print(f"{n} models ready in {codegen.cache_dir()}")
+        print(f"{counted(n, 'model')} ready in {codegen.cache_dir()}")
     return 0
 
 

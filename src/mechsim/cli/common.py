@@ -21,22 +21,56 @@ def check_duration(value: float) -> float:
     return float(DURATION.check(value, "--duration"))
 
 
-def check_rate(value: float) -> float:
-    """``--rate``: publish rate, in the range scenes and nodes accept."""
+def check_rate(value: float, option: str = "--publish-rate") -> float:
+    """``--publish-rate``: publish rate, in the range scenes and nodes accept."""
     from mechsim.params import PUBLISH_RATE
 
-    return float(PUBLISH_RATE.check(value, "--rate"))
+    return float(PUBLISH_RATE.check(value, option))
+
+
+def add_scene_options(parser: Any, verb: str) -> None:
+    """The options of a verb that runs a scene: ``--set``, ``--name``, ``--publish-rate``
+    (and its deprecated spelling ``--rate``), ``--force``."""
+    import argparse
+
+    parser.add_argument("--set", action="extend", nargs="+", default=[], metavar="NAME=VALUE",
+                        help="parameter or run setting (method, tolerance, publish_rate, ...: "
+                        "the names of the nodes' ROS parameters); INSTANCE:NAME=VALUE for one "
+                        "instance; several after one --set")
+    parser.add_argument("--name", metavar="NS", help="instance name (ROS namespace) of a "
+                        "single SYSTEM (default: the system id)")
+    parser.add_argument("--publish-rate", type=float, metavar="HZ",
+                        help="samples published per second of simulation time (the "
+                        "publish_rate setting)")
+    # One name per meaning: `--rate` is replay's speed factor (as in `ros2 bag play`).
+    parser.add_argument("--rate", type=float, dest="deprecated_rate", help=argparse.SUPPRESS)
+    add_force(parser)
+    parser.set_defaults(verb=verb)
 
 
 def scene_of(a: Any, *, fast: bool = False) -> Any:
     """The scene a running verb names (``target``, ``--set``, ``--name``), parsed and
-    validated once, with the run's ``--rate``, ``--duration`` and ``fast`` (as fast as
+    validated once, with the run's ``--publish-rate``, ``--duration`` and ``fast`` (as fast as
     possible) set on it: the one scene object handed on to the nodes."""
     from mechsim.scene import scene_from_target
 
     scene = scene_from_target(a.target, a.set, a.name)
-    if a.rate is not None:
-        scene.publish_rate = check_rate(a.rate)
+    scene.force = bool(getattr(a, "force", False))
+    rate = getattr(a, "publish_rate", None)
+    old = getattr(a, "deprecated_rate", None)
+    if old is not None:
+        from mechsim.errors import ParameterError
+
+        if rate is not None:
+            raise ParameterError("--rate", "not with --publish-rate (the same setting)")
+        say(f"warning: `{getattr(a, 'verb', 'run')} --rate` is deprecated: use --publish-rate "
+            "(samples per second of simulation time); --rate is replay's speed factor")
+        rate = old
+        option = "--rate"
+    else:
+        option = "--publish-rate"
+    if rate is not None:
+        scene.publish_rate = check_rate(rate, option)
     if a.duration is not None:
         scene.duration = check_duration(a.duration)
     if fast:
@@ -44,15 +78,61 @@ def scene_of(a: Any, *, fast: bool = False) -> Any:
     return scene
 
 
-def check_outputs(scene: Any, bag: str | None, rrd: str | None) -> None:
-    """The output paths of a run, refused before anything starts if they are no paths."""
+def check_outputs(scene: Any, bag: str | None, rrd: str | None) -> str | None:
+    """The output paths of a run, refused before anything starts if they are no paths or
+    would replace something: an existing .rrd without ``--force`` (``scene.force``), a bag
+    directory that exists with content (never replaced: a recording is never deleted).
+    Returns the .rrd path with its strftime fields expanded (as a bag's are)."""
+    import os
+
+    from mechsim.errors import ParameterError
+    from mechsim.outputs.bag import expand_path
     from mechsim.params import check_text
     from mechsim.ros.record import bag_path
 
     if bag is not None:
-        bag_path(bag, scene)
+        d = expand_path(bag_path(bag, scene))
+        try:
+            taken = os.path.lexists(d) and (d.is_symlink() or not d.is_dir()
+                                            or any(d.iterdir()))
+        except OSError:
+            taken = False  # unreadable: the bag writer says why when it claims the path
+        if taken:
+            raise ParameterError("--bag", f"{d} exists{' and is not empty' if d.is_dir() else ''}"
+                                 " (a bag is never replaced, not even with --force: choose a "
+                                 "new path or remove it)")
     if rrd is not None:
-        check_text("--rrd", rrd)
+        rrd = str(expand_path(check_text("--rrd", rrd)))
+        if os.path.isdir(rrd):
+            raise ParameterError("--rrd", f"{rrd} is a directory")
+        if os.path.lexists(rrd) and not scene.force:
+            raise ParameterError("--rrd", f"{rrd} exists (add --force to replace it)")
+    return rrd
+
+
+def refuse_existing(out: str, names: list[str], force: bool) -> None:
+    """Before a verb writes ``names`` into the directory ``out``: none of them may exist,
+    unless ``--force`` (ParameterError naming the first that does)."""
+    import os
+
+    from mechsim.errors import ParameterError
+    from mechsim.params import check_text
+
+    check_text("--out", out)
+    if force:
+        return
+    for name in names:
+        path = os.path.join(out, name)
+        if os.path.lexists(path):
+            raise ParameterError("--out", f"{path} exists (add --force to replace what this "
+                                 "command writes there)")
+
+
+def add_force(parser: Any, help_text: str = "replace an --rrd recording that exists, once "
+              "the new one is complete (without it nothing is replaced; a bag never is)"
+              ) -> None:
+    """The ``--force`` option of a verb that writes files."""
+    parser.add_argument("--force", action="store_true", help=help_text)
 
 
 def progress_bar(enabled: bool) -> Any:
@@ -84,6 +164,11 @@ def print_summary(run: Any) -> None:
     print(f"  {'system':<{w1}}  {'law':<{w2}}  {'max relative drift':>18}  level")
     for system, law, drift, level in rows:
         print(f"  {system:<{w1}}  {law:<{w2}}  {drift:>18.3e}  {LEVEL_NAMES[level]}")
+    for name in getattr(run, "efforts", []):
+        print(f"  {name}: an effort was applied, so only the laws that hold under an outside "
+              "force are checked from then on (work_balance, constraint residuals): energy, "
+              "energy_function and the invariants change with its work and impulse and are "
+              "left out")
     for name, reason in run.failures.items():
         print(f"  {name}: integration stopped: {reason}")
 

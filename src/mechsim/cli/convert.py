@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mechsim.errors import ParameterError
+from mechsim.errors import ParameterError, counted
 from mechsim.outputs.rerun import convert_bag
 
 
@@ -31,7 +31,8 @@ def cmd_convert(a: Any) -> int:
     if os.path.lexists(rrd) and not a.force:
         raise ParameterError("--rrd", f"{rrd} exists (add --force to replace it)")
     counts = convert_bag(Path(a.bag), rrd, replace=a.force)
-    print(f"mechsim: wrote {rrd} ({sum(counts.values())} messages on {len(counts)} topics)",
+    print(f"mechsim: wrote {rrd} ({counted(sum(counts.values()), 'message')} on "
+          f"{counted(len(counts), 'topic')})",
           file=sys.stderr)
     return 0
 

@@ -9,7 +9,7 @@ from typing import Any
 def cmd_node_list(a: argparse.Namespace) -> int:
     from mechsim.ros.graph import node_names
 
-    for name in node_names(wait=a.wait):
+    for name in node_names(wait=a.wait, all_nodes=a.all):
         print(name.encode("unicode_escape").decode("ascii"))
     return 0
 
@@ -20,4 +20,6 @@ def add_parser(sub: Any) -> None:
     lst = nsub.add_parser("list", help="every node seen after a short discovery wait")
     lst.add_argument("--wait", type=float, default=1.0, metavar="S",
                      help="discovery wait in seconds (default 1)")
+    lst.add_argument("-a", "--all", action="store_true", help="also the hidden nodes (a name "
+                     "starting with _, such as the ros2 command's own)")
     lst.set_defaults(func=cmd_node_list)

@@ -51,7 +51,8 @@ def add_parser(sub: Any) -> None:
     get.add_argument("name", metavar="NAME")
     get.set_defaults(func=cmd_param_get)
     st = psub.add_parser("set", help="set one parameter (the node validates it; a rejected "
-                         "value is one error line with the node's reason)")
+                         "value is one error line with the node's reason and exit status 2, "
+                         "where `ros2 param set` prints the failure and exits 0)")
     st.add_argument("node", metavar="NODE")
     st.add_argument("name", metavar="NAME")
     st.add_argument("value", metavar="VALUE", help="YAML scalar: 2.5, true, dop853")

@@ -6,7 +6,15 @@ import argparse
 import sys
 from typing import Any
 
-from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
+from mechsim.cli.common import (
+    NODE_ENVIRONMENT,
+    add_scene_options,
+    print_summary,
+    progress_bar,
+    say,
+)
+from mechsim.cli.rosargs import add_ros_args, hand_over
+from mechsim.errors import counted
 from mechsim.ros.record import DEFAULT_BAG
 from mechsim.runcore.stops import stop_on_sigterm
 
@@ -16,6 +24,7 @@ EXIT_INTERRUPTED = 130
 
 def cmd_record(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
+    hand_over(a)  # --ros-args: checked by rcl, for every context this command starts
     from mechsim.cli.common import check_outputs, scene_of
     from mechsim.errors import ParameterError
     from mechsim.ros.graph_check import discovery_window, join_graph
@@ -28,10 +37,10 @@ def cmd_record(a: argparse.Namespace) -> int:
                              "recording runs as fast as possible)")
     bag = a.bag or scene.bag or DEFAULT_BAG
     rrd = a.rrd or scene.rrd
-    check_outputs(scene, bag, rrd)  # a bad path is refused before anything starts
+    rrd = check_outputs(scene, bag, rrd)  # a bad path is refused before anything starts
     show = progress_bar(sys.stderr.isatty())
-    say(f"recording scene {scene.name!r} ({len(scene.systems)} systems, {scene.duration:g} s "
-        f"simulated, as fast as possible)")
+    say(f"recording scene {scene.name!r} ({counted(len(scene.systems), 'system')}, "
+        f"{scene.duration:g} s simulated, as fast as possible)")
     join_graph()  # everything validated: discovery runs while the models load
     run, lines = run_with_outputs(scene, fast=True, duration=scene.duration, bag=bag, rrd=rrd,
                                   progress=show, lossless=a.lossless)
@@ -50,14 +59,12 @@ def add_parser(sub: Any) -> None:
                        "message to a rosbag2 (MCAP) bag", epilog=NODE_ENVIRONMENT)
     r.add_argument("target", help="scene YAML file or system id")
     r.add_argument("--duration", type=float, help="simulated seconds (default: the scene's)")
-    r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter override; INSTANCE:NAME=VALUE for one instance")
-    r.add_argument("--name", metavar="NS", help="instance name (ROS namespace) of a single "
-                   "SYSTEM (default: the system id)")
-    r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
+    add_scene_options(r, "record")
     r.add_argument("--bag", metavar="DIR", help="new bag directory (strftime fields expanded; "
                    f"default: scene outputs.bag, else {DEFAULT_BAG.replace('%', '%%')})")
-    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording")
+    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (strftime "
+                   "fields expanded)")
     r.add_argument("--lossless", action="store_true", help="live reliable subscribers get "
                    "every sample too (the run waits for the slowest one's acknowledgments)")
+    add_ros_args(r)
     r.set_defaults(func=cmd_record)

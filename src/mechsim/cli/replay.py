@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mechsim.errors import ParameterError
+from mechsim.errors import ParameterError, counted
 from mechsim.ros.replay import check_topics, replay
 
 
@@ -25,7 +25,8 @@ def cmd_replay(a: argparse.Namespace) -> int:
           f"{meta['duration']['nanoseconds'] / 1e9:g} s) {pace}"
           f"{', looping' if a.loop else ''}", file=sys.stderr)
     s = replay(a.bag, rate=a.rate, loop=a.loop, topics=a.topics or None, delay=a.delay)
-    print(f"mechsim: replayed {s.messages} messages on {len(s.per_topic)} topics "
+    print(f"mechsim: replayed {counted(s.messages, 'message')} on "
+          f"{counted(len(s.per_topic), 'topic')} "
           f"({s.loops} pass{'es' if s.loops != 1 else ''}, {s.clock} /clock ticks) "
           f"in {s.wall:.2f} s", file=sys.stderr)
     return 0

@@ -6,13 +6,22 @@ import argparse
 import sys
 from typing import Any
 
-from mechsim.cli.common import NODE_ENVIRONMENT, print_summary, progress_bar, say
+from mechsim.cli.common import (
+    NODE_ENVIRONMENT,
+    add_scene_options,
+    print_summary,
+    progress_bar,
+    say,
+)
+from mechsim.cli.rosargs import add_ros_args, hand_over
+from mechsim.errors import counted
 from mechsim.outputs.rerun_live import DEFAULT_CONNECT
 from mechsim.runcore.stops import stop_on_sigterm
 
 
 def cmd_run(a: argparse.Namespace) -> int:
     stop_on_sigterm()  # from here on, a stop completes whatever files exist
+    hand_over(a)  # --ros-args: checked by rcl, for every context this command starts
     from mechsim.cli.common import check_outputs, scene_of
     from mechsim.ros.graph_check import discovery_window
 
@@ -20,7 +29,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     scene = scene_of(a, fast=a.fast)
     bag = a.bag or scene.bag
     rrd = a.rrd or scene.rrd
-    check_outputs(scene, bag, rrd)
+    rrd = check_outputs(scene, bag, rrd)
     if a.only is not None:  # one node of the scene, e.g. one per host
         return _only(a, scene, bag, rrd)
     if a.processes:
@@ -92,7 +101,8 @@ def _processes(a: argparse.Namespace, scene: Any, bag: str | None, rrd: str | No
 
     consumers = "a diagnostics process" + (" and a recorder process"
                                            if bag is not None or rrd is not None else "")
-    say(f"{len(scene.systems)} simulator processes, {consumers} (Ctrl-C stops them)")
+    say(f"{counted(len(scene.systems), 'simulator process')}, {consumers} (Ctrl-C stops "
+        "them)")
     run, lines, status = run_processes(scene, bag=bag, rrd=rrd)
     if status == 2:  # a refused start: its process said why
         return status
@@ -113,7 +123,7 @@ def _in_process(a: argparse.Namespace, scene: Any, bag: str | None, rrd: str | N
     fast = True if a.fast else None
     show = progress_bar(sys.stderr.isatty() and duration is not None)
     pace = "as fast as possible" if (fast or scene.pacing == "fast") else "real time"
-    say(f"running scene {scene.name!r} ({len(scene.systems)} systems, {pace}"
+    say(f"running scene {scene.name!r} ({counted(len(scene.systems), 'system')}, {pace}"
         f"{f', {duration:g} s' if duration else ', until Ctrl-C'})")
     lines: list[str] = []
     server, live = _live_view(a)
@@ -176,13 +186,9 @@ def add_parser(sub: Any) -> None:
     r = sub.add_parser("run", help="run a scene file or a single system",
                        epilog=NODE_ENVIRONMENT)
     r.add_argument("target", help="scene YAML file or system id")
-    r.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter override; INSTANCE:NAME=VALUE for one instance")
-    r.add_argument("--name", metavar="NS", help="instance name (ROS namespace) of a single "
-                   "SYSTEM (default: the system id)")
+    add_scene_options(r, "run")
     r.add_argument("--duration", type=float, help="simulated seconds")
     r.add_argument("--fast", action="store_true", help="as fast as possible")
-    r.add_argument("--rate", type=float, help="publish rate [Hz of simulation time]")
     r.add_argument("--processes", action="store_true", help="one process per node")
     r.add_argument("--lossless", action="store_true", help="every reliable subscriber gets "
                    "every sample: the run waits for the slowest one's acknowledgments "
@@ -196,7 +202,8 @@ def add_parser(sub: Any) -> None:
                    "(nothing they would miss is sent before; repeatable)")
     r.add_argument("--bag", metavar="DIR", help="also record every message to a new rosbag2 "
                    "bag (strftime fields expanded)")
-    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd)")
+    r.add_argument("--rrd", metavar="FILE", help="also write a Rerun recording (.rrd; "
+                   "strftime fields expanded)")
     r.add_argument("--viewer", action="store_true", help="serve Rerun's web viewer of the run "
                    "on 127.0.0.1 (this machine only) and print its URL; it shows the run live "
                    "with the .rrd's blueprint and stays up after the run ends until Ctrl-C "
@@ -207,4 +214,5 @@ def add_parser(sub: Any) -> None:
                    help="stream the run to a Rerun viewer already running (default URL: "
                    f"{DEFAULT_CONNECT}, where `rerun` listens); the viewer keeps it after "
                    "the run")
+    add_ros_args(r)
     r.set_defaults(func=cmd_run)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shlex
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -22,9 +23,12 @@ def cmd_view(a: Any) -> int:
     else:
         raise MechsimError(f"{path}: no such file (an .rrd recording, an .mcap file or a bag)")
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        shown = " ".join(files)
-        print(f"mechsim: no display here; open it where there is one with `rerun {shown}`, "
-              f"or in a browser with `rerun --web-viewer {shown}`")
+        shown = " ".join(shlex.quote(f) for f in files)
+        # Rerun's servers listen on 0.0.0.0 unless told otherwise: never suggested.
+        print(f"mechsim: no display here; open it where there is one (`mechsim view {shown}`), "
+              f"or serve it to a browser on this machine only with `rerun --bind 127.0.0.1 "
+              f"--web-viewer {shown}` (from another machine: ssh -L 9090:127.0.0.1:9090 "
+              "-L 9876:127.0.0.1:9876 HOST, then open the URL it prints)")
         return 0
     # The viewer's own gRPC server listens on loopback only.
     return subprocess.call([*viewer_command(), "--bind", "127.0.0.1", *files])

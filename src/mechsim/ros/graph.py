@@ -10,6 +10,7 @@ node or service that does not answer is one :class:`MechsimError` naming it.
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -18,7 +19,8 @@ from mechsim.errors import MechsimError, ParameterError
 from mechsim.ros.topic_tools import graph_node
 
 #: Services a mechsim simulator node offers, with their type and request field.
-SERVICES = {"reset": ("std_srvs/srv/Trigger", None), "pause": ("std_srvs/srv/SetBool", "data")}
+SERVICES = {"reset": ("std_srvs/srv/Trigger", None), "pause": ("std_srvs/srv/SetBool", "data"),
+            "step": ("mechsim_msgs/srv/Step", "samples")}
 
 
 def full_name(name: str) -> str:
@@ -41,13 +43,20 @@ def _discover(node: Any, ex: Any, until: Any, timeout: float) -> bool:
     return bool(until())
 
 
-def node_names(wait: float = 1.0) -> list[str]:
-    """Fully qualified names of the graph's nodes, this tool's own node left out."""
+def hidden(name: str) -> bool:
+    """A hidden node: one whose name, or a namespace of which, starts with "_" (as ``ros2
+    node list`` hides the ``/_ros2cli_...`` nodes of the ros2 command itself)."""
+    return any(part.startswith("_") for part in name.split("/"))
+
+
+def node_names(wait: float = 1.0, *, all_nodes: bool = False) -> list[str]:
+    """Fully qualified names of the graph's nodes, this tool's own node left out, and the
+    hidden ones too unless ``all_nodes``."""
     with graph_node("node_list") as (node, ex):
         _discover(node, ex, lambda: False, wait)
         own = _join(node.get_namespace(), node.get_name())
         names = {_join(ns, n) for n, ns in node.get_node_names_and_namespaces()}
-    return sorted(names - {own})
+    return sorted(n for n in names - {own} if all_nodes or not hidden(n))
 
 
 def _client(node: Any, ex: Any, srv_type: Any, service: str, timeout: float) -> Any:
@@ -118,7 +127,15 @@ def _current(node: Any, ex: Any, target: str, name: str, timeout: float) -> Any:
     values = _call(ex, g, GetParameters.Request(names=[name]), timeout,
                    f"{target}/get_parameters").values
     if not values or values[0].type == ParameterType.PARAMETER_NOT_SET:
-        raise ParameterError(name, f"not a parameter of {target}")
+        from rcl_interfaces.srv import ListParameters
+
+        from mechsim.errors import did_you_mean
+
+        c = _client(node, ex, ListParameters, f"{target}/list_parameters", timeout)
+        names = _call(ex, c, ListParameters.Request(), timeout,
+                      f"{target}/list_parameters").result.names
+        raise ParameterError(name, f"not a parameter of {target}"
+                             + did_you_mean(name, names, "parameters"))
     return values[0]
 
 
@@ -142,6 +159,9 @@ def _to_value(raw: str, current: Any) -> Any:
     except yaml.YAMLError:
         value = raw
     out = ParameterValue()
+    if current.type == T.PARAMETER_DOUBLE and isinstance(value, str) \
+            and re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+", value):
+        value = float(value)  # 1e-10: a number YAML 1.1 reads as text
     if current.type == T.PARAMETER_DOUBLE and isinstance(value, int) \
             and not isinstance(value, bool):
         if abs(value) > 2 ** 53:
@@ -183,24 +203,35 @@ def set_parameter(node_name: str, name: str, raw: str, timeout: float = 5.0) -> 
     return _from_value(value)
 
 
-def call_service(node_name: str, service: str, arg: str | None = None,
-                 timeout: float = 5.0) -> tuple[bool, str]:
-    """Call ``<node>/<service>`` (``reset`` or ``pause``); returns (success, message)."""
+def _request(service: str, arg: str | None) -> tuple[Any, Any]:
+    """(service type, request) of ``service`` (one of ``SERVICES``) with its argument."""
     from std_srvs.srv import SetBool, Trigger
+
+    from mechsim_msgs.srv import Step
 
     if service not in SERVICES:
         raise ParameterError("service", f"must be one of {', '.join(SERVICES)} (got "
                              f"{service!r})")
-    target = f"{full_name(node_name)}/{service}"
     if service == "reset":
         if arg is not None:
             raise ParameterError("value", "reset takes no value")
-        srv_type, request = Trigger, Trigger.Request()
-    else:
-        flags = {"true": True, "false": False, "on": True, "off": False, "1": True, "0": False}
-        if arg is None or arg.lower() not in flags:
-            raise ParameterError("value", "pause takes true or false")
-        srv_type, request = SetBool, SetBool.Request(data=flags[arg.lower()])
+        return Trigger, Trigger.Request()
+    if service == "step":
+        if arg is None or not arg.isdigit() or not 0 < int(arg) < 2**32:
+            raise ParameterError("value", "step takes a number of samples, 1 or more")
+        return Step, Step.Request(samples=int(arg))
+    flags = {"true": True, "false": False, "on": True, "off": False, "1": True, "0": False}
+    if arg is None or arg.lower() not in flags:
+        raise ParameterError("value", "pause takes true or false")
+    return SetBool, SetBool.Request(data=flags[arg.lower()])
+
+
+def call_service(node_name: str, service: str, arg: str | None = None,
+                 timeout: float = 5.0) -> tuple[bool, str]:
+    """Call ``<node>/<service>`` (``reset``, ``pause`` or ``step``); returns (success,
+    message)."""
+    srv_type, request = _request(service, arg)
+    target = f"{full_name(node_name)}/{service}"
     with graph_node("service_client") as (node, ex):
         c = _client(node, ex, srv_type, target, timeout)
         response = _call(ex, c, request, timeout, target)

@@ -94,6 +94,20 @@ def discovery_window() -> float:
     return window_setting(raw, GRAPH_WAIT_VARIABLE) if raw else GRAPH_WAIT
 
 
+def quiet_node(name: str, namespace: str, context: Any) -> Any:
+    """A node of mechsim's own tooling (a graph check, a command's probe): none of the
+    command's ROS arguments apply to it, and it offers no service, so nothing of it stays
+    listed once it is destroyed (rclpy's ~/get_type_description service outlived the node in
+    ``ros2 service list``)."""
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    return Node(name, namespace=namespace, context=context, use_global_arguments=False,
+                enable_rosout=False, start_parameter_services=False,
+                parameter_overrides=[Parameter("start_type_description_service",
+                                               value=False)])
+
+
 class GraphCheck:
     """Refuse (MechsimError, one line) to start simulator nodes whose names a live node of
     the domain already uses, or a second /clock. Made before the models are built, so that
@@ -103,19 +117,18 @@ class GraphCheck:
     def __init__(self, context: Any, started: float | None = None) -> None:
         """``started``: when ``context`` joined the graph (discovery began), if earlier."""
         from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
 
         self.context = context
         self.started = time.monotonic() if started is None else started
-        self.probe = Node(f"graph_check_{os.getpid()}", namespace="/mechsim", context=context,
-                          start_parameter_services=False)
+        self.probe = quiet_node(f"graph_check_{os.getpid()}", "/mechsim", context)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.probe)
         self._liveness: dict[str, _Liveness] = {}
 
     def check(self, names: list[str], clock: bool, wait: float) -> None:
         """Refuse as soon as a node in the way answers; start once ``wait`` seconds (from
-        joining) passed and every node found in the way is known to be gone."""
+        joining) passed and every node found in the way is known to be gone. ``names``:
+        instance names (their node ``/<name>/simulator``) or fully qualified node names."""
         end = self.started + wait
         while True:
             now = time.monotonic()
@@ -138,8 +151,14 @@ class GraphCheck:
         domain = self.context.get_domain_id()
         present = {(ns, n) for n, ns in self.probe.get_node_names_and_namespaces()}
         for name in names:
-            full = f"/{name}/simulator"
-            if (f"/{name}", "simulator") in present:
+            full = name if name.startswith("/") else f"/{name}/simulator"
+            namespace, _, node = full.rpartition("/")
+            if (namespace or "/", node) not in present:
+                continue
+            if name.startswith("/"):
+                yield full, (f"{full} is already running on ROS domain {domain}; stop it or "
+                             "start this node under another name (-r __ns:=/NAME)")
+            else:
                 yield full, (f"instance {name!r}: {full} is already running on ROS domain "
                              f"{domain}; stop it or give this instance another name "
                              "(--name, or `name:` in the scene)")
@@ -157,10 +176,44 @@ class GraphCheck:
         self.probe.destroy_node()
 
 
+#: The ROS arguments of this process's command (``--ros-args ...``: ``use_ros_arguments``).
+_ros_arguments: list[str] = []
+
+
+def use_ros_arguments(args: list[str]) -> None:
+    """``args`` (``--ros-args`` and what follows it on a command line) are the ROS arguments
+    every context this process starts from now on is initialised with: rcl's global
+    arguments (remaps, parameters, log level) for the command's nodes. Checked by rcl now: a
+    ParameterError naming ``--ros-args`` with rcl's reason if it cannot parse them, or if
+    arguments that are not ROS arguments follow them."""
+    if args:
+        from mechsim.environment import import_rclpy
+
+        import_rclpy()
+        from rclpy.utilities import remove_ros_args
+
+        try:
+            rest = remove_ros_args(["mechsim", *args])[1:]
+        except RuntimeError as e:  # rcl's RCLInvalidROSArgsError
+            text = (str(e).splitlines() or [type(e).__name__])[0]
+            text = text.removeprefix("Failed to parse ROS arguments: ").split(", at /")[0]
+            raise ParameterError("--ros-args", text) from None
+        if rest:
+            raise ParameterError("--ros-args", f"not ROS arguments: {' '.join(rest)[:200]} "
+                                 "(a command's own options go before --ros-args)")
+    _ros_arguments[:] = args
+
+
+def ros_arguments() -> list[str]:
+    """The ROS arguments of this process's command (empty if it gave none)."""
+    return list(_ros_arguments)
+
+
 def start_context() -> Any:
-    """A new rclpy context, initialised (ROS's own signal handlers off: a command handles its
-    stops). A ``ROS_DOMAIN_ID`` that no participant can use, or an rclpy that cannot start in
-    this environment, is a RosStartError (one line)."""
+    """A new rclpy context, initialised with the command's ROS arguments
+    (``use_ros_arguments``; ROS's own signal handlers off: a command handles its stops). A
+    ``ROS_DOMAIN_ID`` that no participant can use, or an rclpy that cannot start in this
+    environment, is a RosStartError (one line)."""
     from mechsim.environment import import_rclpy, valid_domain_id
 
     raw = os.environ.get("ROS_DOMAIN_ID", "").strip()
@@ -172,7 +225,8 @@ def start_context() -> Any:
 
     context = rclpy.context.Context()
     try:
-        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=["mechsim", *_ros_arguments], context=context,
+                   signal_handler_options=SignalHandlerOptions.NO)
     except RuntimeError as e:  # rclpy's own start-up failures (RCLError)
         raise RosStartError((str(e).splitlines() or [type(e).__name__])[0]) from None
     return context

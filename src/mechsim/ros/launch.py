@@ -32,6 +32,9 @@ if TYPE_CHECKING:
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go;
 #: ``pacing.BLOCK`` at most). A service or parameter request waits one chunk at most.
 FAST_CHUNK = 1000
+#: Longest wall wait [s] of a paced scene between two looks at its nodes (all paused: how
+#: soon a resume is seen; otherwise the next sample due wakes it earlier).
+_IDLE_WAIT = 0.1
 
 
 @dataclass
@@ -47,6 +50,9 @@ class SceneRun:
     summary: list[tuple[str, str, float, int]] = field(default_factory=list)
     failures: dict[str, str] = field(default_factory=dict)
     interrupted: bool = False
+    #: The instances an effort acted on: from then on only the laws that hold under an
+    #: outside force were checked (``Model.laws_under_effort``).
+    efforts: list[str] = field(default_factory=list)
     #: Wall seconds per stage of the sample pipeline, all nodes together: integrate,
     #: evaluate, encode, publish (including the hand-off to sinks), diagnostics (the
     #: in-process law tracking and reports); a recording adds write (the bag writer thread).
@@ -116,6 +122,24 @@ def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None 
     return run
 
 
+def check_given(nodes: list[Any], *others: Any) -> None:
+    """The nodes of one process: no two of the same name (a ``-r __ns:=`` remap of a scene of
+    several systems), and every value given from outside (``--ros-args``) a parameter of one
+    of them (ParameterError naming it otherwise: a typo would silently do nothing)."""
+    from mechsim.errors import ParameterError
+
+    names = [n.get_fully_qualified_name() for n in nodes]
+    for name in names:
+        if names.count(name) > 1:
+            raise ParameterError("--ros-args", f"two simulator nodes named {name}: remap "
+                                 "the namespace only for a scene of one system")
+    unused = set.intersection(*(set(n.start.unused) for n in nodes)) if nodes else set()
+    for other in others:
+        unused = {name for name in unused if not other.has_parameter(name)}
+    if unused:
+        raise ParameterError(sorted(unused)[0], "not a parameter of any node of the scene")
+
+
 class _SceneLoop:
     """The nodes of one in-process scene and the loop that steps them."""
 
@@ -137,6 +161,7 @@ class _SceneLoop:
                                     sinks=self.sinks, discover=False)
         self.feed = DiagnosticsFeed(self.diag)
         self.t = 0.0
+        self.k = 0  # samples of the scene's rate stepped (as fast as possible)
         self.started = time.monotonic()
         self.startup = 0.0
         self.diag_cost = 0.0
@@ -160,16 +185,18 @@ class _SceneLoop:
         for i, inst in enumerate(scene.systems):
             self.nodes.append(SimulatorNode(
                 inst, context=self.context, publish_rate=scene.publish_rate,
-                real_time_factor=0.0, publish_clock=(i == 0),
+                real_time_factor=0.0 if self.fast else scene.real_time_factor,
+                stepped=True, publish_clock=(i == 0),
                 sinks=[*self.sinks, self.feed], end_time=self.duration,
                 lossless=self.lossless, before_first_message=before_first_message))
+        check_given(self.nodes, self.diag)
         self.executor.add_node(self.diag)
         for n in self.nodes:
             self.executor.add_node(n)
 
     def run(self, progress: Callable[[float, float], None] | None) -> None:
         from mechsim.ros.serving import Serving
-        from mechsim.runcore.pacing import paced_lookahead
+        from mechsim.runcore.pacing import Pacing, paced_lookahead
 
         scene, nodes = self.scene, self.nodes
         serving = Serving(self.executor)
@@ -182,36 +209,67 @@ class _SceneLoop:
                 n.run.stagger = i * n.run.lookahead // len(nodes)
         self.startup = time.monotonic() - self.started
         self.started = time.monotonic()
-        duration, dt = self.duration, 1.0 / scene.publish_rate
+        if not self.fast:
+            for n in nodes:  # each run paced on its own: a reset or a pause restarts its own
+                n.run.pacing = Pacing(scene.real_time_factor, n.publish_rate, self.started,
+                                      n.t)
         next_diag = self.period
-        k = 0
         with serving:
-            wall0 = time.monotonic()
-            while duration is None or self.t < duration - 1e-12:
-                k_next = max(k + FAST_CHUNK if self.fast else self._due(serving, wall0, k),
-                             k + 1)
-                t_next = k_next * dt if duration is None else min(k_next * dt, duration)
+            while not self._done():
+                due = None if self.fast else self._wait_due(serving)
                 with held_signals():
-                    for n in nodes:
-                        n.advance_to(t_next)
-                k, self.t = k_next, t_next
+                    if due is None:
+                        self._fast_chunk()
+                    else:
+                        self._advance_due(due)
                 if all(n.failed for n in nodes):
                     break  # every system stopped with an error: nothing left to run
                 serving.let_in()  # a service or parameter request waits one chunk at most
                 next_diag = self._report(next_diag)
-                if progress is not None and duration is not None:
-                    progress(self.t, duration)
+                if progress is not None and self.duration is not None:
+                    progress(min(self.t, self.duration), self.duration)
             self._hand_over()
 
-    def _due(self, serving: Any, wall0: float, k: int) -> int:
-        """Paced: the samples the wall clock has made due (at least the next one, waited for
-        with callbacks served): latency within one sample period."""
-        dt, rtf = 1.0 / self.scene.publish_rate, self.scene.real_time_factor
-        wait = wall0 + (k + 1) * dt / rtf - time.monotonic()
-        while wait > 0:
-            serving.wait(wait)
-            wait = wall0 + (k + 1) * dt / rtf - time.monotonic()
-        return int(math.floor((time.monotonic() - wall0) * rtf / dt + 1e-9))
+    def _done(self) -> bool:
+        """The duration reached: in simulated time of the scene (as fast as possible), by every
+        node (paced: a node reset restarts its count)."""
+        if self.duration is None:
+            return False
+        if self.fast:
+            return self.t >= self.duration - 1e-12
+        return all(n.finished for n in self.nodes)
+
+    def _fast_chunk(self) -> None:
+        """As fast as possible: every node to the end of the next chunk of the scene."""
+        dt = 1.0 / self.scene.publish_rate
+        self.k += FAST_CHUNK
+        t_next = self.k * dt if self.duration is None else min(self.k * dt, self.duration)
+        for n in self.nodes:
+            n.advance_to(t_next)
+        self.t = t_next
+
+    def _wait_due(self, serving: Any) -> list[Any]:
+        """Paced: wait (callbacks served meanwhile) until a sample of some node is due; the
+        nodes to advance then (none if all are paused: the loop serves and looks again)."""
+        while True:
+            active = [n for n in self.nodes
+                      if not (n.failed or n.paused or n.finished) and n.run.pacing is not None]
+            wake = min((n.run.pacing.next_due(n.t) for n in active), default=math.inf)
+            wait = wake - time.monotonic()
+            if wait <= 0:
+                return active
+            serving.wait(min(wait, _IDLE_WAIT))
+            if not active:
+                return []
+
+    def _advance_due(self, nodes: list[Any]) -> None:
+        """Paced: each node to the time its own pacing made due (``SystemRun.pacing``):
+        latency within one sample period, and a node reset or resumed goes on from its current
+        sample, never catching up on the time it did not run."""
+        now = time.monotonic()
+        for n in nodes:
+            n.advance_to(n.run.pacing.due(now, n.t))
+        self.t = max(self.t, *(n.t for n in self.nodes))
 
     def _hand_over(self) -> None:
         with held_signals():
@@ -258,7 +316,8 @@ class _SceneLoop:
                        samples={n.instance.name: n.samples_published for n in nodes},
                        messages={}, summary=diag.summary(),
                        failures={n.instance.name: n.failed for n in nodes if n.failed},
-                       interrupted=interrupted)
+                       interrupted=interrupted,
+                       efforts=[n.instance.name for n in nodes if n.run.effort.acted])
         for n in [*nodes, diag]:
             for topic, count in n.outlet.counts.items():
                 run.messages[topic] = run.messages.get(topic, 0) + count

@@ -30,7 +30,12 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 from mechsim.errors import ParameterError
-from mechsim.ros.graph_check import GraphCheck, discovery_window, start_context
+from mechsim.ros.graph_check import (
+    GraphCheck,
+    discovery_window,
+    ros_arguments,
+    start_context,
+)
 from mechsim.ros.launch import FAST_CHUNK, SceneRun, _warm
 from mechsim.ros.process import NOTHING_PUBLISHED, drain, write_report
 from mechsim.runcore.stops import stop_on_sigterm
@@ -97,7 +102,7 @@ class _Children:
     def _spawn(self, kind: str, role: str, *args: str) -> subprocess.Popen[bytes]:
         return subprocess.Popen([sys.executable, "-m", "mechsim.cli", kind,
                                  "--scene", self.scene_file, "--parent", str(os.getpid()),
-                                 "--report", self._report(role), *args],
+                                 "--report", self._report(role), *args, *ros_arguments()],
                                 env=dict(os.environ), start_new_session=True)
 
     def start(self) -> None:
@@ -180,6 +185,8 @@ def _merged(scene: Scene, got: dict[str, Any], wall: float, interrupted: bool) -
         run.samples[inst.name] = r["samples"]
         if r["failed"]:
             run.failures[inst.name] = r["failed"]
+        if r.get("effort_acted"):
+            run.efforts.append(inst.name)
         for topic, n in r["messages"].items():
             run.messages[topic] = run.messages.get(topic, 0) + n
     diag = got.get("diagnostics", {})
@@ -246,9 +253,10 @@ def _pubs(node: Any) -> list[Any]:
     return [ch.publisher for ch in node.outlet.channels.values()]
 
 
-def diagnostics_process(scene: Scene, report: str | None = None) -> int:
-    """The diagnostics node of ``scene`` until SIGINT/SIGTERM, then it drains what is in
-    flight. ``report``: a JSON file of what it did, for the parent. Exit status 0."""
+def diagnostics_process(scene: Scene | None, report: str | None = None) -> int:
+    """The diagnostics node of ``scene`` (None: alone, its thresholds its parameters') until
+    SIGINT/SIGTERM, then it drains what is in flight. ``report``: a JSON file of what it did,
+    for the parent. Exit status 0."""
     context = start_context()
     from rclpy.executors import SingleThreadedExecutor
 
@@ -258,8 +266,8 @@ def diagnostics_process(scene: Scene, report: str | None = None) -> int:
     executor = SingleThreadedExecutor(context=context)
     node = None
     try:
-        node = DiagnosticsNode(context=context, warn_drift=scene.warn_drift,
-                               error_drift=scene.error_drift)
+        node = DiagnosticsNode(context=context) if scene is None else DiagnosticsNode(
+            context=context, warn_drift=scene.warn_drift, error_drift=scene.error_drift)
         executor.add_node(node)
         while True:
             executor.spin_once(timeout_sec=0.1)
@@ -405,4 +413,5 @@ class _Simulator:
             pass
         write_report(report, {"t": node.t, "samples": node.samples_published,
                                "failed": node.failed, "startup": self.startup,
+                               "effort_acted": node.run.effort.acted,
                                "messages": node.outlet.counts})

@@ -24,7 +24,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-from mechsim.errors import MechsimError, one_line
+from mechsim.errors import MechsimError, counted, one_line
 from mechsim.runcore.stops import held_signals
 
 DEFAULT_BAG = "runs/{scene}_%Y%m%d-%H%M%S"
@@ -34,15 +34,16 @@ def _msg(text: str) -> None:
     print(f"mechsim: {text}", file=sys.stderr)
 
 
-def rerun_sink(path: str) -> Any | None:
-    """The Rerun sink (``mechsim.outputs.rerun.RerunSink``) if that module exists, else None."""
+def rerun_sink(path: str, replace: bool = False) -> Any | None:
+    """The Rerun sink (``mechsim.outputs.rerun.RerunSink``) if that module exists, else None.
+    An existing ``path`` is replaced only with ``replace`` (once the new one is complete)."""
     if importlib.util.find_spec("mechsim.outputs.rerun") is None:
         _msg(f"--rrd {path}: Rerun output unavailable (mechsim.outputs.rerun not installed); "
              "recording without it")
         return None
     from mechsim.outputs.rerun import RerunSink  # type: ignore[import-not-found,unused-ignore]
 
-    return RerunSink(path)
+    return RerunSink(path, replace=replace)
 
 
 @dataclass
@@ -69,8 +70,8 @@ class Outputs:
             bag, self.bag = self.bag, None
             try:
                 stats = bag.close()
-                lines.append(f"bag {bag.path}: {stats.message_count} messages on "
-                             f"{len(stats.topics)} topics")
+                lines.append(f"bag {bag.path}: {counted(stats.message_count, 'message')} "
+                             f"on {counted(len(stats.topics), 'topic')}")
             except Exception as e:  # noqa: BLE001 - the rrd is closed first, then raised
                 self.bag = bag
                 error = e
@@ -183,7 +184,7 @@ def open_outputs(scene: Any, bag: str | None, rrd: str | None,
         out.bag = BagWriter(path, scene_custom_data(scene))
     if rrd is not None:
         try:
-            out.rrd = rerun_sink(rrd)
+            out.rrd = rerun_sink(rrd, replace=bool(getattr(scene, "force", False)))
         except BaseException:
             out.finish_after_error()
             raise

@@ -23,6 +23,7 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -39,6 +40,12 @@ from mechsim.runcore.stops import held_signals
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock", "/diagnostics")
 #: Name of the recorder node (the simulators wait for its subscriptions before stepping).
 NODE_NAME = "mechsim_recorder"
+#: The recorder's parameters, read when it starts alone (``ros/standalone.py``).
+_PARAMETERS = {
+    "scene": "scene file whose instances are recorded (empty: every mechsim system in the "
+             "graph)",
+    "bag": "new bag directory (strftime fields and {scene} expanded; empty: no bag)",
+    "rrd": "Rerun recording file (empty: none)"}
 #: How often the graph is scanned for new topics [s].
 SCAN_PERIOD = 0.2
 #: Reader history: room for bursts of a simulator running ahead (a best-effort topic loses
@@ -53,6 +60,8 @@ def stamp_ns(msg: Any) -> int | None:
         stamp = header.stamp
     elif getattr(msg, "transforms", None):
         stamp = msg.transforms[0].header.stamp
+    elif getattr(msg, "markers", None):
+        stamp = msg.markers[0].header.stamp
     elif hasattr(msg, "clock"):
         stamp = msg.clock
     else:
@@ -62,11 +71,17 @@ def stamp_ns(msg: Any) -> int | None:
 
 class RecorderNode(Node):
     """Subscribes to the scene's topics as they appear and hands every message to ``sinks``
-    (each the topics it wants, in its form: ``mechsim.outputs.sink``)."""
+    (each the topics it wants, in its form: ``mechsim.outputs.sink``).
+    Without instances: the topics of every mechsim system in the graph (each namespace
+    with a ``system_info`` topic)."""
 
     def __init__(self, instances: list[str], sinks: list[Any], *, context: Any = None) -> None:
         super().__init__(NODE_NAME, context=context)
+        for name, text in _PARAMETERS.items():  # what it was started with, to see
+            self.declare_parameter(name, "", ParameterDescriptor(description=text,
+                                                                 read_only=True))
         self.instances = list(instances)
+        self.every_system = not self.instances
         self.sinks = Sinks(sinks)
         self.counts: dict[str, int] = {}
         #: Topics whose publishers deliver best effort (by convention: /clock).
@@ -82,7 +97,11 @@ class RecorderNode(Node):
 
     def scan(self) -> None:
         """Subscribe to every wanted topic that has appeared since the last scan."""
-        for topic, types in self.get_topic_names_and_types():
+        topics = self.get_topic_names_and_types()
+        if self.every_system:
+            self.instances = sorted({t.removesuffix("/system_info").lstrip("/")
+                                     for t, _ in topics if t.endswith("/system_info")})
+        for topic, types in topics:
             if topic in self._subs or not self.wanted(topic) or len(types) != 1:
                 continue
             offered = [p.qos_profile for p in self.get_publishers_info_by_topic(topic)]

@@ -18,7 +18,7 @@ Topics (stamped with simulation time + ``time_offset``, so /clock never starts a
   <ns>/system_info  mechsim_msgs/SystemInfo  (transient local) what runs and which laws hold
   /tf, /tf_static   tf2_msgs/TFMessage       frames <ns>/<frame>, root "world"
   /clock            rosgraph_msgs/Clock      only when this node owns the clock
-  /diagnostics      diagnostic_msgs/DiagnosticArray  only if integration fails
+  /diagnostics      diagnostic_msgs/DiagnosticArray  a failed integration, a dropped effort
 Energy, invariants, observables and frames are computed only while something consumes them.
 Parameters: every model parameter (same names as scenes and --set), plus method, tolerance,
 publish_rate, real_time_factor (0: stepped by the caller, as fast as possible; then read-only),
@@ -44,7 +44,7 @@ from operator import attrgetter
 from typing import Any
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.context import Context
@@ -53,22 +53,24 @@ from rclpy.parameter import Parameter as RosParameter
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
-from mechsim.errors import MechsimError
-from mechsim.integrators import METHODS
+from mechsim.errors import MechsimError, ParameterError
 from mechsim.outputs import messages
 from mechsim.outputs.sink import Sink
 from mechsim.params import CONSTRAINT_LIMIT
 from mechsim.ros.outlet import STATE_QOS, Outlet
-from mechsim.ros.parameters import descriptor
+from mechsim.ros.simulator_parameters import declare, start_values, with_changes
 from mechsim.ros.topics import SystemTopics
-from mechsim.runcore.change import SETTINGS, Change, Settings, reason
+from mechsim.runcore.change import Change, Settings, reason
 from mechsim.runcore.equations import PREPARE_TIMEOUT
 from mechsim.runcore.pacing import Pacing
 from mechsim.runcore.run import SystemRun
 from mechsim.runcore.stops import raise_if_stop
 from mechsim.scene import Instance, instance_name
+from mechsim_msgs.srv import Step
 
 CONSTRAINT_LIMIT_DEFAULT = float(CONSTRAINT_LIMIT.default)
+#: The simulator node's name (in its instance's namespace).
+NODE_NAME = "simulator"
 #: Wall seconds between two warnings of the same kind about refused effort commands.
 _EFFORT_LOG_PERIOD = 5.0
 
@@ -115,67 +117,71 @@ class SimulatorNode(Node):
                  end_time: float | None = None,
                  prepare_timeout: float = PREPARE_TIMEOUT,
                  before_first_message: Callable[[SimulatorNode], None] | None = None,
-                 lossless: bool = False) -> None:
-        """``real_time_factor`` 0: the caller steps the node (``advance_to``), which then never
-        paces itself (the parameter is read-only). ``end_time``: the node never integrates
-        past this simulation time (a scene's duration), whatever its pacing.
+                 lossless: bool = False, stepped: bool | None = None,
+                 node_name: str = NODE_NAME) -> None:
+        """``stepped`` (default: ``real_time_factor`` 0): the caller steps the node
+        (``advance_to``), which then never paces itself; its ``real_time_factor`` (the
+        caller's pace, 0: as fast as possible) is read-only. ``end_time``: the node never
+        integrates past this simulation time (a scene's duration), whatever its pacing.
         ``before_first_message``: called once the publishers exist, before anything is
         published (a runner of separate processes waits there for its consumers).
-        ``lossless``: every reliable subscriber receives every sample (``Outlet``)."""
+        ``lossless``: every reliable subscriber receives every sample (``Outlet``).
+        The values given to the node from outside (``--ros-args``, a params file, a launch
+        file) take precedence over the arguments (``simulator_parameters``); its namespace,
+        remapped or not, is the instance's name."""
+        stepped = real_time_factor == 0 if stepped is None else stepped
         # Same ranges as the CLI and scenes: a bad value is a ParameterError, before ROS.
-        settings = Settings(tolerance=instance.tolerance, publish_rate=publish_rate,
-                            real_time_factor=real_time_factor,
-                            constraint_limit=constraint_limit,
-                            effort_limit=instance.effort_limit).checked()
+        # (the instance's own settings, e.g. a scene's effort_timeout, over the defaults)
+        settings = Settings(**{"tolerance": instance.tolerance, "publish_rate": publish_rate,
+                               "real_time_factor": real_time_factor,
+                               "constraint_limit": constraint_limit,
+                               **instance.settings}).checked()
         instance_name("instance", instance.name)
-        super().__init__("simulator", namespace=instance.name, context=context)
-        self.instance = instance
-        self.time_offset = time_offset
+        super().__init__(node_name, namespace=instance.name, context=context)
+        try:
+            start = start_values(self, with_changes(instance, name=self._instance_name()),
+                                 settings, stepped=stepped, time_offset=time_offset,
+                                 end_time=end_time, publish_clock=publish_clock)
+        except BaseException:
+            super().destroy_node()  # a node that never started leaves nothing in the graph
+            raise
+        self.start = start
+        instance = self.instance = start.instance
+        self.time_offset = start.time_offset
         self._pending: tuple[tuple[tuple[str, str], ...], Change] | None = None
         self._effort_logged: dict[str, float] = {}
         self.outlet = Outlet(self, sinks, lossless=lossless)
         self._effort_sub = self.create_subscription(
             Float64MultiArray, "effort", self._on_effort, STATE_QOS,
             callback_group=MutuallyExclusiveCallbackGroup())
-        self.topics = SystemTopics(self, self.outlet, instance, time_offset, publish_clock,
-                                   self._effort_sub.get_publisher_count)
+        self.topics = SystemTopics(self, self.outlet, instance, start.time_offset,
+                                   start.publish_clock, self._effort_sub.get_publisher_count)
         model = instance.build()
-        self.run = SystemRun(model, instance.method, settings, self.topics,
-                             stepped=real_time_factor == 0, end_time=end_time,
+        self.run = SystemRun(model, instance.method, start.settings, self.topics,
+                             stepped=stepped, end_time=start.end_time,
                              prepare_timeout=prepare_timeout)
         self.topics.run = self.run
-        self._declare_parameters()
+        declare(self, start, self.run.values, self.run.method)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_service(SetBool, "~/pause", self._on_pause)
-        self.topics.attitude_channels(model)
+        self.create_service(Step, "~/step", self._on_step)
+        self.topics.model_channels(model)
         if before_first_message is not None:
             before_first_message(self)
         self.run.start()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timer: Any = None
-        self.pacing: Pacing | None = None
         self._start_realtime()
 
-    def _declare_parameters(self) -> None:
-        run = self.run
-        self.declare_parameter("system", self.instance.system, ParameterDescriptor(
-            description="system id (see `mechsim systems`)", read_only=True))
-        for name, p in run.spec.items():
-            later = " (takes effect at the next reset)" if name.startswith("initial") else ""
-            self.declare_parameter(name, run.values[name],
-                                   descriptor(p, description=p.description + later))
-        self.declare_parameter("method", run.method, ParameterDescriptor(
-            description=f"integrator ({', '.join(METHODS)})"))
-        for name, p in SETTINGS.items():
-            ro = name == "real_time_factor" and run.stepped
-            text = "0: stepped by the scene runner (read-only)" if ro else None
-            self.declare_parameter(name, float(getattr(run.settings, name)),
-                                   descriptor(p, read_only=ro, description=text))
-        self.declare_parameter("time_offset", float(self.time_offset), ParameterDescriptor(
-            description="stamp of simulation time 0 [s] (ROS time 0 means uninitialised)",
-            read_only=True))
+    def _instance_name(self) -> str:
+        """The instance name: this node's namespace (as remapped, if it was), one level."""
+        ns = self.get_namespace().strip("/")
+        if "/" in ns or not ns:
+            raise ParameterError("namespace", f"{self.get_namespace()!r}: a simulator's "
+                                 "namespace is one name, its instance's (e.g. -r __ns:=/demo)")
+        return instance_name("namespace", ns)
 
     @property
     def costs(self) -> dict[str, float]:
@@ -200,13 +206,20 @@ class SimulatorNode(Node):
         s = self.run.settings
         if self.run.stepped or s.real_time_factor <= 0:
             return
-        self.pacing = Pacing(s.real_time_factor, s.publish_rate, time.monotonic(), self.run.t)
-        self.run.lookahead = self.pacing.lookahead
-        self._timer = self.create_timer(self.pacing.period, self._on_tick, clock=self._steady)
+        pacing = self.run.pacing = Pacing(s.real_time_factor, s.publish_rate, time.monotonic(),
+                                          self.run.t)
+        self.run.lookahead = pacing.lookahead
+        self._timer = self.create_timer(pacing.period, self._on_tick, clock=self._steady)
+
+    @property
+    def pacing(self) -> Pacing | None:
+        """How this node's run follows the wall clock (None: stepped by its caller)."""
+        return self.run.pacing
 
     def _on_tick(self) -> None:
-        assert self.pacing is not None
-        self.run.advance_to(self.pacing.due(time.monotonic(), self.run.t))
+        pacing = self.run.pacing
+        if pacing is not None:
+            self.run.advance_to(pacing.due(time.monotonic(), self.run.t))
 
     # --- services -------------------------------------------------------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
@@ -224,7 +237,7 @@ class SimulatorNode(Node):
 
     def set_paused(self, paused: bool) -> None:
         """Pause or resume (pacing restarts from the current state, so no catching up)."""
-        self.run.paused = paused
+        self.run.set_paused(paused)
         self.outlet.hand_over()
         if not paused:
             self._start_realtime()
@@ -232,7 +245,32 @@ class SimulatorNode(Node):
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
         self.set_paused(bool(request.data))
         response.success = True
-        response.message = "paused" if self.run.paused else "running"
+        # Where the run stands: a resumed run goes on from this sample, paced from now.
+        response.message = (f"paused at t = {self.run.t:.12g} s" if self.run.paused
+                            else f"running from t = {self.run.t:.12g} s")
+        return response
+
+    def _on_step(self, request: Step.Request, response: Step.Response) -> Any:
+        """Advance the paused system by ``request.samples`` samples (``SystemRun.step``) and
+        report the last one."""
+        try:
+            taken = self.run.step(int(request.samples))
+        except Exception as e:  # noqa: BLE001 - answered, never raised into the executor
+            raise_if_stop(e)
+            response.success = False
+            response.message = f"{self.instance.name}: step refused: " + (
+                str(e) if isinstance(e, MechsimError) else reason(e))
+            return response
+        self.outlet.hand_over()
+        run, at = self.run, self.run.model.layout
+        response.success = True
+        response.samples = taken
+        response.time = run.t
+        response.stamp = messages.to_time(messages.stamp_ns(run.t, self.time_offset))
+        response.name = [c.name for c in run.model.coordinates]
+        response.position = run.y[at.q].tolist()
+        response.velocity = run.y[at.v].tolist()
+        response.message = f"{taken} samples to t = {run.t:.9g} s"
         return response
 
     # --- parameters: one transaction of the run per set -----------------------------------

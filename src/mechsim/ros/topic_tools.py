@@ -31,13 +31,12 @@ DISCOVERY_WAIT = 1.0
 
 @contextmanager
 def graph_node(name: str) -> Iterator[Any]:
-    from mechsim.ros.graph_check import start_context
+    from mechsim.ros.graph_check import quiet_node, start_context
 
     ctx = start_context()
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
 
-    node = Node(name, namespace="mechsim", context=ctx, start_parameter_services=False)
+    node = quiet_node(name, "mechsim", ctx)
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
     try:

@@ -22,8 +22,10 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import MarkerArray
 
 from mechsim.outputs import messages
+from mechsim.outputs.markers import MarkerEncoder
 from mechsim.outputs.messages import Chunk, ChunkEncoder, MessageFactory, Sample
 from mechsim.ros.outlet import (
     CLOCK_QOS,
@@ -83,39 +85,60 @@ class SystemTopics:
         self.effort_publishers = effort_publishers
         self.run: SystemRun  # set once the run exists (it observes through this object)
         o = outlet
-        self.t_state = o.channel("state", JointState, STATE_QOS)
         self.t_energy = o.channel("energy", Energy, STATE_QOS)
-        self.t_inv = o.channel("invariants", NamedScalars, STATE_QOS)
-        self.t_obs = o.channel("observables", NamedScalars, STATE_QOS)
         self.t_info = o.channel("system_info", SystemInfo, LATCHED_QOS)
-        self.t_tf = o.channel("/tf", TFMessage, TF_QOS)
-        self.t_tf_static = o.channel("/tf_static", TFMessage, LATCHED_QOS)
         self.t_diag = o.channel("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS)
         if publish_clock:
             self.t_clock = o.channel("/clock", ClockMsg, CLOCK_QOS)
         self.t_effort = node.resolve_topic_name("effort")
+        #: The topics only some models have (``model_channels``): "" until one has them.
+        self.t_state = self.t_pose = self.t_twist = self.t_inv = self.t_obs = ""
+        self.t_tf = self.t_tf_static = self.t_markers = ""
         #: Wall seconds spent encoding and publishing.
         self.costs = {"encode": 0.0, "publish": 0.0}
         self._dynamic_frames = False
         self._effort_noticed = -math.inf
+        #: What the block being made carries: /tf (moving frames), markers.
+        self._moved = self._drawn = False
+        self.markers: MarkerEncoder | None = None
 
-    def attitude_channels(self, model: Model) -> None:
-        """pose and twist for a model with an attitude (made once, kept if a later
-        formulation has none)."""
-        if model.attitude is not None:
-            self.t_pose = self.outlet.channel("pose", PoseStamped, STATE_QOS)
-            self.t_twist = self.outlet.channel("twist", TwistStamped, STATE_QOS)
+    def model_channels(self, model: Model) -> None:
+        """The topics of what ``model`` has, each advertised once one has it (kept if a later
+        formulation has none): state (joint-like coordinates), pose and twist (an attitude),
+        invariants, observables, /tf (moving frames), /tf_static (fixed frames), markers
+        (a look: ``Model.visuals``). A topic nothing is ever published on is never
+        advertised."""
+        o, frames = self.outlet, model.frames
+        quaternion = set(model.attitude.quaternion) if model.attitude is not None else set()
+        wanted = (
+            ("t_state", "state", JointState, STATE_QOS,
+             len(model.coordinates) > len(quaternion)),
+            ("t_pose", "pose", PoseStamped, STATE_QOS, model.attitude is not None),
+            ("t_twist", "twist", TwistStamped, STATE_QOS, model.attitude is not None),
+            ("t_inv", "invariants", NamedScalars, STATE_QOS, bool(model.invariants)),
+            ("t_obs", "observables", NamedScalars, STATE_QOS, bool(model.observables)),
+            ("t_tf", "/tf", TFMessage, TF_QOS, any(not f.static for f in frames)),
+            ("t_tf_static", "/tf_static", TFMessage, LATCHED_QOS, any(f.static for f in frames)),
+            ("t_markers", "markers", MarkerArray, STATE_QOS, bool(frames and model.visuals())))
+        for attr, topic, msg_type, qos, has in wanted:
+            if has and not getattr(self, attr):
+                setattr(self, attr, o.channel(topic, msg_type, qos))
 
     # --- the run's observer -------------------------------------------------------------------
     def model_changed(self, model: Model, structural: bool) -> None:
         if structural:
             self.factory = MessageFactory(model, self.instance.name, self.instance.origin,
                                           self.time_offset)
-            self.attitude_channels(model)
+            self.model_channels(model)
         else:
             self.factory.model = model
         self.encoder = ChunkEncoder(self.factory)
         self._dynamic_frames = any(not fr.static for fr in model.frames)
+        previous, self.markers = self.markers, None
+        if self.t_markers and model.frames and model.visuals():
+            self.markers = MarkerEncoder(model, self.instance.name, self.instance.origin)
+            if previous is not None and not structural:
+                self.markers.take_trails(previous)
 
     def laws_changed(self) -> None:
         """system_info (what runs, the laws that hold and their scales) and /tf_static."""
@@ -144,7 +167,9 @@ class SystemTopics:
             want.append("invariants")
         if shape.observables and o.wanted(self.t_obs):
             want.append("observables")
-        if self._dynamic_frames and o.wanted(self.t_tf):
+        self._moved = self._dynamic_frames and o.wanted(self.t_tf)
+        self._drawn = self.markers is not None and o.wanted(self.t_markers)
+        if self._moved or self._drawn:
             want.append("frames")
         return tuple(want)
 
@@ -161,7 +186,7 @@ class SystemTopics:
         topics: list[Topic] = []
         if block.times.size:
             columns = self._columns(c)
-            topics = self._topics(c, _sampler(block.times, c))
+            topics = self._topics(c, _sampler(block.times, c), block.times)
         block.encoded = Encoded(ns, topics, columns)
         self.costs["encode"] += time.perf_counter() - t0
 
@@ -177,13 +202,14 @@ class SystemTopics:
         if c.observables is not None and needs(self.t_obs):
             columns[self.t_obs] = {name: c.observables[:, j]
                                    for j, name in enumerate(f.observable_names)}
-        if c.frames is not None and needs(self.t_tf):
+        if c.frames is not None and self._moved and needs(self.t_tf):
             columns[self.t_tf] = f.transform_columns(c.frames, c.placed_frames(f))
         if f.joints and needs(self.t_state):
             columns[self.t_state] = {f.coordinate_names[j]: c.q[:, j] for j in f.joints}
         return columns
 
-    def _topics(self, c: Chunk, sample: Callable[[int], Sample]) -> list[Topic]:
+    def _topics(self, c: Chunk, sample: Callable[[int], Sample],
+                times: np.ndarray) -> list[Topic]:
         """Each topic's CDR rows (only where someone reads bytes) and message builder."""
         f, enc, ns = self.factory, self.encoder, c.ns
         needs_rows = self.outlet.needs_rows
@@ -208,8 +234,15 @@ class SystemTopics:
                                           ("observables", self.t_obs, f.observables,
                                            c.observables),
                                           ("tf", self.t_tf, f.tf, c.frames)):
-            if values is not None:
+            if values is not None and (key != "tf" or self._moved):
                 topics.append((topic, rows(key, topic), _builder(build, sample, ns)))
+        if self._drawn and c.frames is not None:
+            assert self.markers is not None
+            drawn = self.markers.encode(times, ns, c.placed_frames(f),
+                                        self.run.settings.publish_rate,
+                                        c.time_rows() if ns.shape[0] > 1 else None)
+            topics.append((self.t_markers, drawn,
+                           lambda i, m=self.markers, d=drawn: m.message(d[i])))
         return topics
 
     def release(self, block: Block, a: int, b: int) -> None:

@@ -1,17 +1,21 @@
 """Pacing: how the simulated time of a run follows the wall clock.
 
-A run stepped by its caller (fast mode, a scene's loop) has no pacing: the caller says how far
-to integrate. A run that paces itself integrates, at each tick, up to the simulated time the
-wall clock has made due, ``sim0 + real_time_factor · (wall − wall0)`` (:class:`Pacing`), and
-computes up to ``lookahead`` samples ahead in one call of the kernels, released as they become
-due (``SystemRun.advance_to``). Where the pacing restarts from is explicit: every start,
-reset, resume and change of rate or factor makes a new :class:`Pacing` from the run's current
-time and the wall clock's present, so the run never catches up on time it did not run.
+A run stepped as fast as possible has no pacing: its caller says how far to integrate. A paced
+run (a node's own timer, or the loop of an in-process scene) integrates, at each tick, up to the
+simulated time the wall clock has made due, ``sim0 + real_time_factor · (wall − wall0)``
+(:class:`Pacing`, held by the run: ``SystemRun.pacing``), and computes up to ``lookahead``
+samples ahead in one call of the kernels, released as they become due
+(``SystemRun.advance_to``). Where the pacing restarts from is explicit: every start, reset,
+resume and change of rate or factor makes a new :class:`Pacing` from the run's current time
+and the wall clock's present (:meth:`Pacing.restarted`), so the run never catches up on time
+it did not run: after a reset to t = 0 or a pause, samples are due one period after another
+from there, not all at once.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 #: Samples integrated per call of the kernels (bounds the memory of a long advance).
 BLOCK = 1000
@@ -46,6 +50,18 @@ class Pacing:
     @property
     def lookahead(self) -> int:
         return paced_lookahead(self.publish_rate, self.real_time_factor)
+
+    def restarted(self, sim: float, publish_rate: float | None = None,
+                  wall: float | None = None) -> Pacing:
+        """This pacing restarted from the run's simulated time ``sim`` at ``wall`` (default:
+        now), at ``publish_rate`` if it changed."""
+        return replace(self, wall0=time.monotonic() if wall is None else wall, sim0=sim,
+                       publish_rate=self.publish_rate if publish_rate is None
+                       else publish_rate)
+
+    def next_due(self, t: float) -> float:
+        """The wall time at which the sample after the run's time ``t`` becomes due."""
+        return self.wall0 + (t + 1.0 / self.publish_rate - self.sim0) / self.real_time_factor
 
     def due(self, wall: float, t: float) -> float:
         """The simulated time to integrate to at wall time ``wall`` from the run's time ``t``:

@@ -21,18 +21,20 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from mechsim.errors import IntegrationError
+from mechsim.errors import IntegrationError, MechsimError, ParameterError
 from mechsim.integrators import Stepper, make_stepper
 from mechsim.runcore import guards
 from mechsim.runcore.change import Change, Settings, plan, reason
 from mechsim.runcore.effort import MAX_MISSED, EffortHold
 from mechsim.runcore.equations import PREPARE_TIMEOUT
-from mechsim.runcore.pacing import BLOCK
+from mechsim.runcore.pacing import BLOCK, Pacing
 from mechsim.runcore.stops import held_signals, raise_if_stop
 from mechsim.simulate import OUTPUTS, OutputShape, evaluate_arrays
 from mechsim.systems.base import Model
 
 _COLUMN = {name: i for i, name in enumerate(OUTPUTS)}  # in evaluate_arrays' result
+#: Most samples one ``SystemRun.step`` takes: a request is served in bounded time.
+MAX_STEP = 100_000
 
 
 @dataclass
@@ -95,10 +97,10 @@ class Observer(Protocol):
 class SystemRun:
     """One system instance run sample by sample (see the module docstring).
 
-    ``advance_to(t)`` integrates and releases every sample up to ``t``; ``plan``/``commit``
-    change parameters as one transaction; ``reset`` restarts at t = 0; ``offer`` takes an
-    effort command. ``start()`` releases the first sample (t = 0): call it once the observer
-    is ready."""
+    ``advance_to(t)`` integrates and releases every sample up to ``t``; ``step(n)`` advances
+    a paused run by n samples; ``plan``/``commit`` change parameters as one transaction;
+    ``reset`` restarts at t = 0; ``offer`` takes an effort command. ``start()`` releases the
+    first sample (t = 0): call it once the observer is ready."""
 
     def __init__(self, model: Model, method: str, settings: Settings, observer: Observer, *,
                  stepped: bool, end_time: float | None = None,
@@ -133,6 +135,10 @@ class SystemRun:
         #: blocks over the ticks instead of computing them all in one).
         self.lookahead = 0
         self.stagger = 0
+        #: How this run follows the wall clock, set by whoever paces it (its node's timer, a
+        #: scene's loop); None: stepped as fast as possible. Restarted from the current
+        #: sample by every reset, resume and change of rate (``pacing``).
+        self.pacing: Pacing | None = None
         #: Set by a runner that steps this run: serve its callbacks (an effort command among
         #: them) once, waiting up to the given wall seconds.
         self.serve: Callable[[float], None] | None = None
@@ -154,6 +160,19 @@ class SystemRun:
         stepper = make_stepper(model, self.method, self.settings.tolerance)
         self.epoch += 1
         self._install(model, stepper, structural=True)
+        self.restart_pacing()
+
+    def set_paused(self, paused: bool) -> None:
+        """Pause, or resume with the pacing restarted from the current sample."""
+        self.paused = paused
+        if not paused:
+            self.restart_pacing()
+
+    def restart_pacing(self) -> None:
+        """The pacing (if any) restarts from the current sample and the wall clock's present,
+        at the current publish rate: what the run did not run is never caught up on."""
+        if self.pacing is not None:
+            self.pacing = self.pacing.restarted(self.t, self.settings.publish_rate)
 
     def _install(self, model: Model, stepper: Stepper, structural: bool) -> None:
         """Run ``model`` with ``stepper`` (at its initial state, t = 0)."""
@@ -199,6 +218,7 @@ class SystemRun:
             assert c.model is not None and c.stepper is not None
             self.epoch += 1
             self._install(c.model, c.stepper, structural=True)
+            self.restart_pacing()
             return True
         if c.model is not None:
             self.observer.model_changed(c.model, structural=False)
@@ -213,6 +233,8 @@ class SystemRun:
             # The current sample again, with the new parameters and the same time: a time
             # not later than the previous one's is a consumer's signal of a new epoch.
             self._emit(np.array([self.t]), self.y.copy()[None, :])
+        if repace:
+            self.restart_pacing()
         return repace
 
     def apply(self, c: Change) -> bool:
@@ -413,6 +435,29 @@ class SystemRun:
                 self._ahead = block
             released += self._release(block, min(due, block.left))
         return released
+
+    def step(self, samples: int) -> int:
+        """Advance a paused run by ``samples`` samples of its grid (released as any others:
+        the same times, stamps and /clock as a running system's), then stay paused. Returns
+        the samples taken: fewer where ``end_time`` comes first. Refused (MechsimError) unless
+        paused, for a stopped system, and for ``samples`` outside 1 … ``MAX_STEP``."""
+        if not 1 <= samples <= MAX_STEP:
+            raise ParameterError("samples", f"must be in 1 … {MAX_STEP} (got {samples})")
+        if self.failed:
+            raise MechsimError(f"stopped ({self.failed}); reset first")
+        if not self.paused:
+            raise MechsimError("running: pause it first (~/pause true), then step")
+        taken = 0
+        self.paused = False
+        try:
+            while taken < samples and not self.failed:
+                got = self.advance_to(self.t + (samples - taken) / self.settings.publish_rate)
+                if got == 0:
+                    break  # the end of the run
+                taken += got
+        finally:
+            self.paused = True
+        return taken
 
     def _samples_to(self, t: float) -> int:
         """Whole sample periods from the current time to ``t``."""

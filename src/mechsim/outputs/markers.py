@@ -1,0 +1,214 @@
+"""A system drawn for RViz and Foxglove's 3D panel: ``visualization_msgs/MarkerArray``.
+
+What is drawn is the model's own description of its look (``Model.visuals()``, the one Rerun
+draws from too): each :class:`~mechsim.systems.base.Visual` becomes one marker of the
+instance's namespace (``Marker.ns``, ids in the order of ``visuals()``):
+
+- sphere (a bob), box (an anchor, a pivot, a container), polyline (a wire, a surface's
+  outline), arrow and axes: locked to their frame (``header.frame_id`` "<ns>/<frame>",
+  ``frame_locked``), so they move with /tf;
+- link (a rod, a spring): a LINE_LIST between the two frames' origins, in "world";
+- trail: the recent path of a frame's origin as a LINE_STRIP in "world": ``TRAIL_POINTS``
+  points kept over ``TRAIL_SPAN`` time scales of the model (``Model.time_scale``), then the
+  current position (fewer kept yet: the oldest repeated).
+
+A frame named "world" in a visual is the instance's origin. Every message is self-contained: a
+DELETEALL of the namespace first (RViz and Foxglove then hold exactly this system's current
+markers), then every visual, stamped with the sample. All messages of one model share one
+layout, so a block of samples is encoded at once (``outputs.wire.Layout``: only the moving
+points and the stamps change).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
+
+from mechsim.outputs.wire import Layout
+from mechsim.systems._rotation import quat_product, rotate
+from mechsim.systems.base import Model, Visual
+
+TYPE_NAME = "visualization_msgs/msg/MarkerArray"
+#: Points a trail keeps before the current one, spread over ``TRAIL_SPAN`` time scales.
+TRAIL_POINTS = 64
+TRAIL_SPAN = 2.0
+#: Axes colours (x, y, z: red, green, blue, as RViz and Foxglove draw frames).
+_AXES = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+def _color(rgb: tuple[float, ...]) -> ColorRGBA:
+    return ColorRGBA(r=rgb[0], g=rgb[1], b=rgb[2], a=1.0)
+
+
+def _point(p: Any) -> Point:
+    return Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
+
+
+class MarkerEncoder:
+    """The markers of one model's instance (``name``, world-rooted frames at ``origin``)."""
+
+    def __init__(self, model: Model, name: str, origin: tuple[float, float, float]) -> None:
+        self.name = name
+        self.origin = np.asarray(origin, dtype=float)
+        self.specs = list(model.frames)
+        self.index = {f.child: k for k, f in enumerate(self.specs)}
+        self.parent = [self.index.get(f.parent) for f in self.specs]
+        self.order = self._order()
+        self.visuals = [v for v in model.visuals() if self._drawable(v)]
+        self.links = [(self.index.get(v.frame), self.index.get(v.to_frame or ""))
+                      for v in self.visuals if v.kind == "link"]
+        self.trails = [self.index[v.frame] for v in self.visuals if v.kind == "trail"]
+        self.time_scale = float(model.time_scale())
+        markers = [Marker(ns=name, action=Marker.DELETEALL)]
+        markers += [self._marker(i, v) for i, v in enumerate(self.visuals)]
+        self.prototype = MarkerArray(markers=markers)
+        self.layout = Layout(TYPE_NAME, self.prototype)
+        moving = [k + 1 for k, v in enumerate(self.visuals) if v.kind in ("link", "trail")]
+        self.block = self.layout.block([
+            f"markers.{m}.points.{j}.{c}" for m in moving
+            for j in range(len(self.prototype.markers[m].points)) for c in "xyz"])
+        #: The trail points kept so far: their times and world positions (kept, trails, 3).
+        self.kept_t = np.zeros(0)
+        self.kept_p = np.zeros((0, len(self.trails), 3))
+
+    def _drawable(self, v: Visual) -> bool:
+        frames = [v.frame] + ([v.to_frame] if v.kind == "link" else [])
+        known = all(f == "world" or f in self.index for f in frames if f)
+        if v.kind == "trail":
+            return v.frame in self.index
+        if v.kind == "link":
+            return known and bool(v.to_frame)
+        return known and (v.kind != "arrow" or bool(v.points))
+
+    def _order(self) -> list[int]:
+        """Frame indices, every parent before its children."""
+        order: list[int] = []
+        placed: set[int] = set()
+        while len(order) < len(self.specs):
+            ready = [k for k in range(len(self.specs)) if k not in placed
+                     and (self.parent[k] is None or self.parent[k] in placed)]
+            if not ready:
+                raise ValueError("the model's frames form a cycle")
+            order += ready
+            placed.update(ready)
+        return order
+
+    def _marker(self, i: int, v: Visual) -> Marker:
+        """The marker of visual ``v`` (``i``: its id), with the moving points at the origin."""
+        m = Marker(ns=self.name, id=i, action=Marker.ADD, color=_color(
+            tuple(c / 255.0 for c in v.color)))
+        m.pose.orientation.w = 1.0
+        locked = v.kind not in ("link", "trail")
+        m.header.frame_id = self._frame_id(v.frame) if locked else "world"
+        m.frame_locked = locked
+        if v.frame == "world" and locked:
+            m.pose.position = _point(self.origin)
+        r = float(v.radius)
+        if v.kind == "sphere":
+            m.type = Marker.SPHERE
+            m.scale.x = m.scale.y = m.scale.z = 2 * r
+        elif v.kind == "box":
+            m.type = Marker.CUBE
+            m.scale.x, m.scale.y, m.scale.z = (2 * float(s) for s in v.size)
+        elif v.kind == "polyline":
+            m.type, m.scale.x = Marker.LINE_STRIP, 2 * r
+            m.points = [_point(p) for p in v.points]
+        elif v.kind == "arrow":
+            m.type = Marker.ARROW
+            m.scale.x, m.scale.y = 0.4 * r, 0.8 * r
+            m.points = [Point(), _point(v.points[0])]
+        elif v.kind == "axes":
+            m.type, m.scale.x = Marker.LINE_LIST, 0.05 * r
+            m.points = [q for axis in range(3) for q in (Point(), _point(r * np.eye(3)[axis]))]
+            m.colors = [_color(_AXES[axis]) for axis in range(3) for _ in (0, 1)]
+        elif v.kind == "link":
+            m.type, m.scale.x = Marker.LINE_LIST, 2 * r
+            m.points = [Point(), Point()]
+        else:  # trail
+            m.type, m.scale.x = Marker.LINE_STRIP, 2 * min(r, 0.01)
+            m.points = [Point() for _ in range(TRAIL_POINTS + 1)]
+        return m
+
+    def _frame_id(self, frame: str) -> str:
+        return "world" if frame == "world" else f"{self.name}/{frame}"
+
+    def world_origins(self, placed: np.ndarray) -> np.ndarray:
+        """(samples, frames, 3): each frame's origin in "world", from the frames as published
+        (``MessageFactory.placed``: relative to their parents, world-rooted ones moved by the
+        origin)."""
+        n, count = placed.shape[0], len(self.specs)
+        pos = np.zeros((n, count, 3))
+        rot = np.zeros((n, count, 4))
+        for k in self.order:
+            t, q, p = placed[:, k, :3], placed[:, k, 3:], self.parent[k]
+            if p is None:
+                pos[:, k], rot[:, k] = t, q
+                continue
+            qp = rot[:, p].T
+            pos[:, k] = pos[:, p] + np.stack(rotate(qp, t.T), axis=-1)
+            rot[:, k] = np.stack(quat_product(qp, q.T), axis=-1)
+        return pos
+
+    def _at(self, pos: np.ndarray, k: int | None) -> np.ndarray:
+        return np.broadcast_to(self.origin, pos[:, 0].shape) if k is None else pos[:, k]
+
+    def encode(self, times: np.ndarray, ns: np.ndarray, placed: np.ndarray, rate: float,
+               time_rows: np.ndarray | None = None) -> np.ndarray:
+        """(samples, size) CDR rows of the markers of samples at ``times`` (stamps ``ns``),
+        ``placed``: their frames as published; ``rate``: samples per simulated second."""
+        n = times.shape[0]
+        pos = self.world_origins(placed)
+        trails = self._trails(times, pos, rate) if self.trails else None
+        links, trail = iter(self.links), 0
+        columns = []
+        for v in self.visuals:
+            if v.kind == "link":
+                a, b = next(links)
+                columns.append(np.hstack([self._at(pos, a), self._at(pos, b)]))
+            elif v.kind == "trail":
+                assert trails is not None
+                columns.append(trails[:, :, trail, :].reshape(n, -1))
+                trail += 1
+        if not columns:
+            return self.layout.encode(ns, (), time_rows)
+        return self.layout.encode(ns, [(self.block, np.hstack(columns))], time_rows)
+
+    def _trails(self, times: np.ndarray, pos: np.ndarray, rate: float) -> np.ndarray:
+        """(samples, TRAIL_POINTS + 1, trails, 3): for each sample, the points kept up to it,
+        then its own. Points kept at or after the block's first sample were computed ahead
+        and dropped (or belong to an epoch that ended): forgotten first."""
+        now = pos[:, self.trails]
+        stride = max(1, math.ceil(TRAIL_SPAN * self.time_scale * rate / TRAIL_POINTS))
+        keep = np.rint(times * rate).astype(np.int64) % stride == 0
+        before = np.flatnonzero(self.kept_t < times[0] - 0.5 / rate)[-TRAIL_POINTS:]
+        kept_t = np.concatenate([self.kept_t[before], times[keep]])
+        kept_p = np.concatenate([self.kept_p[before], now[keep]])
+        if kept_t.size == 0:
+            kept_t, kept_p = times[:1], now[:1]
+        upto = np.searchsorted(kept_t, times, side="right")
+        idx = np.clip(upto[:, None] - TRAIL_POINTS + np.arange(TRAIL_POINTS), 0, None)
+        # Kept: the points before this block a trail needs, and the block's own (until the
+        # next block shows this one was not dropped): at most TRAIL_POINTS + a block.
+        self.kept_t, self.kept_p = kept_t, kept_p
+        return np.concatenate([kept_p[idx], now[:, None]], axis=1)
+
+    def message(self, row: np.ndarray) -> MarkerArray:
+        """The MarkerArray of one encoded row (for a sink that takes messages)."""
+        from rclpy.serialization import deserialize_message
+
+        return deserialize_message(row.tobytes(), MarkerArray)
+
+    def take_trails(self, other: MarkerEncoder) -> None:
+        """Go on with ``other``'s trail points (a new model of the same look: a parameter
+        change keeps the path drawn so far)."""
+        if other.trails == self.trails:
+            self.kept_t, self.kept_p = other.kept_t, other.kept_p
+
+
+__all__ = ["MarkerEncoder", "TRAIL_POINTS", "TYPE_NAME", "Time"]

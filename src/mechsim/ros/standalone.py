@@ -1,0 +1,159 @@
+"""The node executables started alone (``ros2 run mechsim NAME``, a launch file's ``Node``
+action, ``mechsim NAME`` without ``--scene``): each one node, configured entirely by its ROS
+parameters and remaps, as turtlesim is.
+
+- ``simulator``: the system named by its ``system`` parameter (default ``pendulum``), every
+  model and run parameter from its parameters (``simulator_parameters``), in its namespace
+  (``-r __ns:=/demo``; default: the system id), paced in real time (``real_time_factor``)
+  until its ``duration`` (0: until stopped). A given value that is no parameter of it is
+  refused, with the closest name.
+- ``diagnostics``: checks every system it discovers (``ros/diagnostics.py``).
+- ``recorder``: records the topics of every mechsim system in the graph (or of the
+  instances of its ``scene`` parameter) to its ``bag`` and/or ``rrd`` parameters.
+
+A stop (SIGINT, as launch sends, or SIGTERM) ends them cleanly with status 0; a system that
+failed ends its simulator with 1; a refused start (a bad parameter, a name already running) is
+one error line and 2.
+"""
+
+from __future__ import annotations
+
+import difflib
+from typing import Any
+
+from mechsim.errors import ParameterError, UnknownSystemError
+from mechsim.ros.graph_check import GraphCheck, discovery_window, start_context
+from mechsim.ros.parameters import overrides
+
+#: The system of a simulator started without a ``system`` parameter.
+DEFAULT_SYSTEM = "pendulum"
+
+
+def given_values(context: Any, name: str) -> tuple[dict[str, Any], str, str]:
+    """(the values given to a node called ``name``, its namespace, its name), both as
+    remapped: read from a short-lived node of that name that offers nothing to the graph
+    (what a node must know before it is made, e.g. which system it runs)."""
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    probe = Node(name, context=context, enable_rosout=False, start_parameter_services=False,
+                 parameter_overrides=[Parameter("start_type_description_service", value=False)])
+    try:
+        values = overrides(probe)
+        values.pop("start_type_description_service", None)
+        return values, probe.get_namespace(), probe.get_name()
+    finally:
+        probe.destroy_node()
+
+
+def _system(values: dict[str, Any]) -> str:
+    from mechsim.systems import system_ids
+
+    system = values.get("system", DEFAULT_SYSTEM)
+    if not isinstance(system, str):
+        raise ParameterError("system", f"must be a system id (see `mechsim systems`), got "
+                             f"{system!r}")
+    if system not in system_ids():
+        raise UnknownSystemError(system, system_ids())
+    return system
+
+
+def _refuse_unknown(node: Any) -> None:
+    """A given value that is no parameter of ``node`` (a typo would silently do nothing)."""
+    unused = sorted(node.start.unused)
+    if not unused:
+        return
+    known = [n for n, _ in node.get_parameters_by_prefix("").items()]
+    close = difflib.get_close_matches(unused[0], known, n=1)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    raise ParameterError(unused[0], f"not a parameter of {node.get_fully_qualified_name()}"
+                         f"{hint}")
+
+
+def _recorder_listens(node: Any) -> None:
+    """Before the first sample: wait (at most ``CONSUMER_WAIT``) until a recorder subscribes
+    to every topic of ``node`` (a launch file starts both at once)."""
+    import time
+
+    from mechsim.ros.processes import CONSUMER_WAIT
+
+    end = time.monotonic() + CONSUMER_WAIT
+    channels = node.outlet.channels.values()
+    while time.monotonic() < end:
+        if all(ch.publisher.get_subscription_count() > 0 for ch in channels):
+            return
+        time.sleep(0.05)
+    node.get_logger().warning(f"no recorder subscribed to every topic within "
+                              f"{CONSUMER_WAIT:g} s; starting anyway")
+
+
+def simulator_alone() -> int:
+    """The simulator node of the system its parameters name, until its duration or a stop."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    from mechsim.ros.outlet import wait_acked
+    from mechsim.ros.simulator import NODE_NAME, SimulatorNode
+    from mechsim.scene import Instance
+
+    window = discovery_window()
+    context = start_context()
+    node = None
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        values, namespace, name = given_values(context, NODE_NAME)
+        system = _system(values)
+        namespace = namespace if namespace != "/" else f"/{system}"
+        clock = values.get("publish_clock", True) is True
+        if window > 0:
+            graph = GraphCheck(context)
+            try:
+                graph.check([f"{namespace}/{name}"], clock, window)
+            finally:
+                graph.close()
+        wait = values.get("wait_for_recorder", False) is True
+        node = SimulatorNode(Instance(system, namespace.strip("/").split("/")[-1]),
+                             context=context, publish_clock=clock, stepped=False,
+                             node_name=name,
+                             before_first_message=_recorder_listens if wait else None)
+        _refuse_unknown(node)
+        executor.add_node(node)
+        while not node.finished:
+            executor.spin_once(timeout_sec=0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            try:
+                wait_acked([ch.publisher for ch in node.outlet.channels.values()])
+            except KeyboardInterrupt:
+                pass
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        context.try_shutdown()
+    return 1 if node is not None and node.failed else 0
+
+
+def recorder_alone(report: str | None = None) -> int:
+    """The recorder node: the graph's mechsim systems (or its ``scene``'s) into its ``bag``
+    (default ``runs/<scene>_<time>``) and/or ``rrd``, until a stop."""
+    from mechsim.ros.record import DEFAULT_BAG
+    from mechsim.ros.recorder import NODE_NAME, run_recorder
+    from mechsim.scene import Scene, load_scene
+
+    context = start_context()
+    try:
+        values, _, _ = given_values(context, NODE_NAME)
+    finally:
+        context.try_shutdown()
+    for key in ("scene", "bag", "rrd"):
+        if not isinstance(values.get(key, ""), str):
+            raise ParameterError(key, "must be a string (a path; empty: none)")
+    scene_file = values.get("scene", "")
+    scene = load_scene(scene_file) if scene_file else Scene(name="graph", systems=[])
+    bag = values.get("bag", DEFAULT_BAG) or None
+    rrd = values.get("rrd", "") or None
+    if bag is None and rrd is None:
+        raise ParameterError("bag", "empty, and no rrd: nothing to record to")
+    run_recorder(scene, bag, rrd, report)
+    return 0
