@@ -39,6 +39,7 @@ info|clear``; ``mechsim cache warm`` fills it).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import functools
 import hashlib
@@ -46,6 +47,7 @@ import importlib.metadata
 import importlib.util
 import json
 import os
+import shutil
 import stat
 import sys
 import tempfile
@@ -123,6 +125,7 @@ def cache_dir() -> Path:
             continue  # not there: made by this user when needed
         if why is not None:
             _private.append(Path(tempfile.mkdtemp(prefix="mechsim-cache-")))
+            atexit.register(shutil.rmtree, _private[0], ignore_errors=True)
             print(f"mechsim: warning: cache {d} {why}: not used (this process builds in "
                   f"{_private[0]})", file=sys.stderr)
             return _private[0]
