@@ -251,3 +251,27 @@ def test_a_dropped_effort_is_a_warning_on_diagnostics(ros_context: Any) -> None:
         node.destroy_node()
     warn = [s for s in diag.statuses if s.name == "mechsim/spun/effort"]
     assert len(warn) == 1 and warn[0].level == b"\x01" and "effort dropped" in warn[0].message
+
+
+def test_effort_limit_is_a_ros_parameter_with_its_range(ros_context: Any) -> None:
+    """effort_limit: declared with its range in the descriptor; a set outside it is refused
+    with its reason, one inside takes effect on the run's hold."""
+    from rclpy.parameter import Parameter as RosParameter
+
+    from mechsim.params import EFFORT_LIMIT
+
+    node = SimulatorNode(Instance("pendulum", "limited", {}, "dop853"), context=ros_context,
+                         real_time_factor=0.0)
+    try:
+        (descriptor,) = node.describe_parameters(["effort_limit"])
+        (r,) = descriptor.floating_point_range
+        assert (r.from_value, r.to_value) == (EFFORT_LIMIT.minimum, EFFORT_LIMIT.maximum)
+        assert node.get_parameter("effort_limit").value == EFFORT_LIMIT.default
+        (refused,) = node.set_parameters([RosParameter("effort_limit", value=-1.0)])
+        assert not refused.successful and "effort_limit" in refused.reason
+        (taken,) = node.set_parameters([RosParameter("effort_limit", value=5.0)])
+        assert taken.successful, taken.reason
+        assert node.run.effort.limit == 5.0
+        assert node.run.offer(np.array([6.0]))[0] == "limit"  # type: ignore[index]
+    finally:
+        node.destroy_node()
