@@ -426,7 +426,26 @@ def test_rrd_on_a_full_disk_is_not_left_half_written(tmp_path: Path,
     r = subprocess.run([sys.executable, "-m", "mechsim.cli", "convert", str(bag), "--rrd",
                         str(rrd)], env=ros_env, capture_output=True, text=True, timeout=300,
                        preexec_fn=limit)
-    errors = [ln for ln in r.stderr.splitlines() if ln.startswith("mechsim: error:")]
-    assert r.returncode == 2 and len(errors) == 1 and str(rrd) in errors[0], r.stderr
-    assert "Traceback" not in r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr  # Rerun's own lines silenced
+    assert lines[0].startswith("mechsim: error: rrd ") and str(rrd) in lines[0], r.stderr
     assert sorted(os.listdir(tmp_path)) == ["b"]
+
+
+def test_a_live_run_with_rrd_on_a_full_disk_ends_in_one_line(tmp_path: Path,
+                                                             ros_env: dict[str, str]) -> None:
+    """``run --fast --rrd`` under the same 64 KiB file-size limit: the run's one error line
+    names the .rrd (exit 2), nothing is left in the output's directory, no traceback."""
+    out = tmp_path / "out"
+    out.mkdir()
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (65_536, 65_536))
+
+    r = subprocess.run([sys.executable, "-m", "mechsim.cli", "run", "pendulum", "--fast",
+                        "--duration", "30", "--rrd", "out.rrd"], env=ros_env, cwd=out,
+                       capture_output=True, text=True, timeout=600, preexec_fn=limit)
+    errors = [ln for ln in r.stderr.splitlines() if ln.startswith("mechsim: error:")]
+    assert r.returncode == 2 and len(errors) == 1 and "out.rrd" in errors[0], r.stderr
+    assert "Traceback" not in r.stderr and "re_log_encoding" not in r.stderr
+    assert os.listdir(out) == []

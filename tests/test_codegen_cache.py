@@ -132,7 +132,8 @@ def test_a_model_being_derived_elsewhere_is_waited_for(cache: Path) -> None:
         while waiter.is_alive() and _lock_waiters(path.with_suffix(".lock")) == 0:
             waiter.join(0.01)
         assert waiter.is_alive(), "the second builder did not wait for the lock"
-        codegen.write_atomic(path, "VALUE = 1\n")
+        codegen.write_atomic(path, "VALUE = 1\n")  # the module and its seal
+        codegen.write_atomic(path.with_suffix(".sum"), codegen._seal(path.stem, b"VALUE = 1\n"))
     waiter.join(120)
     assert not derived and loaded["module"].VALUE == 1
 
@@ -158,3 +159,86 @@ def test_cache_warm(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as stop:  # argparse's usage error, as for every verb
         main(["cache", "info", "pendulum"])
     assert stop.value.code == 2
+
+
+# --- a cache that verifies before it trusts -----------------------------------------------------
+def _module(cache: Path, name: str) -> Path:
+    (path,) = (cache / "kernels").glob(f"mechsim_{name}_*.py")
+    return path
+
+
+def test_a_truncated_module_is_derived_again(cache: Path) -> None:
+    """A generated module cut in half (a crash, a full disk): its seal does not hold, so it is
+    made again, never imported (importing it would fail, or define half the module)."""
+    codegen.load_module("cut", "k", lambda: "A = 1\nB = 2\n")
+    path = _module(cache, "cut")
+    path.write_bytes(path.read_bytes()[:5])  # "A = 1"
+    codegen._loaded.clear()
+    made: list[int] = []
+    module = codegen.load_module("cut", "k", lambda: made.append(1) or "A = 1\nB = 2\n")
+    assert made == [1] and (module.A, module.B) == (1, 2)
+    assert path.read_text() == "A = 1\nB = 2\n"
+
+
+def test_a_planted_module_is_never_imported(cache: Path, tmp_path: Path) -> None:
+    """Code swapped into a cached module (same name, other content) would run on import and
+    could change the physics: the content does not match its seal, so it is removed and
+    derived again; the planted code never runs."""
+    codegen.load_module("swap", "k", lambda: "G = 9.81\n")
+    path = _module(cache, "swap")
+    ran = tmp_path / "ran"
+    path.write_text(f"open({str(ran)!r}, 'w').close()\nG = 1.0\n")
+    codegen._loaded.clear()
+    module = codegen.load_module("swap", "k", lambda: "G = 9.81\n")
+    assert module.G == 9.81 and not ran.exists()
+
+
+def test_entries_writable_by_others_are_not_trusted(cache: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """A module (with a valid seal) that others may write is derived again; a cache directory
+    writable by others is not used at all: one warning line, and this process builds in a
+    private temporary directory (what it derives is right, nothing is read from there)."""
+    codegen.load_module("shared", "k", lambda: "V = 1\n")
+    path = _module(cache, "shared")
+    path.chmod(0o666)
+    codegen._loaded.clear()
+    made: list[int] = []
+    assert codegen.load_module("shared", "k", lambda: made.append(1) or "V = 1\n").V == 1
+    assert made == [1] and path.stat().st_mode & 0o022 == 0  # written anew, private
+    (cache / "kernels").chmod(0o777)
+    codegen._loaded.clear()
+    try:
+        module = codegen.load_module("shared", "k", lambda: made.append(2) or "V = 1\n")
+    finally:
+        codegen._private.clear()
+    assert module.V == 1 and made == [1, 2]
+    assert not Path(module.__file__).is_relative_to(cache)
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"mechsim: warning: cache {cache / 'kernels'} is writable by others: not "
+                   f"used (this process builds in {Path(module.__file__).parent.parent})"]
+
+
+def test_a_symlinked_marker_is_not_followed(cache: Path, tmp_path: Path) -> None:
+    """The last-use marker planted as a symlink to a file outside the cache: using the
+    module neither creates nor touches the target; the link is replaced by a marker."""
+    codegen.load_module("marked", "k", lambda: "M = 1\n")
+    marker = _module(cache, "marked").with_suffix(".used")
+    marker.unlink()
+    outside = tmp_path / "outside"
+    marker.symlink_to(outside)
+    codegen._loaded.clear()
+    codegen.load_module("marked", "k", lambda: "M = 1\n")
+    assert not outside.exists() and not marker.is_symlink() and marker.is_file()
+
+
+def test_a_summary_that_does_not_match_its_key_is_not_recalled(cache: Path) -> None:
+    codegen.remember("summary_key", {"coordinates": ["x"]})
+    path = cache / "summaries" / "summary_key.json"
+    record = json.loads(path.read_text())
+    record["value"]["coordinates"] = ["y"]  # edited, the check left as it was
+    path.write_text(json.dumps(record))
+    assert codegen.recall("summary_key") is None
+    path.unlink()
+    path.symlink_to(cache / "elsewhere.json")
+    (cache / "elsewhere.json").write_text(json.dumps(record))
+    assert codegen.recall("summary_key") is None  # never read through a link

@@ -219,7 +219,9 @@ def test_system_without_effort_input_rejects(loops: Any) -> None:
 
 
 class DampingController:
-    """u = −c θ̇ from each state sample, in its own thread (a controller in another node)."""
+    """u = −c θ̇ from each state sample, in its own thread (a controller in another node).
+    It says it is there with one zero command once the node subscribes: a fast run waits only
+    for a controller that has answered (``mechsim.runcore.effort``)."""
 
     def __init__(self, context: Any, ns: str, c: float) -> None:
         self.node = Node("damper", context=context)
@@ -234,7 +236,11 @@ class DampingController:
         self.thread.start()
 
     def _spin(self) -> None:
+        greeted = False
         while not self.stop:
+            if not greeted and self.pub.get_subscription_count() > 0:
+                self.pub.publish(Float64MultiArray(data=[0.0]))  # here, before any state
+                greeted = True
             self.ex.spin_once(timeout_sec=0.05)
 
     def on_state(self, msg: JointState) -> None:
@@ -267,7 +273,16 @@ def test_closed_loop_in_fast_mode_keeps_the_work_balance(ros_context: Any, tmp_p
             "controller not in the graph"
         ex.shutdown()
         probe.destroy_node()
-        run = run_scene(scene, fast=True, duration=2.0, sinks=[rec, bag], context=ros_context)
+
+        def answered(node: SimulatorNode) -> None:
+            """Before the first sample: the controller's greeting taken (it has answered)."""
+            wait = SingleThreadedExecutor(context=ros_context)
+            wait.add_node(node)
+            assert wait_until(wait, lambda: node.effort_received > 0), "no greeting"
+            wait.remove_node(node)
+
+        run = run_scene(scene, fast=True, duration=2.0, sinks=[rec, bag], context=ros_context,
+                        before_first_message=answered)
     finally:
         controller.close()
         bag.close()

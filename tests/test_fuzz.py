@@ -518,3 +518,96 @@ def test_cli_bad_bags_one_line(tmp_path: Path, real_bag: Path,
             assert code == 2, (argv, err)
             assert err.startswith("mechsim: error:") and "\n" not in err, (argv, err)
     assert not (tmp_path / "x.rrd").exists()  # no partial output left behind
+
+
+# --- bags: mutated real bags (sizes, compression, records, schemas) ----------------------------
+#: Values written over 8 bytes of a real bag: the sizes a hostile file declares.
+HOSTILE_U64 = [0, 1, 2**31, 2**32, 2**40, 2**62, 2**63 - 1, 2**64 - 1]
+mutations = st.lists(st.tuples(st.floats(min_value=0.0, max_value=1.0, exclude_max=True),
+                               st.one_of(st.sampled_from(HOSTILE_U64).map(
+                                   lambda v: v.to_bytes(8, "little")),
+                                   st.binary(min_size=1, max_size=8))),
+                     min_size=1, max_size=4)
+
+
+def mutated(data: bytes, edits: list[tuple[float, bytes]]) -> bytes:
+    """``data`` with each edit's bytes written at its relative position (a record's opcode,
+    length, a chunk's declared sizes, compression name, CRC, schema or message bytes)."""
+    out = bytearray(data)
+    for where, blob in edits:
+        i = int(where * len(out))
+        out[i:i + len(blob)] = blob
+    return bytes(out[:len(data)])
+
+
+def _mutated_bag(root: Path, real_bag: Path, edits: list[tuple[float, bytes]]) -> Path:
+    d = root / "mut"
+    d.mkdir()
+    (d / "mut_0.mcap").write_bytes(mutated((real_bag / "real_0.mcap").read_bytes(), edits))
+    (d / "metadata.yaml").write_text(
+        (real_bag / "metadata.yaml").read_text().replace("real_0.mcap", "mut_0.mcap"))
+    return d
+
+
+@settings(max_examples=40, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(mutations)
+def test_mutated_real_bag(tmp_path_factory: pytest.TempPathFactory, real_bag: Path,
+                          edits: list[tuple[float, bytes]]) -> None:
+    """Read and repair a real bag with a few of its bytes overwritten (huge declared sizes
+    among them): a result or one line; nothing but the bag's own directory changes."""
+    from mechsim.outputs.bag import repair_bag
+
+    root = tmp_path_factory.mktemp("mut")
+    d = _mutated_bag(root, real_bag, edits)
+    only_mechsim_errors(lambda: _read_all(d))
+    before = {p.name for p in d.iterdir()}
+    only_mechsim_errors(lambda: repair_bag(d))
+    _no_partial_files(d, before)
+    assert [p.name for p in root.iterdir()] == ["mut"]
+
+
+#: Run in a child process under a 512 MiB address-space limit: the mutations of
+#: ``test_mutated_real_bag`` drawn by hypothesis there, through the reader verbs' API.
+_BOUNDED_FUZZ = """
+import sys
+from pathlib import Path
+from hypothesis import HealthCheck, given, settings
+sys.path.insert(0, sys.argv[2])
+from test_fuzz import _mutated_bag, _read_all, mutations, only_mechsim_errors
+from mechsim.outputs.bag import repair_bag
+real, out = Path(sys.argv[1]), Path(sys.argv[3])
+count = [0]
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=list(HealthCheck))
+@given(mutations)
+def fuzz(edits):
+    count[0] += 1
+    root = out / str(count[0])
+    root.mkdir()
+    d = _mutated_bag(root, real, edits)
+    only_mechsim_errors(lambda: _read_all(d))
+    only_mechsim_errors(lambda: repair_bag(d))
+
+fuzz()
+print("examples", count[0])
+"""
+
+
+def test_mutated_bags_within_an_address_space_limit(real_bag: Path, tmp_path: Path,
+                                                    ros_env: dict[str, str]) -> None:
+    """The same mutations under RLIMIT_AS = 512 MiB: memory follows what the reader accepts,
+    never what a mutated size declares (a MemoryError would fail the child)."""
+    import resource
+    import subprocess
+    import sys
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (512 << 20, 512 << 20))
+
+    r = subprocess.run([sys.executable, "-c", _BOUNDED_FUZZ, str(real_bag),
+                        str(Path(__file__).parent), str(tmp_path)], env=ros_env,
+                       capture_output=True, text=True, timeout=600, preexec_fn=limit)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.split() == ["examples", "25"], r.stdout

@@ -450,7 +450,116 @@ def test_connect_to_nothing_is_refused(ros_env: dict[str, str]) -> None:
                      "--duration", "0.1"], ros_env)
     assert r.returncode == 2, r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith(
-        f"mechsim: error: --connect: nothing listens at 127.0.0.1:{port}")
+        f"mechsim: error: --connect: 127.0.0.1:{port}: nothing listens there")
+
+
+class MutePeer:
+    """A TCP listener on a free loopback port that never says anything (``handshake``
+    False: the kernel completes connections, nobody reads), or that answers the HTTP/2
+    handshake with its SETTINGS frame and then reads everything and never answers
+    (``handshake`` True: a gRPC server that stalls)."""
+
+    def __init__(self, handshake: bool) -> None:
+        import socket
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(16)
+        self.port = self.sock.getsockname()[1]
+        self.url = f"rerun+http://127.0.0.1:{self.port}/proxy"
+        self.conns: list[Any] = []
+        self.received = 0  # bytes read from every connection
+        if handshake:
+            threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        with contextlib.suppress(OSError):
+            while True:
+                conn, _ = self.sock.accept()
+                self.conns.append(conn)
+                threading.Thread(target=self._mute, args=(conn,), daemon=True).start()
+
+    def _mute(self, conn: Any) -> None:
+        with contextlib.suppress(OSError):
+            self.received += len(conn.recv(24))  # the client's preface
+            conn.sendall(bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))  # SETTINGS, then silence
+            while data := conn.recv(65536):
+                self.received += len(data)
+
+    def close(self) -> None:
+        import socket
+
+        with contextlib.suppress(OSError):
+            self.sock.shutdown(socket.SHUT_RDWR)
+        self.sock.close()
+        for conn in self.conns:
+            conn.close()
+
+
+def test_connect_to_a_listener_that_never_speaks_is_refused(ros_env: dict[str, str]) -> None:
+    """Something listens at the URL but never answers the HTTP/2 handshake: one line, before
+    the run, naming the deadline (rerun_live.HANDSHAKE_TIMEOUT)."""
+    from mechsim.outputs.rerun_live import HANDSHAKE_TIMEOUT
+
+    peer = MutePeer(handshake=False)
+    try:
+        r = run_cli(["run", "pendulum", "--connect", peer.url, "--fast", "--duration", "0.2"],
+                    ros_env)
+    finally:
+        peer.close()
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("mechsim: error")]
+    assert lines == [f"mechsim: error: --connect: 127.0.0.1:{peer.port}: it did not answer "
+                     f"the HTTP/2 handshake within {HANDSHAKE_TIMEOUT:g} s; start a viewer "
+                     "first (`rerun`)"], r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_a_viewer_that_stalls_costs_a_bounded_close(ros_env: dict[str, str]) -> None:
+    """A gRPC peer that completes the handshake and then never answers: the run ends with
+    one line naming the bound it waited (LIVE_CLOSE_TIMEOUT), exit 2, none of Rerun's own
+    log lines."""
+    from mechsim.outputs.rerun.sink import LIVE_CLOSE_TIMEOUT
+
+    peer = MutePeer(handshake=True)
+    try:
+        r = run_cli(["run", "pendulum", "--connect", peer.url, "--fast", "--duration", "0.2"],
+                    ros_env)
+    finally:
+        peer.close()
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.splitlines()[-1] == (
+        f"mechsim: error: live view {peer.url}: the viewer did not take the rest of the run "
+        f"within {LIVE_CLOSE_TIMEOUT:g} s (it does not answer); what it took is kept"), r.stderr
+    assert "re_grpc_client" not in r.stderr and "Traceback" not in r.stderr
+
+
+def test_ctrl_c_with_a_stalled_viewer_exits_130(ros_env: dict[str, str]) -> None:
+    """Ctrl-C during a real-time run streaming to a peer that stalls: exit 130, and the
+    stream is given up after the short bound of a stopped run (INTERRUPTED_CLOSE_TIMEOUT),
+    said in one line."""
+    from mechsim.outputs.rerun.sink import INTERRUPTED_CLOSE_TIMEOUT
+
+    peer = MutePeer(handshake=True)
+    proc = subprocess.Popen([*MECHSIM, "run", "pendulum", "--connect", peer.url, "--duration",
+                             "600"], env=ros_env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        # Until HTTP/2's initial flow-control window (65535 bytes, never opened by the peer)
+        # is full: what the run sends from then on cannot be taken.
+        wait_until("a full window of the run's stream", lambda: peer.received >= 65535 + 24 or (
+            proc.poll() is not None and pytest.fail(proc.stderr.read())))
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        peer.close()
+    assert proc.returncode == 130, err
+    assert err.splitlines()[-1] == (
+        f"mechsim: live view {peer.url}: the viewer did not take the rest of the run within "
+        f"{INTERRUPTED_CLOSE_TIMEOUT:g} s (it does not answer); what it took is kept"), err
 
 
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # Rerun stopped by Ctrl-C

@@ -109,7 +109,7 @@ def test_an_unreadable_summary_is_made_again(summaries: Path, content: str) -> N
     again = _model("double_pendulum", "angles")
     assert _shape(again) == shape
     assert "declaration" in again.__dict__
-    assert json.loads(path.read_text())["coordinates"]  # and remembered again
+    assert json.loads(path.read_text())["value"]["coordinates"]  # and remembered again
 
 
 def test_an_oversized_summary_is_not_read(summaries: Path) -> None:

@@ -36,6 +36,7 @@ class Collector:
         self.laws = 0
         self.efforts: list[tuple[float, list[float]]] = []
         self.stops: list[str] = []
+        self.notices: list[str] = []
         self.run: SystemRun | None = None
 
     def wanted(self) -> tuple[str, ...]:
@@ -71,6 +72,9 @@ class Collector:
 
     def stopped(self, reason: str) -> None:
         self.stops.append(reason)
+
+    def effort_notice(self, message: str) -> None:
+        self.notices.append(message)
 
     def controller_present(self) -> bool:
         return self.controller

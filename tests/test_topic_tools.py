@@ -143,3 +143,21 @@ def test_list_echo_hz_on_a_live_graph(live_graph: Any, ros_env_module: dict[str,
     assert rc == 2 and err.strip().splitlines()[-1].startswith("mechsim: error: topic "
                                                                "/no_such_topic")
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("args, field", [
+    (["echo", "/x", "--timeout", "nan"], "--timeout"),
+    (["echo", "/x", "--timeout", "inf"], "--timeout"),
+    (["echo", "/x", "--duration", "-1"], "--duration"),
+    (["echo", "/x", "--count", "0"], "--count"),
+    (["hz", "/x", "--timeout", "nan"], "--timeout"),
+    (["list", "--wait", "nan"], "--wait"),
+])
+def test_wall_clock_options_that_would_wait_for_ever_are_refused(
+        args: list[str], field: str, ros_env: dict[str, str]) -> None:
+    """``--timeout nan`` once waited for ever (no comparison with nan is true): every
+    wall-clock option is a finite number of seconds, refused in one line before the graph."""
+    r = subprocess.run([*MECHSIM, "topic", *args], env=ros_env, capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.startswith(f"mechsim: error: {field}: ") and r.stderr.count("\n") == 1

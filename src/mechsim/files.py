@@ -134,10 +134,11 @@ def anonymous_file(directory: str | Path) -> IO[bytes]:
     return os.fdopen(fd, "w+b")
 
 
-def open_regular(path: str | Path) -> IO[bytes]:
+def open_regular(path: str | Path, *, follow: bool = True) -> IO[bytes]:
     """``path`` opened for reading if it is a regular file (never blocks on a FIFO, never
-    reads a device); OSError otherwise."""
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    reads a device); OSError otherwise. ``follow=False``: never through a symbolic link."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC
+                 | (0 if follow else os.O_NOFOLLOW))
     try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             raise OSError(errno.EINVAL, "not a regular file", str(path))

@@ -2,9 +2,10 @@
 
 Besides the parameters of each system, this module holds the one definition of every run
 setting's range (``PUBLISH_RATE``, ``TOLERANCE``, ``REAL_TIME_FACTOR``, ``CONSTRAINT_LIMIT``,
-``WARN_DRIFT``, ``ERROR_DRIFT``, ``DURATION``): the CLI, scene files and the nodes' ROS parameter
-descriptors all validate against these, so nothing is accepted by one and refused by another.
-Values from outside are shown in messages through :func:`shown` (bounded, one line).
+``WARN_DRIFT``, ``ERROR_DRIFT``, ``DURATION``, the effort input's ``EFFORT_*``): the CLI, scene
+files and the nodes' ROS parameter descriptors all validate against these, so nothing is
+accepted by one and refused by another. Values from outside are shown in messages through
+:func:`shown` (bounded, one line).
 """
 
 from __future__ import annotations
@@ -251,6 +252,11 @@ EFFORT_TIMEOUT = Parameter("effort_timeout", 0.5, "s",
                            "then the effort returns to zero until the next command",
                            minimum=0.0, maximum=1e9, exclusive_minimum=True)
 EFFORT_WAIT = Parameter("effort_wait", 1.0, "s",
-                        "stepped (fast) runs with an effort publisher: wall seconds the node "
-                        "waits after each sample for the next command (0: never waits)",
-                        minimum=0.0, maximum=60.0)
+                        "stepped (fast) runs with a controller that has answered: wall seconds "
+                        "the node waits after each sample for the next command (0: never "
+                        "waits)", minimum=0.0, maximum=60.0)
+EFFORT_LIMIT = Parameter("effort_limit", 1e6, "",
+                         "largest magnitude of an effort command's value, per coordinate, in "
+                         "the coordinate's force unit (N for a length, N·m for an angle); a "
+                         "command beyond it is refused", minimum=0.0, maximum=1e15,
+                         exclusive_minimum=True)

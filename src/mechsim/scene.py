@@ -18,11 +18,12 @@ Format (every field validated; unknown keys are errors)::
         constraint_limit: 1.0e-2   # optional, as the node's ROS parameters of these names
         effort_timeout: 0.5
         effort_wait: 1.0
+        effort_limit: 1.0e+6   # largest |effort| accepted, per coordinate
         origin: [0.0, 0.0, 0.0] # where the system's world-rooted frames sit in the world
 
 The run settings go by the names of the nodes' ROS parameters everywhere: an instance's
-``method``, ``tolerance``, ``constraint_limit``, ``effort_timeout`` and ``effort_wait`` (keys of
-its entry, or names in its ``parameters``), the scene's ``publish_rate``,
+``method``, ``tolerance``, ``constraint_limit``, ``effort_timeout``, ``effort_wait`` and
+``effort_limit`` (keys of its entry, or names in its ``parameters``), the scene's ``publish_rate``,
 ``real_time_factor``, ``warn_drift`` and ``error_drift``; ``--set NAME=VALUE`` takes all of
 them (``INSTANCE:NAME=VALUE`` for one instance's). Their ranges are defined once in
 ``mechsim.params`` (shared with the CLI and the nodes' ROS parameters). Files are untrusted
@@ -44,6 +45,7 @@ from mechsim.integrators import METHODS
 from mechsim.params import (
     CONSTRAINT_LIMIT,
     DURATION,
+    EFFORT_LIMIT,
     EFFORT_TIMEOUT,
     EFFORT_WAIT,
     ERROR_DRIFT,
@@ -74,7 +76,8 @@ _NUMBER_TEXT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 #: ROS parameters: keys of a ``systems`` entry, names in its ``parameters``, and ``--set``
 #: names (every instance, or ``INSTANCE:NAME``).
 INSTANCE_SETTINGS: dict[str, Parameter] = {
-    p.name: p for p in (TOLERANCE, CONSTRAINT_LIMIT, EFFORT_TIMEOUT, EFFORT_WAIT)}
+    p.name: p for p in (TOLERANCE, CONSTRAINT_LIMIT, EFFORT_TIMEOUT, EFFORT_WAIT,
+                         EFFORT_LIMIT)}
 #: Settings of the whole scene (every instance), under the names of the nodes' ROS
 #: parameters: top-level keys (the drifts under ``diagnostics``), and ``--set`` names.
 SCENE_SETTINGS: dict[str, Parameter] = {

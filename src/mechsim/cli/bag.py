@@ -24,9 +24,11 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_bag_info(a: argparse.Namespace) -> int:
-    from mechsim.outputs.bag import describe, read_metadata
+    from mechsim.outputs.bag import check_storage, describe, read_metadata
 
-    text = describe(read_metadata(Path(a.bag)))
+    meta = read_metadata(Path(a.bag))
+    check_storage(Path(a.bag), meta)  # framing and declared sizes (nothing decompressed)
+    text = describe(meta)
     try:
         print(text, flush=True)
     except BrokenPipeError:  # `mechsim bag info DIR | head`
@@ -47,10 +49,13 @@ def cmd_bag_repair(a: argparse.Namespace) -> int:
     if r.complete:
         state = "was complete"
     elif r.lost_chunks:
-        state = (f"{r.lost_chunks} damaged chunk{'s' if r.lost_chunks != 1 else ''} skipped, "
-                 f"the others kept; original kept as {r.damaged.name if r.damaged else '?'}")
+        state = (f"{r.lost_chunks} damaged chunk{'s' if r.lost_chunks != 1 else ''} skipped "
+                 f"(the first {r.lost_reason}), the others kept; original kept as "
+                 f"{r.damaged.name if r.damaged else '?'}")
     else:
         state = "was truncated; readable chunks kept"
+    if r.cut and not r.complete:
+        state += f"; the file ends early ({r.cut})"
     print(f"bag {r.path}: {counted(r.messages, 'message')} on {counted(r.topics, 'topic')} "
           f"({state}); "
           "metadata.yaml written")

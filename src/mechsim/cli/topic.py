@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from typing import Any
@@ -24,7 +25,29 @@ def _topic_name(topic: str) -> str:
     return topic if topic.startswith("/") else "/" + topic
 
 
+#: Largest wall-clock wait an option takes [s] (a day): beyond it a typo, not a wish.
+MAX_WAIT = 86400.0
+
+
+def _seconds(option: str, value: float | None) -> float | None:
+    """A wall-clock option (``--timeout``, ``--duration``, ``--wait``): None (not given) or a
+    finite number of seconds in [0, MAX_WAIT]; ``nan`` or ``inf`` would wait for ever."""
+    if value is not None and not (math.isfinite(value) and 0.0 <= value <= MAX_WAIT):
+        raise ParameterError(option, f"must be a finite number of seconds in [0, {MAX_WAIT:g}] "
+                             f"(got {value})")
+    return value
+
+
+def _checked(a: argparse.Namespace) -> None:
+    """Every wall-clock option of ``a`` checked (ParameterError naming it)."""
+    for name in ("timeout", "duration", "wait"):
+        _seconds(f"--{name}", getattr(a, name, None))
+    if getattr(a, "count", None) is not None and a.count < 1:
+        raise ParameterError("--count", f"must be >= 1 (got {a.count})")
+
+
 def cmd_list(a: argparse.Namespace) -> int:
+    _checked(a)
     with graph_node("topic_list") as (node, ex):
         end = time.monotonic() + a.wait
         while time.monotonic() < end:
@@ -50,6 +73,7 @@ def cmd_echo(a: argparse.Namespace) -> int:
     from mechsim.outputs.bag import message_class
 
     topic = _topic_name(a.topic)
+    _checked(a)
     count = 1 if a.once else a.count
     with graph_node("topic_echo") as (node, ex):
         type_name, qos = wait_for_type(node, ex, topic, a.timeout)
@@ -72,6 +96,7 @@ def cmd_hz(a: argparse.Namespace) -> int:
     from mechsim.outputs.bag import message_class
 
     topic = _topic_name(a.topic)
+    _checked(a)
     if a.window < 1:
         raise ParameterError("--window", f"must be >= 1 (got {a.window})")
     with graph_node("topic_hz") as (node, ex):

@@ -21,6 +21,17 @@ Beside the modules, ``remember``/``recall`` keep small JSON records keyed on eve
 what they hold: a Lagrangian model's summary and derivation key, so that a model derived before
 is set up without importing sympy (``mechsim.systems.lagrangian``).
 
+Nothing in the cache is trusted as found. The cache directory must be the user's own and
+writable by no one else; otherwise it is not used (one warning line) and this process builds
+in a private temporary directory. Each module has a seal beside it (``<module>.sum``: the
+SHA-256 of its name and text, ``_seal``), and its bytes are read once, checked against the
+seal and against the same ownership rule (a regular file of the user's, writable by no one
+else), then compiled from those very bytes (no bytecode cache is read): a truncated,
+swapped or planted module is removed and derived again, never imported. Numba's compiled
+caches of a module whose seal does not hold are removed with it. Markers and every write go
+through the non-following, atomic writers of ``mechsim.files`` (a planted symlink is
+replaced, never followed); summaries (``recall``) carry a hash of their key and value.
+
 The cache is bounded (``MAX_MODULES`` modules, ``MAX_SUMMARIES`` records; the least recently
 used are removed first) and ``cache_info``/``cache_clear`` report and empty it (``mechsim cache
 info|clear``; ``mechsim cache warm`` fills it).
@@ -28,6 +39,7 @@ info|clear``; ``mechsim cache warm`` fills it).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import functools
 import hashlib
@@ -35,7 +47,10 @@ import importlib.metadata
 import importlib.util
 import json
 import os
+import shutil
+import stat
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -68,8 +83,8 @@ _loaded: dict[str, ModuleType] = {}
 _kernels: dict[str, Kernels] = {}
 
 
-def cache_dir() -> Path:
-    """Where generated modules live: $MECHSIM_CACHE_DIR, else $XDG_CACHE_HOME/mechsim."""
+def configured_cache_dir() -> Path:
+    """The cache directory asked for: $MECHSIM_CACHE_DIR, else $XDG_CACHE_HOME/mechsim."""
     env = os.environ.get("MECHSIM_CACHE_DIR")
     if env:
         return Path(env)
@@ -77,14 +92,66 @@ def cache_dir() -> Path:
     return Path(base) / "mechsim"
 
 
+def distrust(st: os.stat_result, *, directory: bool) -> str | None:
+    """Why an entry (``os.lstat``) of the cache is not to be trusted, or None: it must be a
+    directory or regular file (no symlink) of this user's, writable by no one else."""
+    kind = stat.S_ISDIR if directory else stat.S_ISREG
+    if not kind(st.st_mode):
+        return "is a symbolic link" if stat.S_ISLNK(st.st_mode) else \
+            f"is not a {'directory' if directory else 'regular file'}"
+    if st.st_uid != os.getuid():
+        return f"belongs to another user (uid {st.st_uid})"
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return "is writable by others"
+    return None
+
+
+_private: list[Path] = []  # this process's own cache, when the configured one is refused
+
+
+def cache_dir() -> Path:
+    """Where generated modules live: the configured directory (``configured_cache_dir``) if
+    it is trusted (``distrust``: it and its ``kernels`` and ``summaries`` folders the user's,
+    writable by no one else) or does not exist yet; else, with one warning line, a private
+    temporary directory of this process."""
+    if _private:
+        return _private[0]
+    folder = configured_cache_dir()
+    for d in (folder, folder / "kernels", folder / "kernels" / "__pycache__",
+              folder / "summaries"):
+        try:
+            why = distrust(os.lstat(d), directory=True)
+        except OSError:
+            continue  # not there: made by this user when needed
+        if why is not None:
+            _private.append(Path(tempfile.mkdtemp(prefix="mechsim-cache-")))
+            atexit.register(shutil.rmtree, _private[0], ignore_errors=True)
+            print(f"mechsim: warning: cache {d} {why}: not used (this process builds in "
+                  f"{_private[0]})", file=sys.stderr)
+            return _private[0]
+    return folder
+
+
 def _module_dir() -> Path:
     return cache_dir() / "kernels"
 
 
-def write_atomic(path: Path, text: str) -> None:
+def _make_private(folder: Path) -> None:
+    """Create ``folder`` (in the cache) and the cache directory above it as this user's,
+    writable by no one else whatever the umask (``distrust`` would refuse them otherwise)."""
+    root = cache_dir()
+    root.parent.mkdir(parents=True, exist_ok=True)
+    for d in (root, folder):
+        d.mkdir(mode=0o700, exist_ok=True)
+
+
+def write_atomic(path: Path, text: str | bytes) -> None:
     """Write ``text`` to ``path`` through the project's one atomic writer (concurrent
     processes, parallel test workers or several nodes, never see a partial file)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.parent.parent == cache_dir():
+        _make_private(path.parent)
+    else:
+        path.parent.mkdir(parents=True, exist_ok=True)
     files.write_atomic(path, text)
 
 
@@ -253,13 +320,38 @@ class Kernels(KernelContract):
         return ks
 
 
-def _import(modname: str, path: Path) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(modname, path)
-    assert spec is not None and spec.loader is not None
+def _seal(modname: str, text: bytes) -> str:
+    """What a module's ``.sum`` holds: the SHA-256 of its name (its key) and its text."""
+    return hashlib.sha256(modname.encode() + b"\0" + text).hexdigest()
+
+
+def _verified(modname: str, path: Path) -> bytes | None:
+    """The text of cached module ``path`` if it is trusted (``distrust``) and matches its
+    seal; else None (nothing there, or something that must not be imported)."""
+    try:
+        with files.open_regular(path, follow=False) as f:
+            if distrust(os.fstat(f.fileno()), directory=False) is not None:
+                return None
+            text = f.read()
+        with files.open_regular(path.with_suffix(".sum"), follow=False) as f:
+            if distrust(os.fstat(f.fileno()), directory=False) is not None:
+                return None
+            seal = f.read(100).decode("ascii", "replace").strip()
+    except OSError:
+        return None
+    return text if seal == _seal(modname, text) else None
+
+
+def _import(modname: str, path: Path, text: bytes) -> ModuleType:
+    """The module compiled from ``text`` (the verified bytes of ``path``, which numba's
+    cache locates by): no bytecode cache is read or written."""
+    spec = importlib.util.spec_from_loader(modname, loader=None, origin=str(path))
+    assert spec is not None
     module = importlib.util.module_from_spec(spec)
+    module.__file__ = str(path)
     sys.modules[modname] = module
     try:
-        spec.loader.exec_module(module)
+        exec(compile(text, str(path), "exec"), module.__dict__)  # noqa: S102 - verified above
     except BaseException:
         sys.modules.pop(modname, None)
         raise
@@ -293,11 +385,8 @@ def _exclusive(path: Path | None) -> Iterator[None]:
 def _touch(path: Path) -> None:
     """Record a use of a generated module (its .used marker; the module file itself keeps its
     time stamp, which numba's cache index is keyed on)."""
-    marker = path.with_suffix(".used")
-    try:
-        marker.touch()
-    except OSError:
-        pass
+    with contextlib.suppress(OSError):
+        files.write_atomic(path.with_suffix(".used"), b"")  # a planted link is replaced
 
 
 def load_module(name: str, key: str, make_text: Callable[[], str]) -> ModuleType:
@@ -309,14 +398,20 @@ def load_module(name: str, key: str, make_text: Callable[[], str]) -> ModuleType
         return _loaded[modname]
     folder = _module_dir()
     path = folder / f"{modname}.py"
-    if not path.exists():
-        folder.mkdir(parents=True, exist_ok=True)
+    text = _verified(modname, path)
+    if text is None:
+        _make_private(folder)
+        _make_private(folder / "__pycache__")  # numba's caches: made here, not by umask
         with _exclusive(path):
-            if not path.exists():  # another process may have derived it meanwhile
-                write_atomic(path, make_text())
+            text = _verified(modname, path)  # another process may have derived it meanwhile
+            if text is None:
+                _remove_module(path, keep_lock=True)  # and numba's caches of what was there
+                text = make_text().encode()
+                write_atomic(path, text)
+                write_atomic(path.with_suffix(".sum"), _seal(modname, text) + "\n")
                 _evict(folder)
     _touch(path)
-    module = _import(modname, path)
+    module = _import(modname, path, text)
     _loaded[modname] = module
     return module
 
@@ -330,15 +425,24 @@ def recall(key: str) -> dict[str, Any] | None:
     None when there is nothing, or nothing readable (then the caller makes it again)."""
     path = _summary_dir() / f"{key}.json"
     try:
-        if path.stat().st_size > _SUMMARY_BYTES:  # not one of ours: never read it whole
-            return None
-        value = json.loads(path.read_text())
+        with files.open_regular(path, follow=False) as f:
+            if distrust(os.fstat(f.fileno()), directory=False) is not None:
+                return None
+            data = f.read(_SUMMARY_BYTES + 1)  # not one of ours if larger: never read whole
+        record = json.loads(data) if len(data) <= _SUMMARY_BYTES else None
     except (OSError, ValueError):
         return None
-    if not isinstance(value, dict):
+    if not (isinstance(record, dict) and isinstance(record.get("value"), dict)
+            and record.get("check") == _summary_check(key, record["value"])):
         return None
     _touch_file(path)
-    return value
+    return record["value"]
+
+
+def _summary_check(key: str, value: dict[str, Any]) -> str:
+    """The hash a stored summary carries: its key and its value."""
+    return hashlib.sha256(key.encode() + b"\0" + json.dumps(value, sort_keys=True).encode()
+                          ).hexdigest()
 
 
 def remember(key: str, value: dict[str, Any]) -> None:
@@ -346,7 +450,8 @@ def remember(key: str, value: dict[str, Any]) -> None:
     left as it is. At most ``MAX_SUMMARIES`` are kept, the least recently used go first."""
     folder = _summary_dir()
     with contextlib.suppress(OSError):
-        write_atomic(folder / f"{key}.json", json.dumps(value, sort_keys=True))
+        write_atomic(folder / f"{key}.json", json.dumps(
+            {"check": _summary_check(key, value), "value": value}, sort_keys=True))
         entries = sorted(folder.glob("*.json"))
         if len(entries) > MAX_SUMMARIES:
             for path in sorted(entries, key=_last_use)[: len(entries) - MAX_SUMMARIES]:
@@ -355,8 +460,9 @@ def remember(key: str, value: dict[str, Any]) -> None:
 
 
 def _touch_file(path: Path) -> None:
-    with contextlib.suppress(OSError):
-        path.touch()
+    """A use of ``path`` (its time stamp), set on the file itself, never through a link."""
+    with contextlib.suppress(OSError, NotImplementedError):
+        os.utime(path, follow_symlinks=False)
 
 
 def build(name: str, key: str, make_source: Callable[[], KernelSource]) -> Kernels:
@@ -386,17 +492,19 @@ def _last_use(path: Path) -> float:
     return 0.0
 
 
-def _remove_module(path: Path) -> int:
-    """Delete a generated module, its use marker and its compiled caches; bytes freed."""
+def _remove_module(path: Path, keep_lock: bool = False) -> int:
+    """Delete a generated module, its seal, use marker and compiled caches (and its lock,
+    unless ``keep_lock``: held by the caller); bytes freed."""
     freed = 0
     stem = path.stem
-    victims = [path, path.with_suffix(".used"), path.with_suffix(".lock")]
+    victims = [path, path.with_suffix(".used"), path.with_suffix(".sum"),
+               *([] if keep_lock else [path.with_suffix(".lock")])]
     pycache = path.parent / "__pycache__"
     if pycache.is_dir():
         victims += [p for p in pycache.iterdir() if p.name.startswith(stem + ".")]
     for p in victims:
         with contextlib.suppress(OSError):
-            freed += p.stat().st_size
+            freed += p.lstat().st_size
             p.unlink()
     return freed
 

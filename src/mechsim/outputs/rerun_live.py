@@ -11,8 +11,11 @@ server is stopped by :meth:`LiveViewer.stop`, and by the kernel when this proces
 (``PR_SET_PDEATHSIG``), so a killed run leaves no server behind.
 
 ``check_url`` validates a ``--connect`` URL (``rerun+http://HOST:PORT/proxy``, Rerun's default
-``DEFAULT_CONNECT``) and that something listens there, so a typo is a one-line error instead of
-a run streaming into nowhere.
+``DEFAULT_CONNECT``) and that a gRPC server answers there: the HTTP/2 handshake (the client's
+preface, the server's SETTINGS frame) must complete within ``HANDSHAKE_TIMEOUT``, so a typo, or
+a port that listens but never speaks, is a one-line error instead of a run streaming into
+nowhere (for TLS URLs only the TCP connection is checked). ``LiveViewer.start`` checks its own
+server the same way.
 """
 
 from __future__ import annotations
@@ -39,6 +42,34 @@ DEFAULT_CONNECT = f"rerun+http://{HOST}:9876/proxy"
 #: How long the server may take to listen on both ports [s] (a cold start reads ~40 MB).
 START_TIMEOUT = 60.0
 _SCHEMES = {"rerun": 443, "rerun+http": 80, "rerun+https": 443}
+#: How long a gRPC server may take to answer the HTTP/2 handshake [s].
+HANDSHAKE_TIMEOUT = 5.0
+#: The HTTP/2 client connection preface and an empty SETTINGS frame (RFC 9113, 3.4 and 6.5).
+_H2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+_H2_SETTINGS = 4
+
+
+def handshake(host: str, port: int, timeout: float = HANDSHAKE_TIMEOUT) -> str | None:
+    """Why ``host:port`` is not a gRPC (HTTP/2 cleartext) server answering within ``timeout``
+    seconds in total, or None: it answered the client preface with a SETTINGS frame."""
+    deadline = time.monotonic() + timeout
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as s:
+            s.sendall(_H2_PREFACE)
+            head = b""
+            while len(head) < 9:
+                s.settimeout(max(deadline - time.monotonic(), 0.001))
+                part = s.recv(9 - len(head))
+                if not part:
+                    return "it closed the connection without an HTTP/2 answer"
+                head += part
+    except TimeoutError:
+        return f"it did not answer the HTTP/2 handshake within {timeout:g} s"
+    except OSError as e:
+        return f"nothing listens there ({e.strerror or e})"
+    if head[3] != _H2_SETTINGS:
+        return "it does not speak HTTP/2 (not a gRPC server)"
+    return None
 
 
 def rerun_executable() -> str:
@@ -136,6 +167,10 @@ class LiveViewer:
                                        f"{grpc} and :{web} within {START_TIMEOUT:g} s")
                 with contextlib.suppress(subprocess.TimeoutExpired):
                     proc.wait(timeout=0.05)
+            why = handshake(HOST, grpc, min(HANDSHAKE_TIMEOUT,
+                                            max(deadline - time.monotonic(), 1.0)))
+            if why is not None:
+                raise MechsimError(f"--viewer: Rerun's server on {HOST}:{grpc}: {why}")
         except BaseException:
             viewer.stop()
             raise
@@ -187,8 +222,14 @@ def check_url(url: str) -> str:
         port = parts.port or _SCHEMES[parts.scheme]
     except ValueError:
         raise ParameterError("--connect", f"{url!r}: bad port") from None
+    if parts.scheme == "rerun+http":
+        why = handshake(parts.hostname, port)
+        if why is not None:
+            raise ParameterError("--connect", f"{parts.hostname}:{port}: {why}; start a viewer "
+                                 "first (`rerun`)")
+        return url
     try:
-        with socket.create_connection((parts.hostname, port), timeout=5.0):
+        with socket.create_connection((parts.hostname, port), timeout=HANDSHAKE_TIMEOUT):
             pass
     except OSError as e:
         raise ParameterError("--connect", f"nothing listens at {parts.hostname}:{port} "

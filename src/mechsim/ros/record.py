@@ -218,6 +218,7 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
     returns (SceneRun, output lines).
     An error is a MechsimError (one line: the output, the reason, what was kept); Ctrl-C or
     SIGTERM outside the run loop completes the outputs and is raised as KeyboardInterrupt."""
+    from mechsim.outputs.rerun.sink import INTERRUPTED_CLOSE_TIMEOUT
     from mechsim.ros.launch import run_scene
 
     out: Outputs | None = None
@@ -227,12 +228,23 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
         run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks, lossless=lossless,
                         progress=progress)
         bag = out.bag
+        if run.interrupted and out.live is not None:  # stopped: wait only briefly for a viewer
+            out.live.close_timeout = INTERRUPTED_CLOSE_TIMEOUT
         with held_signals():
-            lines = out.close()
+            try:
+                lines = out.close()
+            except MechsimError as e:
+                if not run.interrupted:
+                    raise
+                # Stopped by Ctrl-C: the stop's exit status stands, the output's error is said.
+                print(f"mechsim: {one_line(str(e))}", file=sys.stderr)
+                lines = []
         if bag is not None:
             run.costs["write"] = bag.write_seconds
     except KeyboardInterrupt:
         if out is not None:
+            if out.live is not None:  # a stopped run waits only briefly for a viewer
+                out.live.close_timeout = INTERRUPTED_CLOSE_TIMEOUT
             with held_signals():
                 try:
                     out.close()

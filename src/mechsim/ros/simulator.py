@@ -18,19 +18,21 @@ Topics (stamped with simulation time + ``time_offset``, so /clock never starts a
   <ns>/system_info  mechsim_msgs/SystemInfo  (transient local) what runs and which laws hold
   /tf, /tf_static   tf2_msgs/TFMessage       frames <ns>/<frame>, root "world"
   /clock            rosgraph_msgs/Clock      only when this node owns the clock
-  /diagnostics      diagnostic_msgs/DiagnosticArray  only if integration fails
+  /diagnostics      diagnostic_msgs/DiagnosticArray  a failed integration, a dropped effort
 Energy, invariants, observables and frames are computed only while something consumes them.
 Parameters: every model parameter (same names as scenes and --set), plus method, tolerance,
 publish_rate, real_time_factor (0: stepped by the caller, as fast as possible; then read-only),
-constraint_limit, effort_timeout and effort_wait; their ranges are the ones of
+constraint_limit, effort_timeout, effort_wait and effort_limit; their ranges are the ones of
 ``mechsim.params`` (shared with the CLI and scene files), in the descriptors. A set is
 validated completely and then applied as a whole, or refused with its reason
 (``mechsim.runcore.change``); epochs, guards: ``mechsim.runcore``.
 Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
 Effort input: ``<ns>/effort`` (std_msgs/Float64MultiArray, one generalized force per
-coordinate; semantics in ``mechsim.runcore.effort``); a refused command is ignored with a
-one-line warning (throttled). Each change of the applied effort goes to the sinks (a
-recording) as a message on ``<ns>/effort`` stamped with the sample from which it applies.
+coordinate; semantics and what no peer can do with it in ``mechsim.runcore.effort``); a refused
+command is ignored with a one-line warning (throttled), a dropped effort or a silent controller
+is a WARN on /diagnostics (``mechsim/<ns>/effort``). Each change of the applied effort goes to
+the sinks (a recording) as a message on ``<ns>/effort`` stamped with the sample from which it
+applies.
 """
 
 from __future__ import annotations

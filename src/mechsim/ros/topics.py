@@ -10,6 +10,7 @@ reports a stopped system on /diagnostics. Stamps are simulation time + ``time_of
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -39,6 +40,9 @@ from mechsim.scene import Instance
 from mechsim.systems.base import Model
 from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
 from tf2_msgs.msg import TFMessage
+
+#: Wall seconds between two effort notices (WARN on /diagnostics and a log line) of a node.
+EFFORT_NOTICE_PERIOD = 5.0
 
 #: (topic, CDR rows or None, message of sample i): one topic of an encoded block.
 Topic = tuple[str, np.ndarray | None, Callable[[int], Any]]
@@ -93,6 +97,7 @@ class SystemTopics:
         #: Wall seconds spent encoding and publishing.
         self.costs = {"encode": 0.0, "publish": 0.0}
         self._dynamic_frames = False
+        self._effort_noticed = -math.inf
         #: What the block being made carries: /tf (moving frames), markers.
         self._moved = self._drawn = False
         self.markers: MarkerEncoder | None = None
@@ -269,6 +274,22 @@ class SystemTopics:
                                   values=[KeyValue(key="t", value=f"{t:.9g}")])
         msg = DiagnosticArray(header=self.factory.header(ns), status=[status])
         self.outlet.publish(self.t_diag, msg, ns)
+
+    def effort_notice(self, message: str) -> None:
+        """WARN on /diagnostics (``mechsim/<ns>/effort``) and one log line, at most one of
+        each every ``EFFORT_NOTICE_PERIOD`` wall seconds (a peer can cause many)."""
+        now = time.monotonic()
+        if now - self._effort_noticed < EFFORT_NOTICE_PERIOD:
+            return
+        self._effort_noticed = now
+        name, t = self.instance.name, self.run.t
+        self.node.get_logger().warning(f"{name}: {message}")
+        ns = messages.stamp_ns(t, self.time_offset)
+        status = DiagnosticStatus(level=DiagnosticStatus.WARN, name=f"mechsim/{name}/effort",
+                                  message=message, hardware_id=name,
+                                  values=[KeyValue(key="t", value=f"{t:.9g}")])
+        self.outlet.publish(self.t_diag, DiagnosticArray(header=self.factory.header(ns),
+                                                         status=[status]), ns)
 
     def controller_present(self) -> bool:
         """A publisher matched with the effort subscription (asked of the subscription, not

@@ -33,6 +33,7 @@ from mechsim.errors import MechsimError, ParameterError, one_line
 from mechsim.integrators import METHODS, Stepper, make_stepper
 from mechsim.params import (
     CONSTRAINT_LIMIT,
+    EFFORT_LIMIT,
     EFFORT_TIMEOUT,
     EFFORT_WAIT,
     PUBLISH_RATE,
@@ -48,14 +49,14 @@ from mechsim.systems.base import Model
 #: Run settings a running system takes changes of, each with its one range.
 SETTINGS: dict[str, Parameter] = {p.name: p for p in (TOLERANCE, PUBLISH_RATE, REAL_TIME_FACTOR,
                                                        CONSTRAINT_LIMIT, EFFORT_TIMEOUT,
-                                                       EFFORT_WAIT)}
+                                                       EFFORT_WAIT, EFFORT_LIMIT)}
 
 
 @dataclass(frozen=True)
 class Settings:
     """How a system runs (``SETTINGS``): integrator tolerance, samples per simulated second,
     pacing (0: stepped by its caller), the constraint guard's hard limit, the effort hold's
-    timeout and a stepped closed loop's wait for its controller."""
+    timeout, a stepped closed loop's wait for its controller and the largest effort accepted."""
 
     tolerance: float = float(TOLERANCE.default)
     publish_rate: float = float(PUBLISH_RATE.default)
@@ -63,6 +64,7 @@ class Settings:
     constraint_limit: float = float(CONSTRAINT_LIMIT.default)
     effort_timeout: float = float(EFFORT_TIMEOUT.default)
     effort_wait: float = float(EFFORT_WAIT.default)
+    effort_limit: float = float(EFFORT_LIMIT.default)
 
     def checked(self) -> Settings:
         """These settings, each checked against its range (ParameterError naming it)."""

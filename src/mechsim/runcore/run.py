@@ -25,7 +25,7 @@ from mechsim.errors import IntegrationError, MechsimError, ParameterError
 from mechsim.integrators import Stepper, make_stepper
 from mechsim.runcore import guards
 from mechsim.runcore.change import Change, Settings, plan, reason
-from mechsim.runcore.effort import EffortHold
+from mechsim.runcore.effort import MAX_MISSED, EffortHold
 from mechsim.runcore.equations import PREPARE_TIMEOUT
 from mechsim.runcore.pacing import BLOCK, Pacing
 from mechsim.runcore.stops import held_signals, raise_if_stop
@@ -86,6 +86,10 @@ class Observer(Protocol):
     def stopped(self, reason: str) -> None:
         """A guard or a failed step stopped the system (``SystemRun.failed``)."""
 
+    def effort_notice(self, message: str) -> None:
+        """Something about the effort input a user must know (a dropped effort, a silent
+        controller); the run goes on."""
+
     def controller_present(self) -> bool:
         """A controller sends effort commands (the run then steps sample by sample)."""
 
@@ -122,7 +126,10 @@ class SystemRun:
         self.failed: str | None = None
         self.paused = False
         self.samples_published = 0
-        self.effort = EffortHold(settings.effort_timeout)
+        self.effort = EffortHold(settings.effort_timeout, settings.effort_limit)
+        # Commands are judged from construction on (a controller may say it is there before
+        # the first sample); ``start`` empties the inbox, the controller stays answered.
+        self.effort.reset(model.effort_slice(), new_epoch=True)
         #: Samples computed ahead of the wall clock by a paced run (0: only the due ones),
         #: and by how many samples this run's blocks are shifted (a scene spreads its runs'
         #: blocks over the ticks instead of computing them all in one).
@@ -206,6 +213,7 @@ class SystemRun:
                   or c.settings.real_time_factor != s.real_time_factor)
         self.values, self.method, self.settings = c.values, c.method, c.settings
         self.effort.timeout = c.settings.effort_timeout
+        self.effort.limit = c.settings.effort_limit
         if c.structural:
             assert c.model is not None and c.stepper is not None
             self.epoch += 1
@@ -253,11 +261,15 @@ class SystemRun:
     def _effort_step(self) -> bool:
         """Before the next sample period (from ``self.t``): apply the newest command, or zero
         once the held effort has timed out. True when the run must step sample by sample: an
-        effort is held (its timeout falls on a sample) or a controller is present."""
+        effort is held (its timeout falls on a sample) or a controller that has answered is
+        present (``EffortHold``: one that never did is not waited for)."""
         at = self.effort.at
         if at is None:
             return False
         closed = self.observer.controller_present()
+        if closed and not self.effort.responsive:
+            self.effort.unwaited += 1
+            closed = False
         if closed:
             self._await_command()
         u = self.effort.next(self.t, self.settings.publish_rate)
@@ -286,11 +298,39 @@ class SystemRun:
         if self.serve is None or self.settings.effort_wait <= 0:
             return
         end = time.monotonic() + self.settings.effort_wait
+        if self.effort.answered < self.samples_published:
+            self.effort.waits += 1
         while self.effort.answered < self.samples_published:
             left = end - time.monotonic()
             if left <= 0 or self.failed:
+                if not self.failed:
+                    last = self.effort.miss()
+                    self.observer.effort_notice(
+                        f"the controller did not answer within effort_wait "
+                        f"{self.settings.effort_wait:g} s: not waited for until it answers "
+                        f"again" + (f" (the last wait of this run: {MAX_MISSED} missed)"
+                                    if last else ""))
                 break
             self.serve(min(left, 0.05))
+
+    def _effort_failed(self, why: str) -> bool:
+        """A step failed (``why``): if an effort was acting, drop it and go on from the last
+        good sample without it (True); False if none was (the failure is the system's)."""
+        at = self.effort.at
+        if at is None or not self.p[at].any() or \
+                self.stepper.method not in Stepper.TAKES_INPUTS:
+            return False
+        zeros = np.zeros(at.stop - at.start)
+        self.effort.drop()
+        self._ahead, self._ahead_failed = None, False
+        p = self.p.copy()
+        p[at] = zeros
+        self.stepper.restart(self.t, self.y, p)
+        self.p = p
+        self.observer.effort_applied(zeros)
+        self.observer.effort_notice(f"effort dropped at t = {self.t:.9g} s: {why}; the run "
+                                    "goes on from the last good sample without it")
+        return True
 
     # --- samples ------------------------------------------------------------------------------
     def static_frames(self) -> np.ndarray:
@@ -342,7 +382,8 @@ class SystemRun:
                 self.samples_published += k
                 self.t = float(block.times[b - 1])
                 self.y = block.Y[b - 1].copy()
-        if block.left == 0 and block.reason is not None:
+        if block.left == 0 and block.reason is not None and not self._effort_failed(
+                block.reason):
             self.fail(block.reason)
         return k
 
@@ -456,8 +497,10 @@ class SystemRun:
             except Exception as again:  # noqa: BLE001 - as above
                 raise_if_stop(again)
                 error = again
-        self.fail(str(error) if isinstance(error, IntegrationError)
-                  else f"integration failed: {reason(error)}")  # this system only
+        why = str(error) if isinstance(error, IntegrationError) \
+            else f"integration failed: {reason(error)}"
+        if not self._effort_failed(why):
+            self.fail(why)  # this system only
         return None
 
     @property

@@ -17,8 +17,9 @@ MCAP storage writes them (ROS_CONVENTIONS §4), so ``ros2 bag info|play``, ``ros
 
 One module per job: :mod:`.qos`,
 :mod:`.metadata` (BagMetadata, safe YAML out, checked YAML in), :mod:`.lock` (a bag being
-written is left alone), :mod:`.writer` (:class:`BagWriter`), :mod:`.reader` (metadata,
-messages, ``bag info``), :mod:`.repair`. File safety (exclusive temporaries, atomic renames,
+written is left alone), :mod:`.mcapfile` (the MCAP writer), :mod:`.writer` (:class:`BagWriter`),
+:mod:`.mcapread` (the bounded MCAP reader), :mod:`.reader` (metadata, messages, ``bag info``),
+:mod:`.repair`. File safety (exclusive temporaries, atomic renames,
 bounded reads) is :mod:`mechsim.files`.
 """
 
@@ -44,6 +45,7 @@ from mechsim.outputs.bag.reader import (
     BagMessage,
     bag_files,
     check_bag,
+    check_storage,
     describe,
     read_messages,
     read_metadata,
@@ -69,7 +71,7 @@ __all__ = [
     "CHUNK_SIZE", "FLUSH_WALL_S", "INFINITE", "LOCK_FILE", "METADATA_FILE",
     "PROFILE", "ROSBAG2_VERSION", "ROS_DISTRO", "SCHEMA_ENCODING", "SEPARATOR", "SERIALIZATION",
     "STORAGE_ID", "SYSTEM_INFO", "BagLock", "BagMessage", "BagStats", "BagWriter",
-    "RepairResult", "TopicInfo", "bag_files", "bag_metadata", "check_bag",
+    "RepairResult", "TopicInfo", "bag_files", "bag_metadata", "check_bag", "check_storage",
     "check_not_in_use", "claim_bag_dir", "describe", "dump_yaml", "expand_path",
     "live_holder", "message_class", "message_definition", "parse_metadata", "qos_dict",
     "qos_profile", "read_messages", "read_metadata", "repair_bag", "storage_file_name",

@@ -210,14 +210,18 @@ def parse_metadata(raw: bytes | str, what: str) -> dict[str, Any]:
     to their last component (a bag never reads outside its directory)."""
     top = _Fields(load_yaml(raw, what), "", what)
     m = top.sub(ROOT_KEY)
+    # The fields rosbag2 itself requires of every version (rosbag2_storage's YAML decoder):
+    # a document with fewer is not a bag's metadata, whatever else it holds.
     out: dict[str, Any] = {
-        "version": m.get("version", int, ROSBAG2_VERSION),
+        "version": m.get("version", int),
         "storage_identifier": m.get("storage_identifier", str),
-        "duration": {"nanoseconds": _count(m.sub("duration", {}), "nanoseconds")},
+        "duration": {"nanoseconds": _count(m.sub("duration"), "nanoseconds", ...)},
         "starting_time": {"nanoseconds_since_epoch": _count(
-            m.sub("starting_time", {}), "nanoseconds_since_epoch")},
+            m.sub("starting_time"), "nanoseconds_since_epoch", ...)},
     }
     rels = m.get("relative_file_paths", list)
+    if not rels:
+        raise m.fail("relative_file_paths", "empty (a bag has at least one storage file)")
     files = _Fields({}, m.path("relative_file_paths"), what)
     topics = []
     raw_topics = m.get("topics_with_message_count", list)
@@ -238,8 +242,7 @@ def parse_metadata(raw: bytes | str, what: str) -> dict[str, Any]:
             },
             "message_count": _count(t, "message_count"),
         })
-    out["message_count"] = _count(m, "message_count",
-                                  sum(t["message_count"] for t in topics))
+    out["message_count"] = _count(m, "message_count", ...)
     out["topics_with_message_count"] = topics
     out["compression_format"] = m.get("compression_format", str, "", none_ok=True)
     out["compression_mode"] = m.get("compression_mode", str, "", none_ok=True)

@@ -2,14 +2,17 @@
 
 Everything read is from outside: ``metadata.yaml`` is size-bounded, UTF-8, alias-free and
 checked field by field (``metadata.parse_metadata``); storage files are opened only if they are
-regular files; a bag being written (live lock, see ``lock``) is refused; text printed from a bag
-has its control characters escaped (:func:`describe`).
+regular files and read by the bounded reader (``mcapread``: every size a file declares checked
+against the reader's limits before anything is allocated for it); a bag being written (live
+lock, see ``lock``) is refused; text printed from a bag has its control characters escaped
+(:func:`describe`).
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
-import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +21,7 @@ from typing import Any
 from mechsim.errors import MechsimError, one_line
 from mechsim.files import open_regular, read_bounded
 from mechsim.outputs.bag.lock import check_not_in_use, has_stale_lock
+from mechsim.outputs.bag.mcapread import BadMcap, McapFile, iter_messages, scan, verify
 from mechsim.outputs.bag.metadata import METADATA_FILE, STORAGE_ID, parse_metadata
 
 _FILE_RE = re.compile(r".+_(\d+)\.mcap$")
@@ -78,25 +82,48 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
 
 
 def _corrupt(d: Path, f: Path, e: Exception) -> MechsimError:
-    detail = str(e).splitlines()[0] if str(e) else ""
-    return MechsimError(f"bag {d}: {f.name} is corrupt or truncated ({type(e).__name__}"
-                        f"{': ' + detail if detail else ''}); try `mechsim bag repair {d}`")
+    if isinstance(e, BadMcap):
+        detail = e.args[0]
+    else:
+        first = str(e).splitlines()[0] if str(e) else ""
+        detail = f"{e.strerror or e}" if isinstance(e, OSError) else \
+            f"{type(e).__name__}{': ' + first if first else ''}"
+    return MechsimError(f"bag {d}: {f.name} is corrupt or truncated ({detail}); try "
+                        f"`mechsim bag repair {d}`")
+
+
+@contextlib.contextmanager
+def _storage(d: Path, name: str) -> Iterator[McapFile]:
+    """A storage file of the bag opened for bounded reading; any error reading it is one
+    line naming the file (and the byte offset where the file is bad)."""
+    f = d / name
+    try:
+        with open_regular(f) as stream:
+            yield McapFile(stream, os.fstat(stream.fileno()).st_size)
+    except (BadMcap, OSError) as e:
+        raise _corrupt(d, f, e) from None
+
+
+def check_storage(path: str | Path, meta: dict[str, Any]) -> None:
+    """The framing of the bag's storage files and every size they declare, within the
+    reader's limits (``mcapread.scan``: nothing decompressed); MechsimError otherwise."""
+    d = Path(path)
+    for name in meta["relative_file_paths"]:
+        with _storage(d, name) as f:
+            scan(f)
 
 
 def check_bag(path: str | Path) -> dict[str, Any]:
-    """Metadata of a bag whose storage files open with a summary (MechsimError otherwise)."""
-    from mcap.reader import make_reader
-
+    """Metadata of a bag whose storage files are complete (a summary) and readable: every
+    chunk decompressed within the reader's limits, checked against its CRC and parsed
+    (``mcapread.verify``, a chunk at a time); MechsimError otherwise. What reads the bag
+    afterwards cannot fail on memory or on a damaged chunk."""
     d = Path(path)
     meta = read_metadata(d)
     for name in meta["relative_file_paths"]:
-        f = d / name
-        try:
-            with open_regular(f) as stream:
-                if make_reader(stream).get_summary() is None:
-                    raise ValueError("no summary section")
-        except Exception as e:  # noqa: BLE001 - whatever the parser throws, the file is bad
-            raise _corrupt(d, f, e) from None
+        with _storage(d, name) as f:
+            if not verify(f).summary:
+                raise _corrupt(d, d / name, ValueError("no summary section"))
     return meta
 
 
@@ -104,25 +131,16 @@ def read_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
     """Messages of a bag in log-time order within each file, files in order (as ``ros2 bag
     play`` reads them: a recorder writes each node's samples in blocks, so file order
     interleaves nodes block by block); MechsimError on a corrupt file (chunk CRCs are checked:
-    a damaged chunk is an error, never wrong messages)."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-
+    a damaged chunk is an error, never wrong messages). Memory stays within the bounded
+    reader's limits (``mcapread``) whatever the file declares."""
     d = Path(path)
     meta = read_metadata(d)
     wanted = set(topics) if topics else None
     for name in meta["relative_file_paths"]:
-        f = d / name
-        try:
-            with open_regular(f) as stream:
-                reader = make_reader(stream, validate_crcs=True)  # no silent garbage
-                for schema, channel, message in reader.iter_messages(
-                        topics=list(wanted) if wanted else None, log_time_order=True):
-                    yield BagMessage(channel.topic, schema.name if schema else "",
-                                     message.log_time, message.data)
-        except (McapError, OSError, ValueError, EOFError, AssertionError, KeyError,
-                struct.error) as e:  # struct.error: a record cut short
-            raise _corrupt(d, f, e) from None
+        with _storage(d, name) as f:
+            for schema, channel, message in iter_messages(f, wanted):
+                yield BagMessage(channel.topic, schema.name if schema else "",
+                                 message.log_time, message.data)
 
 
 def describe(meta: dict[str, Any]) -> str:

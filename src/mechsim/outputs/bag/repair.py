@@ -1,13 +1,14 @@
 """``mechsim bag repair``: complete an interrupted bag and salvage what a damaged one holds.
 
-The MCAP file is walked record by record (each record is ``opcode``, ``length``, content, so one
-bad record does not hide the ones after it); every record is parsed by ``mcap``'s
-``StreamReader``, and a chunk whose data does not decompress or fails its CRC is skipped alone:
-the intact chunks around it are kept. The walk stops where the framing itself ends (a file cut
-by a kill, a corrupt length). The readable schemas, channels and messages are rewritten into a
-new MCAP (footer, summary, indexes) through an exclusive temporary renamed over the original,
-then ``metadata.yaml`` is written the same way. If chunks had to be skipped, the original file
-is kept beside the bag's as ``<name>.damaged``.
+The MCAP file is walked record by record by the bounded reader (``mcapread.walk``: each record
+is ``opcode``, ``length``, content, so one bad record does not hide the ones after it; every
+size it declares is checked against the reader's limits before anything is allocated), and a
+chunk that breaks a bound, does not decompress or fails its CRC is skipped alone: the intact
+chunks around it are kept. The walk stops where the framing itself ends (a file cut by a kill,
+a length past the end of the file). The readable schemas, channels and messages are streamed,
+a chunk at a time, into a new MCAP (footer, summary, indexes) through an exclusive temporary
+renamed over the original, then ``metadata.yaml`` is written the same way. If chunks had to be
+skipped, the original file is kept beside the bag's as ``<name>.damaged``.
 
 A bag being recorded is refused (its lock is live); a stale lock (its recorder is gone) is
 replaced by the repair's own for the time of the repair.
@@ -16,16 +17,25 @@ replaced by the repair's own for the time of the repair.
 from __future__ import annotations
 
 import contextlib
-import io
 import os
-import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 from mechsim.errors import MechsimError
 from mechsim.files import atomic_file, load_yaml, open_regular, write_atomic
 from mechsim.outputs.bag.lock import BagLock
+from mechsim.outputs.bag.mcapread import (
+    BadMcap,
+    Channel,
+    Header,
+    McapFile,
+    Message,
+    Metadata,
+    Salvage,
+    Schema,
+    walk,
+)
 from mechsim.outputs.bag.metadata import (
     METADATA_FILE,
     SYSTEM_INFO,
@@ -40,10 +50,6 @@ from mechsim.outputs.bag.reader import bag_dir, bag_files
 from mechsim.outputs.bag.writer import CHUNK_SIZE, PROFILE
 from mechsim.outputs.wire import message_class
 
-MAGIC = b"\x89MCAP0\r\n"
-_CHUNK, _FOOTER = 0x06, 0x02
-#: Largest record the walk accepts (mechsim writes 512 KiB chunks; other writers a few MiB).
-MAX_RECORD = 256 * 1024 * 1024
 _YAML_LIMIT = 1024 * 1024
 
 
@@ -55,65 +61,9 @@ class RepairResult:
     complete: bool  # the file had its footer and every chunk was readable: nothing was lost
     lost_chunks: int = 0
     damaged: Path | None = None  # the original file, kept when chunks were lost
-
-
-@dataclass
-class _Salvage:
-    records: list[Any] = field(default_factory=list)  # Schema, Channel, Message in file order
-    rosbag2: dict[str, str] = field(default_factory=dict)
-    footer: bool = False
-    library: str = ""
-    lost_chunks: int = 0
-
-
-def _parse(record: bytes) -> list[Any]:
-    """The records in one framed top-level record (a chunk's content for a chunk), parsed by
-    mcap's StreamReader; raises if the record is damaged."""
-    from mcap.exceptions import EndOfFile
-    from mcap.stream_reader import StreamReader
-
-    stream = io.BytesIO(record)
-    out: list[Any] = []
-    try:
-        for rec in StreamReader(stream, skip_magic=True, validate_crcs=True).records:
-            out.append(rec)
-    except EndOfFile:
-        if stream.tell() != len(record):
-            raise
-    return out
-
-
-def _salvage(f: IO[bytes], size: int) -> _Salvage:
-    from mcap.records import Channel, Header, Message, Metadata, Schema
-
-    s = _Salvage()
-    if f.read(len(MAGIC)) != MAGIC:
-        raise ValueError("no MCAP magic")
-    pos = len(MAGIC)
-    while pos + 9 <= size:
-        head = f.read(9)
-        opcode, length = head[0], struct.unpack("<Q", head[1:])[0]
-        if length > min(size - pos - 9, MAX_RECORD):
-            break  # cut short (an interrupted recording) or a damaged length: the walk ends
-        body = f.read(length)
-        pos += 9 + length
-        if opcode == _FOOTER:
-            s.footer = True
-            break
-        try:
-            records = _parse(head + body)
-        except Exception:  # noqa: BLE001 - any parser error: this record is damaged
-            if opcode == _CHUNK:
-                s.lost_chunks += 1
-            continue
-        for rec in records:
-            if isinstance(rec, Header):
-                s.library = rec.library
-            elif isinstance(rec, Schema | Channel | Message):
-                s.records.append(rec)
-            elif isinstance(rec, Metadata) and rec.name == "rosbag2":
-                s.rosbag2 = dict(rec.metadata)
-    return s
+    #: Why the first chunk was skipped, and where the file's framing ended early ("" if not).
+    lost_reason: str = ""
+    cut: str = ""
 
 
 def _system_info_from(data: bytes) -> dict[str, str]:
@@ -148,18 +98,33 @@ def _qos(text: str) -> list[dict[str, Any]]:
     return [e for e in q if isinstance(e, dict)] if isinstance(q, list) else []
 
 
-def _rewrite(out: IO[bytes], s: _Salvage, stats: BagStats, file_name: str) -> dict[str, Any]:
-    from mcap.records import Channel, Message, Schema
+def _rewrite(out: IO[bytes], f: McapFile, salvage: Salvage, stats: BagStats,
+             file_name: str) -> dict[str, Any]:
+    """Write the readable records of ``f`` (``mcapread.walk``, one chunk in memory at a time)
+    into a new MCAP on ``out``; the bag's metadata from them."""
     from mcap.writer import CompressionType, Writer
 
     w = Writer(out, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
-    w.start(profile=PROFILE, library=s.library or "mechsim bag repair")
+    started = False
     schemas: dict[int, Schema] = {}
     schema_map: dict[int, int] = {}
     chan_map: dict[int, int] = {}
     chan_topic: dict[int, str] = {}
-    for rec in s.records:
-        if isinstance(rec, Schema):
+    rosbag2: dict[str, str] = {}
+    info: dict[str, str] = {}  # custom_data from the SystemInfo messages
+    for rec in walk(f, salvage):
+        if isinstance(rec, Header):
+            if not started:
+                w.start(profile=PROFILE, library=rec.library or "mechsim bag repair")
+                started = True
+            continue
+        if not started:
+            w.start(profile=PROFILE, library="mechsim bag repair")
+            started = True
+        if isinstance(rec, Metadata):
+            if rec.name == "rosbag2":
+                rosbag2 = rec.metadata
+        elif isinstance(rec, Schema):
             schemas.setdefault(rec.id, rec)
         elif isinstance(rec, Channel) and rec.id not in chan_map:
             sc = schemas.get(rec.schema_id)
@@ -176,10 +141,13 @@ def _rewrite(out: IO[bytes], s: _Salvage, stats: BagStats, file_name: str) -> di
         elif isinstance(rec, Message) and rec.channel_id in chan_map:
             topic = chan_topic[rec.channel_id]
             if stats.topics[topic].type == SYSTEM_INFO:
-                stats.custom_data.update(_system_info_from(rec.data))
+                info.update(_system_info_from(rec.data))
             w.add_message(chan_map[rec.channel_id], log_time=rec.log_time, data=rec.data,
                           publish_time=rec.publish_time, sequence=rec.sequence)
             stats.add(topic, rec.log_time)
+    if not started:
+        w.start(profile=PROFILE, library="mechsim bag repair")
+    stats.custom_data.update({**_custom_data(rosbag2), **info})
     meta = bag_metadata(stats, file_name)
     w.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(meta)})
     w.finish()
@@ -200,7 +168,8 @@ def _keep_damaged(src: Path) -> Path:
 
 def repair_bag(path: str | Path) -> RepairResult:
     """Make an interrupted or damaged bag complete: rewrite its MCAP from the readable records
-    (footer, summary and indexes), then write metadata.yaml."""
+    (footer, summary and indexes), then write metadata.yaml. Memory stays within the bounded
+    reader's limits (``mcapread``) whatever the file declares."""
     d = bag_dir(path)
     files = bag_files(d)
     if len(files) != 1:
@@ -208,22 +177,20 @@ def repair_bag(path: str | Path) -> RepairResult:
                            f"(found {len(files)})")
     src = files[0]
     with BagLock.acquire(d, "repair", break_stale=True):
-        try:
-            with open_regular(src) as f:
-                s = _salvage(f, os.fstat(f.fileno()).st_size)
-        except OSError as e:
-            raise MechsimError(f"bag {d}: cannot read {src.name} ({e.strerror or e})") \
-                from None
-        except Exception as e:  # noqa: BLE001 - anything the parser throws means "not MCAP"
-            raise MechsimError(f"bag {d}: {src.name} is not an MCAP file "
-                               f"({type(e).__name__})") from None
-        stats = BagStats(custom_data=_custom_data(s.rosbag2))
+        salvage = Salvage()
+        stats = BagStats()
         damaged = None
         replaced = False
         try:
-            with atomic_file(src) as out:
-                meta = _rewrite(out, s, stats, src.name)
-                if s.lost_chunks:
+            with open_regular(src) as stream, atomic_file(src) as out:
+                f = McapFile(stream, os.fstat(stream.fileno()).st_size)
+                try:
+                    f.check_magic()
+                except BadMcap:
+                    raise MechsimError(f"bag {d}: {src.name} is not an MCAP file (no "
+                                       "magic)") from None
+                meta = _rewrite(out, f, salvage, stats, src.name)
+                if salvage.lost_chunks:
                     damaged = _keep_damaged(src)
             replaced = True
             write_atomic(d / METADATA_FILE, metadata_text(meta))
@@ -233,4 +200,5 @@ def repair_bag(path: str | Path) -> RepairResult:
                     damaged.unlink()
             raise MechsimError(f"bag {d}: cannot write ({e.strerror or e})") from None
     return RepairResult(d, stats.message_count, len(stats.topics),
-                        s.footer and not s.lost_chunks, s.lost_chunks, damaged)
+                        salvage.footer and not salvage.lost_chunks, salvage.lost_chunks,
+                        damaged, salvage.lost_reason, salvage.cut)

@@ -34,9 +34,16 @@ One module per job: :mod:`.sink` (the sink: file or live stream, messages to col
 :mod:`.world` (systems, frames, visuals), :mod:`.drawing` (samples gathered per stream and
 drawn in blocks), :mod:`.series` (rows buffered and sent as columns), :mod:`.blueprint` (the
 layout), :mod:`.convert` (bag to recording, the viewer), :mod:`.entities` (shared names).
+
+Rerun's own log lines about a failed file write or a stalled viewer are silenced (``RUST_LOG``,
+unless the user set it): the sink reports either itself, in one line naming the output.
 """
 
-from mechsim.outputs.rerun.convert import convert_bag, viewer_command
+import os
+
+os.environ.setdefault("RUST_LOG", "warn,re_log_encoding=off,re_grpc_client=off")
+
+from mechsim.outputs.rerun.convert import convert_bag, viewer_command  # noqa: E402
 from mechsim.outputs.rerun.entities import ENERGY_TERMS, TIMELINE
 from mechsim.outputs.rerun.sink import (
     FLUSH_TIMEOUT,

@@ -19,15 +19,16 @@ def convert_bag(bag: str | Path, rrd: str | Path, *, replace: bool = False) -> d
     ``rrd`` appears only once the whole bag was read and the recording written; an existing
     ``rrd`` is replaced only with ``replace`` (MechsimError otherwise, before any work), and on
     any error (a corrupt bag, Ctrl-C) it is left as it was."""
+    from mechsim.outputs.bag import check_bag, read_messages
+
+    check_bag(bag)  # a clear error (unreadable, being recorded, too large) before any work
     from mechsim.environment import import_rclpy
 
     import_rclpy()
     from rclpy.serialization import deserialize_message
 
-    from mechsim.outputs.bag import check_bag, read_messages
     from mechsim.outputs.wire import message_class
 
-    check_bag(bag)  # a clear error (unreadable, being recorded) before any work
     if not replace and os.path.lexists(rrd):
         raise MechsimError(f"rrd {rrd}: exists (not replaced)")
     counts: dict[str, int] = {}

@@ -13,6 +13,7 @@ import contextlib
 import os
 import shutil
 import tempfile
+import threading
 import time
 import uuid
 from pathlib import Path
@@ -45,6 +46,11 @@ _NOT_DRAWN = ("clock", "pose", "twist", "markers")
 LIVE_PERIOD = 0.1
 #: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
 LIVE_FLUSH_TIMEOUT = 10.0
+#: Live streams: the whole close (the rest sent, taken, the connection shut) is bounded by
+#: this [s]; a viewer that accepts a connection and never answers costs no more. After Ctrl-C
+#: the bound is ``INTERRUPTED_CLOSE_TIMEOUT`` (``close_timeout``).
+LIVE_CLOSE_TIMEOUT = LIVE_FLUSH_TIMEOUT + 5.0
+INTERRUPTED_CLOSE_TIMEOUT = 2.0
 #: Longest wait for Rerun to write what it buffered when a recording is closed [s] (a file
 #: writer that died on a full disk can leave a flush waiting without a bound).
 FLUSH_TIMEOUT = 120.0
@@ -111,6 +117,7 @@ class RerunSink:
 
         self = cls.__new__(cls)
         self.path, self.replace, self._tmpdir = None, False, None
+        self.url, self.close_timeout = url, LIVE_CLOSE_TIMEOUT
         self.rec = rr.RecordingStream(
             application_id, recording_id=recording_id or f"mechsim-{uuid.uuid4()}")
         self.rec.connect_grpc(url, default_blueprint=blueprint())
@@ -245,13 +252,37 @@ class RerunSink:
         self._remove_tmp()
 
     def _close_live(self) -> None:
-        try:
-            self._send_buffered()
-            self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
-            self.rec.flush(timeout_sec=LIVE_FLUSH_TIMEOUT)
-        finally:
+        """Send the rest, wait for the viewer to take it, disconnect: in a worker thread,
+        since Rerun's flush and disconnect can block in native code without a bound (and
+        without Ctrl-C) on a peer that never answers; the caller waits ``close_timeout`` s at
+        most, then gives the stream up (``_STUCK``) with a one-line MechsimError."""
+        failure: list[BaseException] = []
+        done = threading.Event()
+
+        def finish() -> None:
+            try:
+                self._send_buffered()
+                self.rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+                self.rec.flush(timeout_sec=min(LIVE_FLUSH_TIMEOUT, self.close_timeout))
+            except BaseException as e:  # noqa: BLE001 - handed to the caller
+                failure.append(e)
+            finally:
+                with contextlib.suppress(Exception):
+                    self.rec.disconnect()
+                done.set()
+
+        threading.Thread(target=finish, name="rerun-live-close", daemon=True).start()
+        if not done.wait(self.close_timeout):
+            import rerun as rr
+
+            _STUCK.append(self.rec)
             with contextlib.suppress(Exception):
-                self.rec.disconnect()
+                rr.unregister_shutdown()
+            raise MechsimError(f"live view {self.url}: the viewer did not take the rest of the "
+                               f"run within {self.close_timeout:g} s (it does not answer); what "
+                               "it took is kept")
+        if failure:
+            raise failure[0]
 
     def _maybe_send_live(self) -> None:
         if self._live_next is not None and time.monotonic() >= self._live_next:
