@@ -127,7 +127,8 @@ class LagrangianModel(Model):
         return {
             "coordinates": [rows(q) for q in d.coords],
             "invariants": [rows(q) for q, _ in d.invariants]
-            + [rows(Quantity(f"constraint_{name}", "")) for name, _ in d.constraints],
+            + [rows(Quantity(f"constraint_{name}", "")) for name, _ in d.constraints]
+            + [rows(Quantity(f"constraint_{name}", "")) for name, _ in d.velocity_constraints],
             "observables": [rows(q) for q, _ in d.observables],
             "frames": [rows(f.spec) for f in d.frames],
             "events": [rows(e) for e, _ in d.events],
@@ -178,23 +179,30 @@ class LagrangianModel(Model):
         constant_mass = not (M.free_symbols & (qs | vs | {t}))
         time_dep = t in (d.kinetic.free_symbols | d.potential.free_symbols
                          | sp.sympify(d.linear).free_symbols) or any(
-            t in g.free_symbols for _, g in d.constraints)
+            t in g.free_symbols for _, g in d.constraints + d.velocity_constraints)
         dissipative = d.rayleigh != 0
-        driven = any(f != 0 for f in d.forces)
-        separable = (constant_mass and not d.constraints and not dissipative and not driven
+        # A velocity constraint with a term b free of the rates imposes a motion: its force
+        # does work (power −μ b), as a generalized force would.
+        driven = any(f != 0 for f in d.forces) or any(
+            c.subs({vi: 0 for vi in d.v}) != 0 for _, c in d.velocity_constraints)
+        n_constraints = len(d.constraints) + len(d.velocity_constraints)
+        separable = (constant_mass and not n_constraints and not dissipative and not driven
                      and d.linear == 0
                      and not time_dep and not (d.potential.free_symbols & vs)
                      and not (d.kinetic.free_symbols & qs)
                      and (len(d.q) <= 4 or M.is_diagonal()))
-        return Structure(separable=separable, n_constraints=len(d.constraints),
+        return Structure(separable=separable, n_constraints=n_constraints,
                          dissipative=dissipative, driven=driven, time_dependent=time_dep)
 
     @staticmethod
     def _energy_function_conserved_of(d: LagrangianBuilder) -> bool:
         L = d.kinetic - d.potential + d.linear
+        # An ideal scleronomic velocity constraint (c = A(q) q̇) does no work: μ A q̇ = 0.
         return bool(d.t not in L.free_symbols and d.rayleigh == 0
                     and not any(f != 0 for f in d.forces)
-                    and not any(d.t in g.free_symbols for _, g in d.constraints))
+                    and not any(d.t in g.free_symbols for _, g in d.constraints)
+                    and not any(d.t in c.free_symbols or c.subs({vi: 0 for vi in d.v}) != 0
+                                for _, c in d.velocity_constraints))
 
     @cached_property
     def kernels(self) -> codegen.Kernels:
@@ -248,6 +256,7 @@ class LagrangianModel(Model):
             sp.srepr(d.kinetic), sp.srepr(d.potential), sp.srepr(d.rayleigh),
             sp.srepr(d.linear), [sp.srepr(f) for f in d.forces],
             [(n, sp.srepr(g)) for n, g in d.constraints],
+            [(n, sp.srepr(c)) for n, c in d.velocity_constraints],
             [(q.name, sp.srepr(e)) for q, e in d.invariants],
             [(q.name, sp.srepr(e)) for q, e in d.observables],
             [(f.spec, [sp.srepr(e) for e in f.translation + f.rotation]) for f in d.frames],
@@ -265,7 +274,7 @@ class LagrangianModel(Model):
         n = len(d.q)
         return codegen.KernelSource(
             name=f"{self.id}_{self.formulation}", functions=functions, body=body, constants={
-                "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
+                "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": self.structure.n_constraints,
                 "N_INV": len(self.invariants), "N_OBS": len(self.observables),
                 "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes),
                 "N_P": layout.with_constants(n_constants).size})

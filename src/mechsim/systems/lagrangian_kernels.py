@@ -244,7 +244,8 @@ def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
     event-free, undriven, undamped, has no explicit time dependence and T is homogeneous
     quadratic in the rates — then E = T + V equals h and is conserved, so the work terms stay
     zero (a rotating-coordinate T with ω² terms, where the motor works, is excluded)."""
-    if d.constraints or d.events or d.modes or st.dissipative or st.driven or st.time_dependent:
+    if d.constraints or d.velocity_constraints or d.events or d.modes or st.dissipative \
+            or st.driven or st.time_dependent:
         return False
     v = sp.Matrix(d.v)
     M = sp.hessian(d.kinetic, d.v)
@@ -261,6 +262,10 @@ class _Derivation:
     def __init__(self, d: LagrangianBuilder, layout: ParameterLayout, st: Structure) -> None:
         self.d, self.layout, self.st = d, layout, st
         self.n, self.nc = n, nc = len(d.q), len(d.constraints)
+        # The velocity constraints c = A q̇ + b = 0 follow the holonomic ones in every
+        # constrained solve and projection (rows G, then A; multipliers λ, then μ).
+        self.nv = nv = len(d.velocity_constraints)
+        self.nm = nc + nv
         self.hoist = _ParameterConstants(d.params, layout)
         self.parts: list[str] = []
         self.defined: set[str] = set()
@@ -279,6 +284,13 @@ class _Derivation:
         g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
         self.gdot = gdot = (G * v + g_t) if nc else sp.zeros(0, 1)
         self.gamma = (gdot.jacobian(q) * v + sp.diff(gdot, t)) if nc else sp.zeros(0, 1)
+        if nv:  # ċ = A q̈ + (∂c/∂q q̇ + ∂c/∂t): the rows A and their γ
+            c = sp.Matrix([e for _, e in d.velocity_constraints])
+            self.A = c.jacobian(v)
+            if self.A.free_symbols & set(d.v):
+                raise ValueError("a velocity constraint is not linear in the rates")
+            self.c = c
+            self.gamma_v = c.jacobian(q) * v + sp.diff(c, t)
         self.E = E = d.kinetic + d.potential
         self.h = (v.T * dL_dv)[0, 0] - L
         self.P_diss = (sum(d.v[i] * sp.diff(d.rayleigh, d.v[i]) for i in range(n))
@@ -287,9 +299,10 @@ class _Derivation:
         self.dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * d.qdd[i]
                                       for i in range(n))
         self.lam = [d.multiplier(k) for k in range(nc)]
+        self.mu = [d.velocity_multiplier(j) for j in range(nv)]
         self.act = [d.active.get(k, sp.Integer(1)) for k in range(nc)]
         self.pre = _prelude(d, layout)
-        self.diagonal = nc == 0 and self.M.is_diagonal()
+        self.diagonal = self.nm == 0 and self.M.is_diagonal()
         self.accel_exprs: list[Expr] = []
         self.effort_accel: list[Expr] = []
 
@@ -311,6 +324,8 @@ class _Derivation:
         self.rhs()
         if self.nc:
             self.project()
+        elif self.nv:
+            self.project_rates()
         if self.st.separable:
             self.accel_q()
         if _canonical_ok(self.d, self.st):
@@ -337,7 +352,7 @@ class _Derivation:
             body += self.emit([(f"a[{i}]", self.accel_exprs[i]) for i in range(n)])
             body += self.emit([(f"ua_{i}", self.effort_accel[i]) for i in range(n)])
             body += [f"    a[{i}] += ua_{i}" for i in range(n)]
-        elif self.nc == 0 and n <= SCALAR_SOLVE_MAX:
+        elif self.nm == 0 and n <= SCALAR_SOLVE_MAX:
             body += _ldl_solve(M, [self.f[i] for i in range(n)], [f"x_{i}" for i in range(n)],
                                self.hoist)
             body += [f"    a[{i}] = x_{i}" for i in range(n)]
@@ -347,9 +362,10 @@ class _Derivation:
 
     def saddle_point_solve(self) -> list[str]:
         """Lines solving [[M, −Gᵀ], [G, 0]] [a, λ] = [f, −γ] (a released constraint's row
-        reads λ_k = 0) by Gaussian elimination into ``a`` and ``lam``."""
+        reads λ_k = 0) by Gaussian elimination into ``a`` and ``lam``; velocity constraints
+        add rows [A, 0] a = −γ_A and columns −Aᵀ, their μ after the λ in ``lam``."""
         n, nc, M, G, act = self.n, self.nc, self.M, self.G, self.act
-        m = n + nc
+        m = n + self.nm
         lines = [f"    A = _zero_matrix({m}, {m})", f"    b = _vector({m})"]
         assign: list[tuple[str, Expr]] = []
         for i in range(n):
@@ -363,10 +379,17 @@ class _Derivation:
             if k in self.d.active:  # released: the row reads λ_k = 0
                 assign.append((f"A[{n + k}, {n + k}]", 1 - act[k]))
             assign.append((f"b[{n + k}]", -act[k] * self.gamma[k]))
+        for j in range(self.nv):
+            row = n + nc + j
+            for i in range(n):
+                if self.A[j, i] != 0:
+                    assign.append((f"A[{row}, {i}]", self.A[j, i]))
+                    assign.append((f"A[{i}, {row}]", -self.A[j, i]))
+            assign.append((f"b[{row}]", -self.gamma_v[j]))
         lines += self.emit(assign)
         lines.append("    x = _solve(A, b)")
         lines += [f"    a[{i}] = x[{i}]" for i in range(n)]
-        lines += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
+        lines += [f"    lam[{k}] = x[{n + k}]" for k in range(self.nm)]
         return lines
 
     def rhs(self) -> None:
@@ -384,13 +407,13 @@ class _Derivation:
                               + [("P_u", P_u)])
             body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
             external = "dE + P_diss + P_u"
-        elif self.nc == 0 and n <= SCALAR_SOLVE_MAX:
+        elif self.nm == 0 and n <= SCALAR_SOLVE_MAX:
             body = list(pre) + _ldl_solve(self.M, [self.f[i] for i in range(n)], a_names,
                                           self.hoist)
             body += self.emit([("P_diss", self.P_diss), ("dE", self.dE)])
             external = "dE + P_diss"
         else:
-            body = [f"    lam = _vector({max(self.nc, 1)})", f"    acc = _vector({n})",
+            body = [f"    lam = _vector({max(self.nm, 1)})", f"    acc = _vector({n})",
                     "    accel(t, y, p, acc, lam)"]
             body += pre
             body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
@@ -417,9 +440,30 @@ class _Derivation:
                  "        if _all_below(r, 1e-15):", "            break"]
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
+        if self.nv:  # the rates onto ġ = 0 and c = 0 together
+            body += [f"    G = _matrix({self.nm}, {n})", f"    r = _vector({self.nm})"]
         body += self.emit([(f"r[{k}]", act[k] * self.gdot[k]) for k in range(nc)]
                           + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
-                             for j in range(n)])
+                             for j in range(n)] + self.velocity_rows(nc))
+        body += ["    _project_onto(G, r, vv)"]
+        self.func("project", body)
+
+    def velocity_rows(self, first: int) -> list[tuple[str, Expr]]:
+        """Residuals and rows of the velocity constraints, from row ``first`` of r and G."""
+        n = self.n
+        return [(f"r[{first + j}]", self.c[j]) for j in range(self.nv)] + [
+            (f"G[{first + j}, {i}]", self.A[j, i]) for j in range(self.nv) for i in range(n)]
+
+    def project_rates(self) -> None:
+        """Without holonomic constraints: the rates onto c = A q̇ + b = 0 (least-norm
+        correction; exact for a constraint linear in the rates, so no iteration)."""
+        n, nv = self.n, self.nv
+        body = list(self.pre)
+        body[1 + n:1 + 2 * n] = []  # q̇ read from vv
+        body += [f"    G = _matrix({nv}, {n})", f"    r = _vector({nv})",
+                 f"    vv = y[{n}:{2 * n}]"]
+        body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(self.d.v)]
+        body += self.emit(self.velocity_rows(0))
         body += ["    _project_onto(G, r, vv)"]
         self.func("project", body)
 
@@ -470,10 +514,12 @@ class _Derivation:
     def solved_first(self, exprs: list[Expr]) -> list[str]:
         """Lines solving for λ and q̈ (through ``accel``) where ``exprs`` read them."""
         n, nc = self.n, self.nc
-        if not any((set(self.lam) | set(self.d.qdd)) & e.free_symbols for e in exprs):
+        if not any((set(self.lam) | set(self.mu) | set(self.d.qdd)) & e.free_symbols
+                   for e in exprs):
             return []
-        return [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
+        return [f"    lam = _vector({max(self.nm, 1)})", f"    acc = _vector({n})",
                 "    accel(t, y, p, acc, lam)", *[f"    lam_{k} = lam[{k}]" for k in range(nc)],
+                *[f"    mu_{j} = lam[{nc + j}]" for j in range(self.nv)],
                 *[f"    {self.a_names[i]} = acc[{i}]" for i in range(n)]]
 
     def outputs(self) -> None:
@@ -483,7 +529,7 @@ class _Derivation:
         self.func("energy", list(pre) + self.emit([("out[0]", d.kinetic),
                                                    ("out[1]", d.potential), ("out[2]", self.h)]))
         inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(
-            self.act, d.constraints, strict=True)]
+            self.act, d.constraints, strict=True)] + [c for _, c in d.velocity_constraints]
         if inv:
             self.func("invariants",
                       list(pre) + self.emit([(f"out[{i}]", e) for i, e in enumerate(inv)]))
