@@ -145,7 +145,7 @@ def test_frames() -> None:
 
 @pytest.mark.parametrize("kw,field", [({"mass_2": 0.0}, "mass_2"),
                                       ({"initial.angle_1": 3.5}, "initial.angle_1"),
-                                      ({"formulation": "hamiltonian"}, "formulation")])
+                                      ({"formulation": "euler_angles"}, "formulation")])
 def test_parameter_validation(kw: dict, field: str) -> None:
     with pytest.raises(ParameterError) as err:
         model(**kw)

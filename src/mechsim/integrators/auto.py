@@ -5,6 +5,7 @@ fastest first, and passes what it decides to the stepper's constructor:
 - with ``closed_form``, ``exact`` wherever the model has a closed form;
 - with dissipation, ``dop853`` (errors decay with the motion, and damping can make the
   equations stiff, where DOP853 notices and radau15's fixed-point iteration would crawl);
+  ``dop853`` too for a state of momenta (a Hamiltonian formulation: not second order);
 - ``radau15`` below ``RADAU_TOLERANCE`` (DOP853 would need local tolerances at round-off) or
   beyond ``LONG_HORIZON`` time scales (DOP853's error, growing with every step, outruns the
   tolerance while radau15 stays at round-off);
@@ -49,7 +50,7 @@ class Auto:
         """The method for ``model`` before the probe (see the module docstring)."""
         if closed_form and model.has_closed_form():
             return ClosedForm
-        if model.structure.dissipative:
+        if model.structure.dissipative or not model.structure.second_order:
             return DOP853
         long = horizon is not None and horizon > cls.LONG_HORIZON * model.time_scale()
         return Radau15 if tolerance < cls.RADAU_TOLERANCE or long else DOP853
@@ -60,6 +61,7 @@ class Auto:
         """The stepper of the chosen method, with the options ``auto`` decided."""
         chosen = cls.choose(model, request.closed_form, tolerance, request.horizon)
         if (chosen is DOP853 and not model.structure.dissipative
+                and model.structure.second_order
                 and not _dop853_meets(model, y0, t0, tolerance, request.horizon,
                                       not request.given_state)):
             # Errors amplified by the motion: radau15 at its finest (round-off) setting.

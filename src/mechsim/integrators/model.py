@@ -16,11 +16,13 @@ if TYPE_CHECKING:
 class StructureLike(Protocol):
     separable: bool  # H = T(p) + V(q): compositions of velocity Verlet apply
     dissipative: bool  # a Rayleigh function acts: errors decay, damping may be stiff
+    second_order: bool  # q̇ is the state's v part (not momenta): radau15 applies
 
 
 class SteppableModel(Protocol):
     id: str
     formulation: str
+    chosen_formulation: str
     coordinates: Sequence[Any]
     events: Sequence[Any]
     structure: StructureLike

@@ -189,7 +189,7 @@ class MessageFactory:
                   for k, v in m.values.items()}
         return SystemInfo(
             header=self.header(ns), instance=self.name, system=m.id,
-            formulation=m.formulation, source=m.source,
+            formulation=m.chosen_formulation, source=m.source,
             coordinates=list(self.coordinate_names),
             coordinate_units=[c.unit for c in m.coordinates],
             parameters_yaml=yaml.safe_dump(params, sort_keys=True, allow_unicode=True),

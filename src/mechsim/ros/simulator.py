@@ -267,7 +267,7 @@ class SimulatorNode(Node):
         response.stamp = messages.to_time(messages.stamp_ns(run.t, self.time_offset))
         response.name = [c.name for c in run.model.coordinates]
         response.position = run.y[at.q].tolist()
-        response.velocity = run.y[at.v].tolist()
+        response.velocity = run.model.rates(np.array([run.t]), run.y, run.p).tolist()
         response.message = f"{taken} samples to t = {run.t:.9g} s"
         return response
 

@@ -174,7 +174,8 @@ class SystemTopics:
         at = self.run.model.layout
         Y, out = block.Y, block.outputs
         ns = messages.stamps_ns(block.times, self.time_offset)
-        c = Chunk(ns, Y[:, at.q], Y[:, at.v], Y[:, [at.work_external, at.work_dissipated]],
+        c = Chunk(ns, Y[:, at.q], block.rates,
+                  Y[:, [at.work_external, at.work_dissipated]],
                   out.get("energy"), out.get("invariants"), out.get("observables"),
                   out.get("frames"))
         columns: dict[str, Any] = {}

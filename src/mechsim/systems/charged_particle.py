@@ -77,7 +77,7 @@ class ChargedParticle(LagrangianModel):
               "Introduction to analytical mechanics, “Lagrange's equation of motion velocity "
               "dependent potentials”; “Action and Reaction” (blog post), Case 3 (two moving "
               "charges)")
-    formulations = ("cylindrical", "symmetric", "landau")
+    formulations = ("cylindrical", "symmetric", "landau", "hamiltonian")
     oracles = ("exact helix/cycloid (cyclotron ω_c = |q|B/m, Larmor radius, pitch, E×B drift); "
                "p_φ = mρ²φ̇ + ½qBρ² conserved; gauges agree; two-charge F₁₂ ≠ −F₂₁ balanced by "
                "field momentum")

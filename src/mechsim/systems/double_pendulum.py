@@ -49,7 +49,7 @@ class DoublePendulum(LagrangianModel):
     id = "double_pendulum"
     title = "Double pendulum (angles and Lagrange-multiplier forms)"
     source = "Introduction to analytical mechanics, “Double pendulum” and “Small Oscillations”"
-    formulations = ("angles", "multiplier")
+    formulations = ("angles", "multiplier", "hamiltonian")
     oracles = ("small-oscillation modes from |V − ω²T| = 0, (2 ± √2)g/l and A₂ = ∓√2A₁ for "
                "equal masses; E conserved over long chaotic runs; forms and tensions agree")
     parameters = (

@@ -259,8 +259,9 @@ class _Derivation:
     functions of the contract it defined; those it leaves out are no-ops (no constraints, not
     separable, no canonical form, no events, nothing to output)."""
 
-    def __init__(self, d: LagrangianBuilder, layout: ParameterLayout, st: Structure) -> None:
-        self.d, self.layout, self.st = d, layout, st
+    def __init__(self, d: LagrangianBuilder, layout: ParameterLayout, st: Structure,
+                 hamiltonian: bool = False) -> None:
+        self.d, self.layout, self.st, self.hamiltonian = d, layout, st, hamiltonian
         self.n, self.nc = n, nc = len(d.q), len(d.constraints)
         # The velocity constraints c = A q̇ + b = 0 follow the holonomic ones in every
         # constrained solve and projection (rows G, then A; multipliers λ, then μ).
@@ -301,7 +302,9 @@ class _Derivation:
         self.lam = [d.multiplier(k) for k in range(nc)]
         self.mu = [d.velocity_multiplier(j) for j in range(nv)]
         self.act = [d.active.get(k, sp.Integer(1)) for k in range(nc)]
-        self.pre = _prelude(d, layout)
+        self.pre = self.lagrangian_pre = _prelude(d, layout)
+        if hamiltonian:  # every function reads (q, p) and first works out q̇ from p
+            self.pre = self.rates_from_momenta("y")
         self.diagonal = self.nm == 0 and self.M.is_diagonal()
         self.accel_exprs: list[Expr] = []
         self.effort_accel: list[Expr] = []
@@ -321,14 +324,18 @@ class _Derivation:
         """The kernel module body, the contract functions it defines and the number of
         parameter constants."""
         self.accel()
-        self.rhs()
+        if self.hamiltonian:
+            self.hamilton_rhs()
+            self.momentum_maps()
+        else:
+            self.rhs()
         if self.nc:
             self.project()
         elif self.nv:
             self.project_rates()
         if self.st.separable:
             self.accel_q()
-        if _canonical_ok(self.d, self.st):
+        if not self.hamiltonian and _canonical_ok(self.d, self.st):
             self.canonical()
         self.outputs()
         functions = tuple(name for name in FUNCTIONS if name in self.defined)
@@ -423,6 +430,65 @@ class _Derivation:
         body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
         body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
         self.func("rhs", body)
+
+    def rates_from_momenta(self, source: str) -> list[str]:
+        """A prelude reading q and the momenta p from array ``source`` (``pm_<i>``), then
+        q̇ from M q̇ = p − ∂L/∂q̇|_{q̇=0} under the rates' own names, so that every expression
+        of the declaration in (q, q̇, t) evaluates as in the Lagrangian form."""
+        d, n, M = self.d, self.n, self.M
+        b0 = self.dL_dv.subs({vi: 0 for vi in d.v})
+        lines = ["    t = t"] + [f"    {qs.name} = {source}[{i}]" for i, qs in enumerate(d.q)]
+        lines += [f"    pm_{i} = {source}[{n + i}]" for i in range(n)]
+        lines += [line for line in _prelude(d, self.layout, with_v=False)
+                  if line != "    t = t" and not line.startswith(tuple(
+                      f"    {qs.name} = y[" for qs in d.q))]
+        rhs = [sp.Symbol(f"pm_{i}", real=True) - b0[i] for i in range(n)]
+        names = [vs.name for vs in d.v]
+        if M.is_diagonal():
+            return lines + self.emit([(names[i], rhs[i] / M[i, i]) for i in range(n)])
+        if n <= SCALAR_SOLVE_MAX:
+            return lines + _ldl_solve(M, rhs, names, self.hoist)
+        lines += [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
+        lines += self.emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
+                            if M[i, j] != 0] + [(f"b[{i}]", rhs[i]) for i in range(n)])
+        return lines + ["    x = _solve(A, b)"] + [f"    {v} = x[{i}]"
+                                                    for i, v in enumerate(names)]
+
+    def hamilton_rhs(self) -> None:
+        """rhs of the Hamiltonian formulation, y = [q, p, ...]: q̇ (from the prelude) and
+        ṗ = ∂L/∂q − ∂D/∂q̇ + Q + u; the power balance as in the Lagrangian form, dE/dt by the
+        chain rule with q̈ from M q̈ = f."""
+        d, n, a_names = self.d, self.n, self.a_names
+        forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
+        pdot = [sp.diff(self.L, d.q[i]) - sp.diff(d.rayleigh, d.v[i]) + forces[i]
+                + d.efforts[i] for i in range(n)]
+        body = list(self.pre)
+        if n <= SCALAR_SOLVE_MAX:
+            body += _ldl_solve(self.M, [self.f[i] for i in range(n)], a_names, self.hoist)
+        else:
+            body += ["    lam = _vector(1)", f"    acc = _vector({n})",
+                     "    accel(t, y, p, acc, lam)"]
+            body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+        body += self.emit([(f"dy[{n + i}]", pdot[i]) for i in range(n)]
+                          + [("P_diss", self.P_diss), ("dE", self.dE)])
+        body += [f"    dy[{i}] = {vs.name}" for i, vs in enumerate(d.v)]
+        body += [f"    dy[{2 * n}] = dE + P_diss", f"    dy[{2 * n + 1}] = P_diss"]
+        self.func("rhs", body)
+
+    def momentum_maps(self) -> None:
+        """to_momenta (the Lagrangian state (q, q̇) to the Hamiltonian one (q, p)) and
+        from_momenta (back), for the Hamiltonian formulation's initial state and rates."""
+        n = self.n
+        body = list(self.lagrangian_pre) + self.emit([(f"z[{n + i}]", self.dL_dv[i])
+                                                      for i in range(n)])
+        body += [f"    z[{i}] = y[{i}]" for i in range(n)]
+        body += [f"    for k in range({2 * n}, y.size):", "        z[k] = y[k]"]
+        self.func("to_momenta", body)
+        body = self.rates_from_momenta("z")
+        body += [f"    y[{i}] = z[{i}]" for i in range(n)]
+        body += [f"    y[{n + i}] = {vs.name}" for i, vs in enumerate(self.d.v)]
+        body += [f"    for k in range({2 * n}, z.size):", "        y[k] = z[k]"]
+        self.func("from_momenta", body)
 
     def project(self) -> None:
         """Positions onto g = 0 (Newton, at most six iterations), then rates onto ġ = 0."""
@@ -545,9 +611,9 @@ class _Derivation:
             self.func("frames", list(pre) + self.emit(assign))
 
 
-def _derive(d: LagrangianBuilder, layout: ParameterLayout, st: Structure
-            ) -> tuple[str, tuple[str, ...], int]:
+def _derive(d: LagrangianBuilder, layout: ParameterLayout, st: Structure,
+            hamiltonian: bool = False) -> tuple[str, tuple[str, ...], int]:
     """The kernel module body, the contract functions it defines (those it leaves out are
     no-ops) and the number of parameter constants (in p after the efforts: ``layout`` places
     the parameters and efforts, ``ParameterLayout.constants`` the constants)."""
-    return _Derivation(d, layout, st).source()
+    return _Derivation(d, layout, st, hamiltonian).source()
