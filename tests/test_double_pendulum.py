@@ -1,5 +1,6 @@
-"""Double pendulum (seed 001 §2.3): equations (the L767 sign fixed), small-oscillation normal
-modes, E over long chaotic runs, angle and multiplier forms and their rod tensions agree."""
+"""Double pendulum (Introduction to analytical mechanics, “Double pendulum”): equations (the L767
+sign fixed), small-oscillation normal modes, E over long chaotic runs, angle and multiplier forms
+and their rod tensions agree."""
 
 from __future__ import annotations
 

@@ -252,7 +252,7 @@ class Model(ABC):
 
     id: ClassVar[str]
     title: ClassVar[str]
-    source: ClassVar[str]  # document and section, e.g. "seed 000 S1 (Simple pendulum)"
+    source: ClassVar[str]  # document title and section, e.g. "“Minimal Frames” (blog post)"
     parameters: ClassVar[tuple[Parameter, ...]]
     formulations: ClassVar[tuple[str, ...]] = ("default",)
     # One line for the README systems table: which analytic results the tests check.

@@ -1,6 +1,6 @@
 """Simple pendulum, reduced coordinates and Lagrange-multiplier form.
 
-Source: seed 000, S1 "Dynamical Systems and Constraints: Part 3 – Simple Pendulum" (L3–97).
+Source: “Dynamical Systems and Constraints: Part 3 – Simple Pendulum” (L3–97).
 
 Conventions (the document's are ambiguous or wrong here):
 - Axes follow REP-103: z up. The pendulum swings in the y–z plane of its ``pivot`` frame;

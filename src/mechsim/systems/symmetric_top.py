@@ -1,7 +1,7 @@
 """Symmetric top: torque-free (gravity 0) and heavy (Lagrange's top), with one point fixed.
 
 Sources: PHYS0500 §7.6 (Euler angles), §7.8 (torque-free symmetric top), §7.8.1–7.8.2 (heavy
-symmetric top, steady precession, nutation); seed 002 §7 (Lecture 10, eqs. 10.37–10.46:
+symmetric top, steady precession, nutation); Lecture 10 (eqs. 10.37–10.46:
 Lagrange's top, Ω± from I₁cosθ Ω² − I₃ω₃Ω + MgR = 0, reality condition, slow/fast limits,
 the suspended top as a conical compound pendulum).
 
@@ -29,7 +29,7 @@ Formulations:
   f(u), catalog 003 §7.8.1 [SUPPLEMENT, not in the seeds; Goldstein §5.7]; φ, ψ by
   quadrature of their rates as Fourier series), except near the vertical.
 - ``euler_angles``: the Lagrangian L = ½I₁(θ̇² + φ̇² sin²θ) + ½I₃(ψ̇ + φ̇ cosθ)² − MgR cosθ
-  (PHYS0500 line 1874, seed 002 eq. 10.38) given to the engine; singular at sin θ = 0, so it
+  (PHYS0500 line 1874, Lecture 10, eq. 10.38) given to the engine; singular at sin θ = 0, so it
   refuses initial θ within 0.01 rad of 0 or π. Both publish the same invariants p_φ, p_ψ and
   observables, for comparison.
 
@@ -413,7 +413,7 @@ class SymmetricTop(Model):
 
     def steady_precession_rates(self, theta: float | None = None,
                                 omega3: float | None = None) -> tuple[float, ...]:
-        """Real roots Ω of I₁cosθ Ω² − I₃ω₃Ω + MgR = 0 (seed 002 eq. 10.41), ascending.
+        """Real roots Ω of I₁cosθ Ω² − I₃ω₃Ω + MgR = 0 (Lecture 10, eq. 10.41), ascending.
 
         Empty when the reality condition I₃²ω₃² ≥ 4I₁MgR cosθ (10.42) fails.
         """
