@@ -15,6 +15,7 @@ import pytest
 import mechsim
 from mechsim.errors import ParameterError
 from mechsim.integrators import make_stepper
+from mechsim.runcore.run import Block
 
 TOL = 1e-12
 
@@ -103,3 +104,28 @@ def test_methods_that_need_q_dot_in_the_state_refuse() -> None:
         mechsim.simulate(ham, 1.0, 0.1, method="exact")
     run = mechsim.simulate(ham, 1.0, 0.1, tolerance=1e-11)  # auto: an explicit method
     assert run.method == "dop853" and math.isfinite(float(run.q[-1, 0]))
+
+
+def test_the_run_core_releases_rates_not_momenta() -> None:
+    """What a node publishes as JointState velocity (``Block.rates``) is q̇ in the Hamiltonian
+    form too: the Lagrangian form's rates, run separately."""
+    from test_runcore import Collector, _run  # the plain-Python observer of the core's tests
+
+    class Rates(Collector):
+        def __init__(self) -> None:
+            super().__init__()
+            self.rates: list[np.ndarray] = []
+
+        def encode(self, block: Block) -> None:
+            self.rates += list(block.rates)
+            super().encode(block)
+
+    kw = {"mass": 2.0, "length": 1.5, "initial.angle": 1.0, "initial_rate.angle": 0.7}
+    _, ham = _run("pendulum", {"formulation": "hamiltonian", **kw}, "dop853", 2.0, Rates())
+    _, lag = _run("pendulum", kw, "dop853", 2.0, Rates())
+    for seen in (ham, lag):
+        assert seen.run is not None
+        seen.run.advance_to(2.0)
+    p = np.array(ham.Y)[:, 1]
+    assert np.max(np.abs(p - 2.0 * 1.5**2 * np.array(ham.rates)[:, 0])) < 1e-12  # p = m R² φ̇
+    assert np.max(np.abs(np.array(ham.rates) - np.array(lag.Y)[:, 1:2])) < 1e-8
