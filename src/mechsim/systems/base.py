@@ -26,6 +26,7 @@ from mechsim.systems.layout import ParameterLayout, StateLayout
 
 if TYPE_CHECKING:
     from mechsim.codegen import Kernels
+    from mechsim.systems.curves import Curve
 
 
 @dataclass(frozen=True)
@@ -376,6 +377,12 @@ class Model(ABC):
         """Closed-form state rows ``[q, v, work_external, work_dissipated, ...]`` at times
         ``t`` from the state ``y0`` at ``t0``, or None where the model has none (default)."""
         return None
+
+    def curves(self) -> tuple[Curve, ...]:
+        """Curves of one variable the model defines for its parameters, with the levels read
+        against them (``mechsim.systems.curves``: an effective potential with the orbit's
+        energy, ...): published once per parameter set beside the run. Default: none."""
+        return ()
 
     def rates(self, t: np.ndarray, Y: np.ndarray, p: np.ndarray) -> np.ndarray:
         """The rates q̇ at the states ``Y`` (rows) at times ``t``: the state's ``v`` entries,

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,6 +60,9 @@ from mechsim.systems._central import (
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+if TYPE_CHECKING:
+    from mechsim.systems.curves import Curve
 
 POTENTIALS = ("kepler", "inverse_cube", "harmonic", "spring")
 
@@ -317,6 +321,16 @@ class CentralForce(LagrangianModel):
         """Isotropic oscillator: 2π√(μ/k), the same for every orbit (Introduction to analytical
         mechanics, “Closed orbits of the two body problem”)."""
         return 2 * math.pi * math.sqrt(self.reduced_mass() / self.value("spring_constant"))
+
+    def curves(self) -> tuple[Curve, ...]:
+        """U_eff(r) with the orbit's energy and its turning points (none where the orbit's
+        radial range cannot be found: a fall to the centre)."""
+        from mechsim.systems.curves import effective_potential
+
+        try:
+            return (effective_potential(self),)
+        except (ValueError, ArithmeticError):
+            return ()
 
 
 MODEL = CentralForce

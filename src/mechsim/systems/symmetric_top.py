@@ -43,7 +43,7 @@ the roots of E′ = V(θ), not asymptotes of V (§7.8.2).
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -65,6 +65,9 @@ from mechsim.systems._rotation import euler_zxz_angles, euler_zxz_quat, quat_fro
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import FrameSpec, Model, Quantity, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+if TYPE_CHECKING:
+    from mechsim.systems.curves import Curve
 
 # --- quaternion-formulation kernels -----------------------------------------------------------
 # Index of cm_distance in p (the third numeric parameter, after the rigid-body block); the
@@ -449,6 +452,16 @@ class SymmetricTop(Model):
         pphi, ppsi = self.momenta()
         th = np.asarray(theta, dtype=float)
         return (pphi - ppsi * np.cos(th)) ** 2 / (2 * I1 * np.sin(th) ** 2) + mgr * np.cos(th)
+
+    def curves(self) -> tuple[Curve, ...]:
+        """V(θ) with E′ and the nutation bounds where they meet (none where the bounds
+        cannot be found)."""
+        from mechsim.systems.curves import top_potential
+
+        try:
+            return (top_potential(self),)
+        except (ValueError, ArithmeticError):
+            return ()
 
     def nutation_bounds(self) -> tuple[float, float]:
         """Turning points θ₁ ≤ θ ≤ θ₂: roots u = cosθ in [−1, 1] of
