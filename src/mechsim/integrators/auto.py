@@ -10,7 +10,8 @@ fastest first, and passes what it decides to the stepper's constructor:
   beyond ``LONG_HORIZON`` time scales (DOP853's error, growing with every step, outruns the
   tolerance while radau15 stays at round-off);
 - else ``dop853``, unless a probe shows its error outgrowing the tolerance over the horizon
-  (chaotic motion amplifying every error): then ``radau15`` with the finest ε of its range.
+  (chaotic motion amplifying every error): then ``radau15`` with the finest ε of its range
+  (``dop853`` at ``FINEST_TOLERANCE`` for a state of momenta).
 
 The fixed-step symplectic methods are for whoever asks for their energy behaviour by name.
 """
@@ -39,6 +40,8 @@ class Auto:
     RADAU_TOLERANCE: ClassVar[float] = 1e-10
     #: radau15 for horizons longer than this many time scales.
     LONG_HORIZON: ClassVar[float] = 100.0
+    #: DOP853's tolerance where the probe sees errors amplified and radau15 does not apply.
+    FINEST_TOLERANCE: ClassVar[float] = 1e-14
 
     @classmethod
     def check(cls, model: Model) -> None:
@@ -61,10 +64,12 @@ class Auto:
         """The stepper of the chosen method, with the options ``auto`` decided."""
         chosen = cls.choose(model, request.closed_form, tolerance, request.horizon)
         if (chosen is DOP853 and not model.structure.dissipative
-                and model.structure.second_order
                 and not _dop853_meets(model, y0, t0, tolerance, request.horizon,
                                       not request.given_state)):
-            # Errors amplified by the motion: radau15 at its finest (round-off) setting.
+            # Errors amplified by the motion: radau15 at its finest (round-off) setting; for
+            # a state of momenta, which radau15 does not take, DOP853 at the finest tolerance.
+            if not model.structure.second_order:
+                return DOP853(model, y0, t0, cls.FINEST_TOLERANCE)
             return Radau15(model, y0, t0, tolerance, eps=Radau15.EPS_RANGE[0])
         return chosen.create(model, y0, t0, tolerance, request)
 

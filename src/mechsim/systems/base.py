@@ -26,7 +26,6 @@ from mechsim.systems.layout import ParameterLayout, StateLayout
 
 if TYPE_CHECKING:
     from mechsim.codegen import Kernels
-    from mechsim.systems.curves import Curve
 
 
 @dataclass(frozen=True)
@@ -378,10 +377,11 @@ class Model(ABC):
         ``t`` from the state ``y0`` at ``t0``, or None where the model has none (default)."""
         return None
 
-    def curves(self) -> tuple[Curve, ...]:
+    def curves(self) -> tuple[Any, ...]:
         """Curves of one variable the model defines for its parameters, with the levels read
         against them (``mechsim.systems.curves``: an effective potential with the orbit's
-        energy, ...): published once per parameter set beside the run. Default: none."""
+        energy, ...; each a ``curves.Curve``): published once per parameter set beside the
+        run. Default: none."""
         return ()
 
     def rates(self, t: np.ndarray, Y: np.ndarray, p: np.ndarray) -> np.ndarray:
