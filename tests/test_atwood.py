@@ -1,4 +1,5 @@
-"""Atwood machine and compound wheel (seed 001 §2.1, §2.11): acceleration and string tensions
+"""Atwood machine and compound wheel (Introduction to analytical mechanics, “Atwood's machine –
+equation of motion Lagrangian” and “Conditions of balance”): acceleration and string tensions
 (multipliers), massive pulley, equilibrium m₁R₁ = m₂R₂."""
 
 from __future__ import annotations

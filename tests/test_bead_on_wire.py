@@ -1,7 +1,8 @@
-"""Bead on a wire (seed 000 S2): line and parabola in the reduced, multiplier and the document's
-naive forms. Oracles computed here, independently of the model: uniform acceleration on a line,
-the exact parabola period by mpmath quadrature of the energy integral, and the document's own
-naive equations integrated with scipy (the catalog's 285.35 / 1133.9 figures)."""
+"""Bead on a wire (“Dynamical Systems and Constraints: Part 2 – Bead on a Wire”): line and parabola
+in the reduced, multiplier and the document's naive forms. Oracles computed here, independently of
+the model: uniform acceleration on a line, the exact parabola period by mpmath quadrature of the
+energy integral, and the document's own naive equations integrated with scipy (the catalog's
+285.35 / 1133.9 figures)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
-"""Bead on a wire (seed 001 §2.12, PHYS0500 ch. 2): the cycloid as tautochrone/brachistochrone
-and a user-given curve. Oracle: from rest anywhere on a cycloid of radius a the bead reaches
-the bottom after π√(a/g) and passes it again every 2π√(a/g) (s̈ = −(g/4a) s in the arc length
-from the bottom, which follows from z = s²/8a; catalog 001 §2.12)."""
+"""Bead on a wire (Introduction to analytical mechanics, “Brachistochrone problem – shortest time
+problem”, PHYS0500 ch. 2): the cycloid as tautochrone/brachistochrone and a user-given curve.
+Oracle: from rest anywhere on a cycloid of radius a the bead reaches the bottom after π√(a/g) and
+passes it again every 2π√(a/g) (s̈ = −(g/4a) s in the arc length from the bottom, which follows from
+z = s²/8a; catalog 001 §2.12)."""
 
 from __future__ import annotations
 

@@ -3,6 +3,7 @@ docs pages (systems table, bibliography) are what the systems say today."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -27,6 +28,17 @@ def test_every_document_is_cited_and_titled() -> None:
     assert cited == {d.key for d in DOCUMENTS}
     for d in DOCUMENTS:
         assert d.title and d.kind and d.author and d.sections
+
+
+def test_code_and_tests_cite_documents_by_title() -> None:
+    """No docstring or comment cites a document by a key of the project's own catalog
+    (the word seed and a catalog number) that a reader of the document cannot look up."""
+    key = re.compile(r"seeds? 00[0-3]\b")
+    found = [f"{p.relative_to(ROOT)}:{n}" for top in ("src", "tests", "tools")
+             for p in sorted((ROOT / top).rglob("*.py"))
+             for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+             if key.search(line)]
+    assert not found, found
 
 
 def test_docs_pages_are_up_to_date() -> None:

@@ -1,6 +1,7 @@
-"""Two-body central-force problem (PHYS0500 ch. 4, seed 001 §2.16–2.20): independent two-body
-Newtonian integration, turning points, Kepler elements and conic classes, harmonic period,
-−a/r³ barrier and fall time."""
+"""Two-body central-force problem (PHYS0500 ch. 4, Introduction to analytical mechanics, “Central
+force problem – with two body” to “Closed orbits of the two body problem”): independent two-body
+Newtonian integration, turning points, Kepler elements and conic classes, harmonic period, −a/r³
+barrier and fall time."""
 
 from __future__ import annotations
 
@@ -201,7 +202,8 @@ def test_inverse_cube_fall_to_centre_event() -> None:
         assert np.allclose(r.work_dissipated[after], r.total[0] - r.total[after], atol=1e-7)
         for name in ("momentum_x", "momentum_y"):
             assert np.ptp(r.invariants[name]) < 1e-12
-    # fall time t = ∫ dr / √((2/μ)(E − V_eff)) from r₀ to the capture radius (seed 001 §2.16)
+    # fall time t = ∫ dr / √((2/μ)(E − V_eff)) from r₀ to the capture radius (Introduction to
+    # analytical mechanics, “Central force problem – with two body”)
     E, l = 0.5 * MU * (0.64 + 1.44) - a, MU * 1.2
     t_fall, _ = quad(lambda x: 1 / math.sqrt(2 / MU * (E + a / x**3 - l * l / (2 * MU * x * x))),
                      rc, 1.0, epsabs=1e-14, epsrel=1e-13)

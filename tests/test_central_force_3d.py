@@ -1,7 +1,8 @@
-"""Central force in three dimensions (seed 002 §3, spherical coordinates): the orbit stays in the
-plane normal to L; L (with p_φ = L_z) and the LRL vector are conserved; Kepler apsides and
-period from the elements written here; the motion equals the planar ``central_force`` turned by
-a rotation built here from L; harmonic: each axis is a simple harmonic motion."""
+"""Central force in three dimensions (Lecture 10, central force in spherical coordinates (eq.
+10.19), spherical coordinates): the orbit stays in the plane normal to L; L (with p_φ = L_z) and the
+LRL vector are conserved; Kepler apsides and period from the elements written here; the motion
+equals the planar ``central_force`` turned by a rotation built here from L; harmonic: each axis is a
+simple harmonic motion."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""Charged particle in uniform fields (seed 002 §10–13, seed 001 §2.4) and the two moving
-charges of seed 000 S13."""
+"""Charged particle in uniform fields (Lecture 10, charged particle in an electromagnetic field
+(eqs. 10.51–10.67), Introduction to analytical mechanics, “Lagrange's equation of motion velocity
+dependent potentials”) and the two moving charges of “Action and Reaction”, Case 3."""
 
 from __future__ import annotations
 
@@ -164,7 +165,7 @@ def test_parameter_errors() -> None:
     mechsim.load_system("charged_particle", formulation="landau", **{"initial.x": 0.0})
 
 
-# --- seed 000 S13: two moving charges ------------------------------------------------------
+# --- “Action and Reaction”, Case 3: two moving charges --------------------------------------------
 Q, V, RHO = 1e-6, 1e5, 0.01
 K_M = mu_0 * Q**2 * V**2 / (4 * math.pi * RHO**2)
 K_E = Q**2 / (4 * math.pi * epsilon_0 * RHO**2)

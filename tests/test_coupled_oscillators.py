@@ -1,5 +1,6 @@
-"""N coupled oscillators (PHYS0500 ch. 8, seed 001 §2.21): normal modes from |A − ω²M| = 0,
-modal solution, conserved mode energies, beats and the transfer time."""
+"""N coupled oscillators (PHYS0500 ch. 8, Introduction to analytical mechanics, “Small
+Oscillations”): normal modes from |A − ω²M| = 0, modal solution, conserved mode energies, beats and
+the transfer time."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""CR3BP (seed 000 S12): Jacobi integral, Lagrange points, both formulations, against scipy."""
+"""CR3BP (“Action and Reaction”, Case 2): Jacobi integral, Lagrange points, both formulations,
+against scipy."""
 
 from __future__ import annotations
 

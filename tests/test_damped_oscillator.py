@@ -1,5 +1,6 @@
-"""Damped oscillator (PHYS0500 §1.3, seed 000 S8): exact motion in the three regimes, the
-dissipation balance dE/dt = −bẋ², and the Caldirola–Kanai energy function h = e^{bt/m}E."""
+"""Damped oscillator (PHYS0500 §1.3, “Energy and Hamiltonians: Part 3 – Examples”, Case 5): exact
+motion in the three regimes, the dissipation balance dE/dt = −bẋ², and the Caldirola–Kanai energy
+function h = e^{bt/m}E."""
 
 from __future__ import annotations
 
@@ -48,7 +49,8 @@ def test_oracle_formulas_solve_the_equation() -> None:
 
 def test_caldirola_kanai_lagrangian() -> None:
     """L = e^{γt/m}[½mẋ² − ½kx²] gives e^{γt/m}(mẍ + γẋ + kx) = 0 and h = e^{γt/m}E,
-    E = ½mẋ² + ½kx² (seed 000 L515–527, with the m that L523 drops)."""
+    E = ½mẋ² + ½kx² (“Energy and Hamiltonians: Part 3 – Examples”, Case 5, with the m its text
+    drops)."""
     t = sp.Symbol("t")
     m, k, g = sp.symbols("m k gamma", positive=True)
     x = sp.Function("x")(t)

@@ -1,5 +1,6 @@
-"""Double pendulum (seed 001 §2.3): equations (the L767 sign fixed), small-oscillation normal
-modes, E over long chaotic runs, angle and multiplier forms and their rod tensions agree."""
+"""Double pendulum (Introduction to analytical mechanics, “Double pendulum”): equations (the L767
+sign fixed), small-oscillation normal modes, E over long chaotic runs, angle and multiplier forms
+and their rod tensions agree."""
 
 from __future__ import annotations
 
@@ -145,7 +146,7 @@ def test_frames() -> None:
 
 @pytest.mark.parametrize("kw,field", [({"mass_2": 0.0}, "mass_2"),
                                       ({"initial.angle_1": 3.5}, "initial.angle_1"),
-                                      ({"formulation": "hamiltonian"}, "formulation")])
+                                      ({"formulation": "euler_angles"}, "formulation")])
 def test_parameter_validation(kw: dict, field: str) -> None:
     with pytest.raises(ParameterError) as err:
         model(**kw)

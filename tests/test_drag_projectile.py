@@ -1,4 +1,5 @@
-"""Projectile with linear drag (seed 001 §2.5–2.6): closed-form trajectory, terminal velocity,
+"""Projectile with linear drag (Introduction to analytical mechanics, “Lagrange's equation of motion
+with frictional forces”): closed-form trajectory, terminal velocity,
 dE/dt = −2D, decaying momentum of the cyclic coordinates."""
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
-"""Rigid dumbbell / diatomic molecule (seed 001 §1.1): six degrees of freedom minus one rod
-constraint; the exact motion written here (CM parabola, the rod turning uniformly about the
-fixed L̂ by Rodrigues' formula), the rod tension μdω² as the multiplier, L about the CM
-conserved, free and in gravity; reduced and multiplier forms agree."""
+"""Rigid dumbbell / diatomic molecule (Introduction to analytical mechanics, “Constraints”): six
+degrees of freedom minus one rod constraint; the exact motion written here (CM parabola, the rod
+turning uniformly about the fixed L̂ by Rodrigues' formula), the rod tension μdω² as the multiplier,
+L about the CM conserved, free and in gravity; reduced and multiplier forms agree."""
 
 from __future__ import annotations
 

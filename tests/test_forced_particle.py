@@ -1,5 +1,5 @@
-"""Particle under V = x F(t) (seed 000 S9): exact motion of m ẍ = −F(t) (the document's sign is
-corrected), E = h, dE/dt = x Ḟ."""
+"""Particle under V = x F(t) (“Energy and Hamiltonians: Part 3 – Examples”, Case 6): exact motion of
+m ẍ = −F(t) (the document's sign is corrected), E = h, dE/dt = x Ḟ."""
 
 from __future__ import annotations
 

@@ -1,8 +1,9 @@
-"""Gas in a container (seed 001 §1.1, inequality constraints): point particles in a box with
-elastic walls. Oracle written here: walls ⟂ each axis make every coordinate an independent
-triangle wave (unfold the free motion s = s₀ + vt on a circle of length 2ℓ), which gives the
-positions, the velocities, the hit times and counts, hence the impulses on every wall; the
-time-averaged pressure then approaches (1/V)Σmvₐ² (= 2E/(3V) isotropic) within 2Σm|vₐ|/(tA)."""
+"""Gas in a container (Introduction to analytical mechanics, “Classification of constraints”:
+inequality constraints): point particles in a box with elastic walls. Oracle written here: walls ⟂
+each axis make every coordinate an independent triangle wave (unfold the free motion s = s₀ + vt on
+a circle of length 2ℓ), which gives the positions, the velocities, the hit times and counts, hence
+the impulses on every wall; the time-averaged pressure then approaches (1/V)Σmvₐ² (= 2E/(3V)
+isotropic) within 2Σm|vₐ|/(tA)."""
 
 from __future__ import annotations
 

@@ -44,7 +44,8 @@ def _expected(systems: list[str]) -> set[str]:
                           ("pose", m.attitude is not None), ("twist", m.attitude is not None),
                           ("invariants", bool(m.invariants)),
                           ("observables", bool(m.observables)),
-                          ("markers", bool(m.frames and m.visuals()))):
+                          ("markers", bool(m.frames and m.visuals())),
+                          ("curves", bool(m.curves()))):
             if has:
                 topics.add(f"/{s}/{leaf}")
         if any(not f.static for f in m.frames):

@@ -1,5 +1,5 @@
-"""Simple harmonic oscillator (PHYS0500 §1.1, seed 001 §2.9): exact solution, E = h, and the
-period averages ⟨T⟩ = ⟨V⟩ = E/2."""
+"""Simple harmonic oscillator (PHYS0500 §1.1, Introduction to analytical mechanics, “Conservation of
+energy”): exact solution, E = h, and the period averages ⟨T⟩ = ⟨V⟩ = E/2."""
 
 from __future__ import annotations
 
@@ -42,7 +42,8 @@ def test_exact_solution(method: str) -> None:
     E = 0.5 * 2.0 * 1.1**2 + 0.5 * 5.0 * 0.4**2
     assert m.energy() == pytest.approx(E, rel=1e-14)
     np.testing.assert_allclose(r.total, E, rtol=1e-10)
-    np.testing.assert_allclose(r.energy_function, r.total, rtol=1e-12)  # h = E (seed 001)
+    # h = E (Introduction to analytical mechanics)
+    np.testing.assert_allclose(r.energy_function, r.total, rtol=1e-12)
     assert np.max(np.abs(r.balance_residual)) < 1e-9
 
 

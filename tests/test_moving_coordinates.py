@@ -1,5 +1,6 @@
-"""Free particle in inertial, Galilean and accelerating coordinates (seed 000 S4–S5, 002 §4):
-E and h exactly as derived (with the document's "h_q = 0" corrected)."""
+"""Free particle in inertial, Galilean and accelerating coordinates (“Energy and Hamiltonians: Part
+3 – Examples”, Cases 1–2; Lecture 10, linearly accelerated frame (eq. 10.24)): E and h exactly as
+derived (with the document's "h_q = 0" corrected)."""
 
 from __future__ import annotations
 

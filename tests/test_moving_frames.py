@@ -1,4 +1,4 @@
-"""Moving frames on the twisted cubic (seed 000 S14–S15).
+"""Moving frames on the twisted cubic (“Moving Frames and the Twisted Cubic” and “Minimal Frames”).
 
 Expected values come from closed forms written here independently of the model (the catalog's
 N̂ = (u², −2u, 1)/|·|, R̂ = sgn(u)(1, u, u²)/|·|, ...), angular velocities from central

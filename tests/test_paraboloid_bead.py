@@ -1,7 +1,8 @@
-"""Particle inside z = a r² (seed 002 §6): steady circle v₀ = r₀√(2ag) with λ = mg, the
-multiplier identity λ = (mg + 4aE + 8a³J_z²/m)/(1 + 4a²r²)² (checked here with sympy against the
-z-equation form λ = m[g + 2a(ṙ² + r²φ̇²)]/(1 + 4a²r²), and numerically against the engine's
-multiplier), λ ≥ 0, E and J_z conserved, radial frequency ω_r = 2√(2ag)/√(1 + 4a²r₀²)."""
+"""Particle inside z = a r² (Lecture 10, particle inside a vertical paraboloid (eqs. 10.31–10.36)):
+steady circle v₀ = r₀√(2ag) with λ = mg, the multiplier identity
+λ = (mg + 4aE + 8a³J_z²/m)/(1 + 4a²r²)² (checked here with sympy against the z-equation form
+λ = m[g + 2a(ṙ² + r²φ̇²)]/(1 + 4a²r²), and numerically against the engine's multiplier), λ ≥ 0, E
+and J_z conserved, radial frequency ω_r = 2√(2ag)/√(1 + 4a²r₀²)."""
 
 from __future__ import annotations
 

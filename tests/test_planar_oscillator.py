@@ -1,6 +1,6 @@
-"""Planar isotropic oscillator (PHYS0500 §1.2, seed 000 S6): Cartesian and polar forms agree,
-exact elliptic orbit, L_z, E_x, E_y and E = h conserved, the document's radial equation is
-missing the centrifugal term."""
+"""Planar isotropic oscillator (PHYS0500 §1.2, “Energy and Hamiltonians: Part 3 – Examples”, Case
+3): Cartesian and polar forms agree, exact elliptic orbit, L_z, E_x, E_y and E = h conserved, the
+document's radial equation is missing the centrifugal term."""
 
 from __future__ import annotations
 

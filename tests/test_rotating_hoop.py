@@ -1,5 +1,6 @@
-"""Pendulum in a plane forced to turn at ω (seed 002 §9): E′ = h conserved, E − E₀ = ∫Gω dt with
-the required torque G = 2ml²ω sinθ cosθ θ̇, λ = G in the multiplier form, the bifurcation at
+"""Pendulum in a plane forced to turn at ω (Lecture 10, spherical pendulum forced to rotate (eqs.
+10.49–10.50)): E′ = h conserved, E − E₀ = ∫Gω dt with the required torque G = 2ml²ω sinθ cosθ θ̇,
+λ = G in the multiplier form, the bifurcation at
 ω_c = √(g/l), the off-axis equilibrium arccos(g/(lω²)) and the small-oscillation frequencies
 (ω² sin²θ₀ above, g/l − ω² below; derived with sympy from θ̈ = ω² sinθ cosθ − (g/l) sinθ)."""
 

@@ -1,5 +1,6 @@
-"""Motor-driven rotating spring (seed 000 S7): h_r conserved, E not, E − h_r = mr²ω², motor work
-balance, multiplier = motor torque, co-rotating frame."""
+"""Motor-driven rotating spring (“Energy and Hamiltonians: Part 3 – Examples”, Case 4): h_r
+conserved, E not, E − h_r = mr²ω², motor work balance, multiplier = motor torque, co-rotating
+frame."""
 
 from __future__ import annotations
 

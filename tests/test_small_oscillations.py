@@ -1,8 +1,8 @@
-"""General small oscillations (PHYS0500 §8.3–8.4, seed 001 §2.21): frequencies and modes from
-the generalized eigenproblem, checked against sympy's secular equation, the documented double
-pendulum (2 ± √2)g/l, the residuals (A − ω²M)a = 0 and aᵀMa = I; the integrated motion against
-the matrix exponential of the first-order system; mode energies conserved; a pure mode stays
-pure."""
+"""General small oscillations (PHYS0500 §8.3–8.4, Introduction to analytical mechanics, “Small
+Oscillations”): frequencies and modes from the generalized eigenproblem, checked against sympy's
+secular equation, the documented double pendulum (2 ± √2)g/l, the residuals (A − ω²M)a = 0 and
+aᵀMa = I; the integrated motion against the matrix exponential of the first-order system; mode
+energies conserved; a pure mode stays pure."""
 
 from __future__ import annotations
 

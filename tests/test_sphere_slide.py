@@ -1,4 +1,5 @@
-"""Particle sliding off a sphere (seed 001 §1.1): normal force = multiplier, departure event at
+"""Particle sliding off a sphere (Introduction to analytical mechanics, “Constraints”): normal
+force = multiplier, departure event at
 cos θ = (2 cos θ₀ + R θ̇₀²/g)/3 (2/3 from rest), its time against an mpmath quadrature, the
 projectile flight afterwards, both formulations agreeing, energy and work balance.
 

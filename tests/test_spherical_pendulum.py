@@ -1,5 +1,6 @@
-"""Spherical pendulum (seed 002 §8): conical pendulum, small oscillation about the cone, p_φ and
-E conserved; with a constant vertical torque G: E − E₀ = G Δφ and p_φ − p_φ₀ = G t (both from
+"""Spherical pendulum (Lecture 10, spherical pendulum (eqs. 10.47–10.48)): conical pendulum, small
+oscillation about the cone, p_φ and E conserved; with a constant vertical torque G: E − E₀ = G Δφ
+and p_φ − p_φ₀ = G t (both from
 dE/dt = G φ̇ and ṗ_φ = G). The cone formulas were derived with sympy from the Lagrangian."""
 
 from __future__ import annotations

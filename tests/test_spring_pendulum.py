@@ -1,5 +1,6 @@
-"""Spring pendulum (seed 001 §2.2): equations of motion, equilibrium stretch mg/k, the two
-small-oscillation frequencies, exact vertical SHM, energy conservation, both forms agree."""
+"""Spring pendulum (Introduction to analytical mechanics, “Spring pendulum”): equations of motion,
+equilibrium stretch mg/k, the two small-oscillation frequencies, exact vertical SHM, energy
+conservation, both forms agree."""
 
 from __future__ import annotations
 

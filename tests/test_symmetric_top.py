@@ -1,4 +1,5 @@
-"""Symmetric top (PHYS0500 §7.6–7.8.2, seed 002 §7): torque-free and heavy (Lagrange) top.
+"""Symmetric top (PHYS0500 §7.6–7.8.2, Lecture 10, Lagrange's heavy symmetric top (eqs.
+10.37–10.46)): torque-free and heavy (Lagrange) top.
 
 References: the θ Euler–Lagrange equation derived here with sympy from the Lagrangian (for
 steady precession), the catalog's worked numbers, turning points found by root bracketing of

@@ -39,11 +39,25 @@ def _references(sid: str, formulation: str) -> tuple[np.ndarray, dict[str, np.nd
     n = len(model.coordinates)
     T = HORIZON * model.time_scale()
     t = np.linspace(0.0, T, 11)[1:]
-    refs = {m: make_stepper(model, m, 1e-14).advance(t) for m in ("dop853", "radau15")}
-    fine = make_stepper(model, "radau15", 1e-14).advance(np.linspace(0.0, T, 201)[1:])
+    refs = {"dop853": make_stepper(model, "dop853", 1e-14).advance(t),
+            "radau15": _radau15(model, t)}
+    fine = _radau15(model, np.linspace(0.0, T, 201)[1:])
     scales = (max(float(np.max(np.abs(fine[:, :n]))), 1e-300),
               max(float(np.max(np.abs(fine[:, n:2 * n]))), 1e-300))
     return t, refs, scales, _relative(refs["dop853"], refs["radau15"], n, scales)
+
+
+def _radau15(model: mechsim.Model, t: np.ndarray) -> np.ndarray:
+    """radau15 at 1e-14; for a state of momenta (``formulation: hamiltonian``, which radau15
+    does not take) the Lagrangian formulation it comes from, its (q, q̇) mapped to (q, p)."""
+    if model.structure.second_order:
+        return make_stepper(model, "radau15", 1e-14).advance(t)
+    lagrangian = _model(model.id, model.formulation)
+    Y = make_stepper(lagrangian, "radau15", 1e-14).advance(t)
+    Z, p = np.empty_like(Y), model.parameter_vector()
+    for k in range(len(t)):
+        model.kernels.to_momenta(float(t[k]), Y[k], p, Z[k])
+    return Z
 
 
 def _relative(Y: np.ndarray, R: np.ndarray, n: int, scales: tuple[float, float]) -> float:

@@ -1,7 +1,8 @@
-"""Two bodies in a uniform field (seed 001 §2.16): the centre of mass falls on the parabola
-R₀ + V₀t − ½gt²ẑ; the relative motion is the Kepler orbit, here from Kepler's equation solved
-with mpmath (elements written out in the test); L and the LRL vector conserved; both
-formulations agree with each other and with a Newtonian integration of m₁r̈₁ = m₁g + F,
+"""Two bodies in a uniform field (Introduction to analytical mechanics, “Central force problem –
+with two body”): the centre of mass falls on the parabola R₀ + V₀t − ½gt²ẑ; the relative motion is
+the Kepler orbit, here from Kepler's equation solved with mpmath (elements written out in the test);
+L and the LRL vector conserved; both formulations agree with each other and with a Newtonian
+integration of m₁r̈₁ = m₁g + F,
 m₂r̈₂ = m₂g − F by scipy."""
 
 from __future__ import annotations

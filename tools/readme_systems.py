@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from mechsim.systems import system_class, system_ids
-from mechsim.systems.bibliography import CITATION_KEYS, DOCUMENTS, documents_cited
+from mechsim.systems.bibliography import DOCUMENTS, documents_cited
 
 ROOT = Path(__file__).resolve().parent.parent
 BEGIN, END = "<!-- systems-table:begin -->", "<!-- systems-table:end -->"
@@ -82,13 +82,11 @@ def bibliography_page() -> str:
         lines += [f"- {s}" for s in d.sections]
         lines.append("")
     lines += ["## How the code cites the documents", "",
-              "Module docstrings and tests cite PHYS0500 by its own chapter and section numbers,",
-              "the other three documents as `seed 000`–`seed 002` with the section numbers of",
-              "the project's catalog of them; this table maps those keys to what a reader finds",
-              "in the document. `L123` or `line 123` is a line of the plain-text copy the",
-              "project worked from: a position, not a reference.", "",
-              "| key | in the document |", "|---|---|"]
-    lines += [f"| {_cell(key)} | {_cell(where)} |" for key, where in CITATION_KEYS]
+              "Module docstrings and tests cite as the systems do: PHYS0500 by its own chapter",
+              "and section numbers, Lecture 10 by its topic and equation numbers, the",
+              "analytical-mechanics notes by heading and each blog post by its title. `L123` or",
+              "`line 123` is a line of the plain-text copy the project worked from: a position,",
+              "not a reference."]
     return "\n".join(lines) + "\n"
 
 

@@ -294,7 +294,8 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     out = evaluate(model, t, Y, stepper.p, outputs)
     wall = time.perf_counter() - start
     return SimulationResult(model=model, method=stepper.method, tolerance=tolerance, t=t,
-                            q=Y[:, at.q], v=Y[:, at.v], work_external=Y[:, at.work_external],
+                            q=Y[:, at.q], v=model.rates(t, Y, stepper.p),
+                            work_external=Y[:, at.work_external],
                             work_dissipated=Y[:, at.work_dissipated], outputs=out,
                             wall_time=wall, n_steps=stepper.n_steps,
                             events=[e for e in stepper.events if e[0] <= t[-1]],

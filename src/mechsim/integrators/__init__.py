@@ -11,7 +11,7 @@ Methods (``METHODS``, in this order):
 - ``dopri5`` (``dopri5``): Dormand and Prince's 5(4) pair in DOP853's loop, for loose
   tolerances; every model;
 - ``radau15`` (``radau15``): adaptive 15th-order Gauss–Radau predictor–corrector (IAS15),
-  events, projection, round-off over long runs; every model;
+  events, projection, round-off over long runs; every model whose state holds q̇;
 - ``gauss6`` (``gauss6``): symplectic Gauss–Legendre collocation on Hamilton's equations,
   conservative systems with a canonical form;
 - ``exact`` (``closed_form``): closed-form propagation where the model has one;

@@ -5,11 +5,13 @@ fastest first, and passes what it decides to the stepper's constructor:
 - with ``closed_form``, ``exact`` wherever the model has a closed form;
 - with dissipation, ``dop853`` (errors decay with the motion, and damping can make the
   equations stiff, where DOP853 notices and radau15's fixed-point iteration would crawl);
+  ``dop853`` too for a state of momenta (a Hamiltonian formulation: not second order);
 - ``radau15`` below ``RADAU_TOLERANCE`` (DOP853 would need local tolerances at round-off) or
   beyond ``LONG_HORIZON`` time scales (DOP853's error, growing with every step, outruns the
   tolerance while radau15 stays at round-off);
 - else ``dop853``, unless a probe shows its error outgrowing the tolerance over the horizon
-  (chaotic motion amplifying every error): then ``radau15`` with the finest ε of its range.
+  (chaotic motion amplifying every error): then ``radau15`` with the finest ε of its range
+  (``dop853`` at ``FINEST_TOLERANCE`` for a state of momenta).
 
 The fixed-step symplectic methods are for whoever asks for their energy behaviour by name.
 """
@@ -38,6 +40,8 @@ class Auto:
     RADAU_TOLERANCE: ClassVar[float] = 1e-10
     #: radau15 for horizons longer than this many time scales.
     LONG_HORIZON: ClassVar[float] = 100.0
+    #: DOP853's tolerance where the probe sees errors amplified and radau15 does not apply.
+    FINEST_TOLERANCE: ClassVar[float] = 1e-14
 
     @classmethod
     def check(cls, model: Model) -> None:
@@ -49,7 +53,7 @@ class Auto:
         """The method for ``model`` before the probe (see the module docstring)."""
         if closed_form and model.has_closed_form():
             return ClosedForm
-        if model.structure.dissipative:
+        if model.structure.dissipative or not model.structure.second_order:
             return DOP853
         long = horizon is not None and horizon > cls.LONG_HORIZON * model.time_scale()
         return Radau15 if tolerance < cls.RADAU_TOLERANCE or long else DOP853
@@ -62,7 +66,10 @@ class Auto:
         if (chosen is DOP853 and not model.structure.dissipative
                 and not _dop853_meets(model, y0, t0, tolerance, request.horizon,
                                       not request.given_state)):
-            # Errors amplified by the motion: radau15 at its finest (round-off) setting.
+            # Errors amplified by the motion: radau15 at its finest (round-off) setting; for
+            # a state of momenta, which radau15 does not take, DOP853 at the finest tolerance.
+            if not model.structure.second_order:
+                return DOP853(model, y0, t0, cls.FINEST_TOLERANCE)
             return Radau15(model, y0, t0, tolerance, eps=Radau15.EPS_RANGE[0])
         return chosen.create(model, y0, t0, tolerance, request)
 

@@ -20,6 +20,9 @@ class StructureLike(Protocol):
     @property
     def dissipative(self) -> bool:
         """A Rayleigh function acts: errors decay, damping may be stiff."""
+    @property
+    def second_order(self) -> bool:
+        """q̇ is the state's v part (not momenta): radau15 applies."""
 
 
 class SteppableModel(Protocol):
@@ -28,6 +31,8 @@ class SteppableModel(Protocol):
     def id(self) -> str: ...
     @property
     def formulation(self) -> str: ...
+    @property
+    def chosen_formulation(self) -> str: ...
     @property
     def coordinates(self) -> Sequence[Any]: ...
     @property

@@ -12,7 +12,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from mechsim.errors import IntegrationError
+from mechsim.errors import IntegrationError, ParameterError
 from mechsim.integrators.base import Stepper, event_directions
 from mechsim.integrators.compiled import load as loops
 from mechsim.integrators.model import SteppableModel as Model
@@ -42,6 +42,13 @@ class Radau15(Stepper):
     #: step near an equilibrium (the CR3BP's L1), much larger competes with the accelerations
     #: of an orbit near apocentre.
     FLOOR: ClassVar[float] = 0.01
+
+    @classmethod
+    def check(cls, model: Model) -> None:
+        if not model.structure.second_order:
+            raise ParameterError("method", f"radau15 integrates q̈ = f(t, q, q̇); the state of "
+                                 f"{model.id} ({model.chosen_formulation}) holds momenta: use "
+                                 "dop853 or auto")
 
     def __init__(self, model: Model, y0: np.ndarray, t0: float, tolerance: float, *,
                  eps: float | None = None, dense_tolerance: float | None = None,

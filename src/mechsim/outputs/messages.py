@@ -16,10 +16,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
+from geometry_msgs.msg import Point, PoseStamped, TransformStamped, TwistStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
+from visualization_msgs.msg import Marker, MarkerArray
 
 from mechsim import __version__
 from mechsim.systems.base import Model
@@ -86,6 +87,35 @@ class MessageFactory:
 
     def header(self, ns: int, frame: str = "world") -> Header:
         return Header(stamp=to_time(ns), frame_id=frame)
+
+    def curves(self, ns: int) -> MarkerArray:
+        """The model's curves (``Model.curves``) as line strips in the plane z = 0 of a
+        diagram, points (abscissa, ordinate, 0) in the units the marker's ``text`` names
+        ("U_eff [J] against r [m]"), ``ns`` "<instance>/<curve>": id 0 the curve, id k its
+        k-th level as a horizontal line over the curve's range, ``text`` "E = <value> [J]"
+        and the abscissae where the curve meets it."""
+        markers = []
+        for curve in self.model.curves():
+            x, y = np.asarray(curve.x, dtype=float), np.asarray(curve.y, dtype=float)
+            keep = np.isfinite(x) & np.isfinite(y)
+            lines = [(f"{curve.y_label} [{curve.y_unit}] against {curve.x_label} "
+                      f"[{curve.x_unit}]", x[keep], y[keep], (0.2, 0.6, 1.0))]
+            for level in curve.levels:
+                at = ", ".join(f"{c:.6g}" for c in level.crossings)
+                lines.append((f"{level.label} = {level.value:.9g} [{curve.y_unit}]"
+                              + (f" at {curve.x_label} = {at} [{curve.x_unit}]" if at else ""),
+                              x[keep][[0, -1]] if keep.any() else x[:0],
+                              np.full(2 if keep.any() else 0, level.value), (1.0, 0.5, 0.1)))
+            for k, (text, xs, ys, rgb) in enumerate(lines):
+                m = Marker(header=self.header(ns), ns=f"{self.name}/{curve.name}", id=k,
+                           type=Marker.LINE_STRIP, action=Marker.ADD, text=text,
+                           points=[Point(x=float(a), y=float(b), z=0.0)
+                                   for a, b in zip(xs, ys, strict=True)])
+                m.pose.orientation.w = 1.0
+                m.scale.x = 0.01
+                m.color.r, m.color.g, m.color.b, m.color.a = (*rgb, 1.0)
+                markers.append(m)
+        return MarkerArray(markers=markers)
 
     def state(self, s: Sample, ns: int) -> JointState:
         j = self.joints
@@ -189,7 +219,7 @@ class MessageFactory:
                   for k, v in m.values.items()}
         return SystemInfo(
             header=self.header(ns), instance=self.name, system=m.id,
-            formulation=m.formulation, source=m.source,
+            formulation=m.chosen_formulation, source=m.source,
             coordinates=list(self.coordinate_names),
             coordinate_units=[c.unit for c in m.coordinates],
             parameters_yaml=yaml.safe_dump(params, sort_keys=True, allow_unicode=True),

@@ -16,6 +16,9 @@ Topics (stamped with simulation time + ``time_offset``, so /clock never starts a
                                                 one (name, value, unit) record each
   <ns>/observables  mechsim_msgs/NamedScalars   constraint forces, multipliers, ...
   <ns>/system_info  mechsim_msgs/SystemInfo  (transient local) what runs and which laws hold
+  <ns>/curves       visualization_msgs/MarkerArray  (transient local) the model's curves
+                                                (U_eff(r), the top's V(θ)) with their levels,
+                                                once per parameter set (``Model.curves``)
   /tf, /tf_static   tf2_msgs/TFMessage       frames <ns>/<frame>, root "world"
   /clock            rosgraph_msgs/Clock      only when this node owns the clock
   /diagnostics      diagnostic_msgs/DiagnosticArray  a failed integration, a dropped effort
@@ -269,7 +272,7 @@ class SimulatorNode(Node):
         response.stamp = messages.to_time(messages.stamp_ns(run.t, self.time_offset))
         response.name = [c.name for c in run.model.coordinates]
         response.position = run.y[at.q].tolist()
-        response.velocity = run.y[at.v].tolist()
+        response.velocity = run.model.rates(np.array([run.t]), run.y, run.p).tolist()
         response.message = f"{taken} samples to t = {run.t:.9g} s"
         return response
 

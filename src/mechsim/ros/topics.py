@@ -93,7 +93,7 @@ class SystemTopics:
         self.t_effort = node.resolve_topic_name("effort")
         #: The topics only some models have (``model_channels``): "" until one has them.
         self.t_state = self.t_pose = self.t_twist = self.t_inv = self.t_obs = ""
-        self.t_tf = self.t_tf_static = self.t_markers = ""
+        self.t_tf = self.t_tf_static = self.t_markers = self.t_curves = ""
         #: Wall seconds spent encoding and publishing.
         self.costs = {"encode": 0.0, "publish": 0.0}
         self._dynamic_frames = False
@@ -106,7 +106,8 @@ class SystemTopics:
         """The topics of what ``model`` has, each advertised once one has it (kept if a later
         formulation has none): state (joint-like coordinates), pose and twist (an attitude),
         invariants, observables, /tf (moving frames), /tf_static (fixed frames), markers
-        (a look: ``Model.visuals``). A topic nothing is ever published on is never
+        (a look: ``Model.visuals``), curves (``Model.curves``, latched: once per parameter
+        set, with system_info). A topic nothing is ever published on is never
         advertised."""
         o, frames = self.outlet, model.frames
         quaternion = set(model.attitude.quaternion) if model.attitude is not None else set()
@@ -119,7 +120,8 @@ class SystemTopics:
             ("t_obs", "observables", NamedScalars, STATE_QOS, bool(model.observables)),
             ("t_tf", "/tf", TFMessage, TF_QOS, any(not f.static for f in frames)),
             ("t_tf_static", "/tf_static", TFMessage, LATCHED_QOS, any(f.static for f in frames)),
-            ("t_markers", "markers", MarkerArray, STATE_QOS, bool(frames and model.visuals())))
+            ("t_markers", "markers", MarkerArray, STATE_QOS, bool(frames and model.visuals())),
+            ("t_curves", "curves", MarkerArray, LATCHED_QOS, bool(model.curves())))
         for attr, topic, msg_type, qos, has in wanted:
             if has and not getattr(self, attr):
                 setattr(self, attr, o.channel(topic, msg_type, qos))
@@ -151,6 +153,8 @@ class SystemTopics:
                                         [law.key for law in laws],
                                         [scales[law.key] for law in laws])
         self.outlet.publish(self.t_info, info, ns0)
+        if self.t_curves:
+            self.outlet.publish(self.t_curves, self.factory.curves(ns0), ns0)
         if any(f.static for f in model.frames):
             msg = TFMessage(transforms=self.factory.transforms(run.static_frames(), ns0,
                                                                  static=True))
@@ -179,7 +183,8 @@ class SystemTopics:
         at = self.run.model.layout
         Y, out = block.Y, block.outputs
         ns = messages.stamps_ns(block.times, self.time_offset)
-        c = Chunk(ns, Y[:, at.q], Y[:, at.v], Y[:, [at.work_external, at.work_dissipated]],
+        c = Chunk(ns, Y[:, at.q], block.rates,
+                  Y[:, [at.work_external, at.work_dissipated]],
                   out.get("energy"), out.get("invariants"), out.get("observables"),
                   out.get("frames"))
         columns: dict[str, Any] = {}

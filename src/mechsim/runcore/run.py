@@ -45,9 +45,10 @@ class Block:
     Released in order, all at once or, computed ahead, as the wall clock makes them due."""
 
     times: np.ndarray
-    Y: np.ndarray  # state rows: q, v, work_external, work_dissipated, modes
+    Y: np.ndarray  # state rows: q, v (or p: ``Model.rates``), work terms, modes
     outputs: dict[str, np.ndarray]
     reason: str | None  # why the system stops after the last row (a guard), if it does
+    rates: np.ndarray  # q̇ of each row (``Model.rates``)
     released: int = 0
     #: What the observer made of the samples for its consumers (``Observer.encode``).
     encoded: Any = None
@@ -366,7 +367,8 @@ class SystemRun:
             if out is not None and good else {}
         for name in outputs:
             self.computed[name] += good
-        block = Block(times[:good], Y[:good], outputs, why)
+        block = Block(times[:good], Y[:good], outputs, why,
+                      self.model.rates(times[:good], Y[:good], self.p))
         self.observer.encode(block)
         return block
 

@@ -36,6 +36,7 @@ SYSTEMS: dict[str, str] = {
     "geodesic": "mechsim.systems.geodesic",
     "harmonic_oscillator": "mechsim.systems.harmonic_oscillator",
     "kepler": "mechsim.systems.kepler",
+    "knife_edge": "mechsim.systems.knife_edge",
     "lrc_circuit": "mechsim.systems.lrc_circuit",
     "moving_coordinates": "mechsim.systems.moving_coordinates",
     "moving_frames": "mechsim.systems.moving_frames",

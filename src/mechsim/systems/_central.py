@@ -1,7 +1,8 @@
-"""Shared physics of central-force motion (PHYS0500 ch. 4, seed 001 §2.16–2.20): the relative
-orbit's first integrals as sympy expressions, and the analytic oracles (effective potential,
-turning points, Kepler elements, conic classes, Kepler's equation), and the three-dimensional
-orbit vectors L and A with the orbit frame they define. Used by ``kepler``, ``central_force``,
+"""Shared physics of central-force motion (PHYS0500 ch. 4, Introduction to analytical mechanics,
+“Central force problem – with two body” to “Closed orbits of the two body problem”): the relative
+orbit's first integrals as sympy expressions, and the analytic oracles (effective potential, turning
+points, Kepler elements, conic classes, Kepler's equation), and the three-dimensional orbit vectors
+L and A with the orbit frame they define. Used by ``kepler``, ``central_force``,
 ``central_force_3d`` and ``two_body_field``.
 """
 
@@ -110,7 +111,8 @@ def orbit_quaternion(L: tuple[Expr, Expr, Expr], A: tuple[Expr, Expr, Expr] | No
 # --- oracles ------------------------------------------------------------------------------------
 def effective_potential(U: Callable[[float], float], mu: float, l: float
                         ) -> Callable[[float], float]:
-    """V_eff(r) = U(r) + l² / (2 μ r²) (PHYS0500 line 960, seed 001 §2.18)."""
+    """V_eff(r) = U(r) + l² / (2 μ r²) (PHYS0500 line 960, Introduction to analytical mechanics,
+    “Classification of the orbits”)."""
     return lambda r: U(r) + l * l / (2 * mu * r * r)
 
 

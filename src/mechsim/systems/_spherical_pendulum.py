@@ -1,5 +1,6 @@
-"""Shared physics of a point mass on a sphere of radius l about a fixed pivot (seed 002 §8–9):
-the spherical pendulum and the pendulum whose plane is forced to turn (rotating hoop).
+"""Shared physics of a point mass on a sphere of radius l about a fixed pivot (Lecture 10, spherical
+pendulum (eqs. 10.47–10.50)): the spherical pendulum and the pendulum whose plane is forced to turn
+(rotating hoop).
 
 θ is the polar angle from straight down, φ the azimuth about +z (REP-103: z up), so the bob is
 at l (sin θ cos φ, sin θ sin φ, −cos θ) and V = −m g l cos θ (zero at pivot height, as the

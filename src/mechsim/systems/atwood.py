@@ -1,9 +1,10 @@
 """Atwood machine and compound wheel (wheel-and-axle with two hanging masses).
 
-Sources: seed 001 §2.1 "Atwood's machine – equation of motion Lagrangian" (L611–629):
-V = −M₁ g x − M₂ g (l − x), (M₁ + M₂) ẍ = (M₁ − M₂) g; and seed 001 §2.11 "Conditions of balance"
-(L372–409): drums of radii R₁, R₂ on one axle, δz₁ = R₁ δφ, δz₂ = −R₂ δφ, the string tensions
-are the constraint forces, equilibrium m₁ R₁ = m₂ R₂.
+Sources: Introduction to analytical mechanics, "Atwood's machine – equation of motion Lagrangian"
+(L611–629):
+V = −M₁ g x − M₂ g (l − x), (M₁ + M₂) ẍ = (M₁ − M₂) g; and Introduction to analytical mechanics,
+"Conditions of balance" (L372–409): drums of radii R₁, R₂ on one axle, δz₁ = R₁ δφ, δz₂ = −R₂ δφ,
+the string tensions are the constraint forces, equilibrium m₁ R₁ = m₂ R₂.
 
 One model covers both: mass 1 hangs from a drum of radius R₁ (``radius_1``) on the −y side of
 the axle, mass 2 from a drum of radius R₂ on the +y side, the wheel has moment of inertia I
@@ -114,7 +115,8 @@ class Atwood(LagrangianModel):
         g = self.value("gravity")
         return math.sqrt(self.value("hang_length") / g) if g > 0 else 1.0
 
-    # --- analytic oracles (seed 001 §2.1, §2.11 and its derived dynamic extension) ----------
+    # --- analytic oracles (Introduction to analytical mechanics, “Atwood's machine – equation of
+    # motion Lagrangian” and “Conditions of balance” and its derived dynamic extension)
     def angular_acceleration(self) -> float:
         """φ̈ = g (m₁R₁ − m₂R₂) / (I + m₁R₁² + m₂R₂²)."""
         m1, m2 = self.value("mass_1"), self.value("mass_2")

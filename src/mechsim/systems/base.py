@@ -242,6 +242,9 @@ class Structure:
     dissipative: bool = False
     driven: bool = False
     time_dependent: bool = False
+    # q̇ is the state's v part, y[n:2n] (what radau15 integrates in second-order form); not so
+    # for a state of momenta (a Hamiltonian formulation)
+    second_order: bool = True
 
 
 class Model(ABC):
@@ -249,7 +252,7 @@ class Model(ABC):
 
     id: ClassVar[str]
     title: ClassVar[str]
-    source: ClassVar[str]  # document and section, e.g. "seed 000 S1 (Simple pendulum)"
+    source: ClassVar[str]  # document title and section, e.g. "“Minimal Frames” (blog post)"
     parameters: ClassVar[tuple[Parameter, ...]]
     formulations: ClassVar[tuple[str, ...]] = ("default",)
     # One line for the README systems table: which analytic results the tests check.
@@ -270,6 +273,15 @@ class Model(ABC):
 
     @property
     def formulation(self) -> str:
+        """The form of the equations the model's physics is written in (what its own code
+        branches on)."""
+        return self.chosen_formulation
+
+    @property
+    def chosen_formulation(self) -> str:
+        """The formulation as chosen (the ``formulation`` parameter): what is reported. It
+        differs from ``formulation`` where one is generated from another (a Lagrangian
+        model's ``hamiltonian``, from its first formulation)."""
         return str(self.values.get("formulation", self.formulations[0]))
 
     def check(self) -> None:
@@ -364,6 +376,18 @@ class Model(ABC):
         """Closed-form state rows ``[q, v, work_external, work_dissipated, ...]`` at times
         ``t`` from the state ``y0`` at ``t0``, or None where the model has none (default)."""
         return None
+
+    def curves(self) -> tuple[Any, ...]:
+        """Curves of one variable the model defines for its parameters, with the levels read
+        against them (``mechsim.systems.curves``: an effective potential with the orbit's
+        energy, ...; each a ``curves.Curve``): published once per parameter set beside the
+        run. Default: none."""
+        return ()
+
+    def rates(self, t: np.ndarray, Y: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The rates q̇ at the states ``Y`` (rows) at times ``t``: the state's ``v`` entries,
+        except for a model whose state holds momenta instead (a Hamiltonian formulation)."""
+        return Y[..., self.layout.v]
 
     def has_canonical_form(self) -> bool:
         """Whether the kernels provide Hamilton's equations in z = [q, p] (conservative,

@@ -1,8 +1,9 @@
 """Bead sliding without friction on a fixed planar wire under gravity.
 
-Sources: seed 000 S2 ("Dynamical Systems and Constraints: Part 2 – Bead on a Wire", L99–256);
-seed 001 §2.12 (brachistochrone, the cycloid); PHYS0500 ch. 2 (calculus of variations: the
-cycloid as the curve of quickest descent and the tautochrone are the catalog's supplement).
+Sources: “Dynamical Systems and Constraints: Part 2 – Bead on a Wire” (L99–256);
+Introduction to analytical mechanics, “Brachistochrone problem – shortest time problem”
+(brachistochrone, the cycloid); PHYS0500 ch. 2 (calculus of variations: the cycloid as the curve of
+quickest descent and the tautochrone are the catalog's supplement).
 
 Wire shapes (``shape``), in the x–z plane of the ``wire`` frame (REP-103: z up; the document's
 y is our z): ``line`` z = slope·x, ``parabola`` z = c x² (the document's y = x² is c = 1 m⁻¹),

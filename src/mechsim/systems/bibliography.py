@@ -7,7 +7,8 @@ notes), a topic and equation numbers for Lecture 10. ``docs/bibliography.md`` is
 this table (``tools/readme_systems.py bibliography``). None of the documents is distributed
 with mechsim, none names an author (PHYS0500's title page keeps a template placeholder), and
 none gives a numerical parameter value: every default of every system is the project's choice.
-Module docstrings and tests also cite sections by the keys of ``CITATION_KEYS``.
+Module docstrings and tests cite the same way: by title and section (a line number ``L<n>`` or
+``line <n>`` is a position in the plain-text copy the project worked from, not a reference).
 """
 
 from __future__ import annotations
@@ -112,55 +113,6 @@ PHYS0500 = Document(
     ))
 
 DOCUMENTS = (POSTS, ANALYTICAL, LECTURE10, PHYS0500)
-
-#: How module docstrings and tests cite the three documents that number nothing (or not
-#: everything): "seed 000 S<n>", "seed 001 §<n>", "seed 002 §<n>" are sections of the
-#: project's catalog of the documents, mapped here to what a reader finds in the document;
-#: PHYS0500's own chapter and section numbers are cited as they are. "L<n>" or "line <n>"
-#: is a line of the plain-text copy the project worked from (a position, not a reference).
-CITATION_KEYS: tuple[tuple[str, str], ...] = (
-    ("seed 000 S1", "“Dynamical Systems and Constraints: Part 3 – Simple Pendulum”"),
-    ("seed 000 S2", "“Dynamical Systems and Constraints: Part 2 – Bead on a Wire”"),
-    ("seed 000 S3", "“Dynamical Systems and Constraints: Part 1 – General Theory”"),
-    ("seed 000 S4–S9", "“Energy and Hamiltonians: Part 3 – Examples”, Cases 1–6"),
-    ("seed 000 S10", "“Energy and Hamiltonians: Part 2 – Conservation Considerations”"),
-    ("seed 000 S11", "“Energy and Hamiltonians: Part 1 – Generalized Coordinates”"),
-    ("seed 000 S12, S13", "“Action and Reaction”, Cases 2 and 3"),
-    ("seed 000 S14", "“Moving Frames and the Twisted Cubic”"),
-    ("seed 000 S15", "“Minimal Frames”"),
-    ("seed 000 S16", "“Relative Motion and Waves Redux”"),
-    ("seed 001 §1.1", "Introduction to analytical mechanics: “Degrees of freedom”, "
-     "“Constraints”, “Classification of constraints”"),
-    ("seed 001 §2.1", "“Atwood's machine – equation of motion Lagrangian”"),
-    ("seed 001 §2.2", "“Spring pendulum”"),
-    ("seed 001 §2.3", "“Double pendulum” (and “Small Oscillations”)"),
-    ("seed 001 §2.4", "“Lagrange's equation of motion velocity dependent potentials”"),
-    ("seed 001 §2.5–2.6", "“Lagrange's equation of motion with frictional forces”"),
-    ("seed 001 §2.7–2.8", "“Conservation theorems”"),
-    ("seed 001 §2.9", "“Conservation of energy” (the harmonic oscillator)"),
-    ("seed 001 §2.10", "the simple pendulum: “Classification of constraints” (x² + y² − l² = 0) "
-     "and “Small Oscillations”"),
-    ("seed 001 §2.11", "“Conditions of balance”"),
-    ("seed 001 §2.12–2.14", "“Brachistochrone problem – shortest time problem”, "
-     "“calculus of variations”"),
-    ("seed 001 §2.15", "“Hamilton's principle”"),
-    ("seed 001 §2.16–2.17", "“Central force problem – with two body”, “Two body problem "
-     "equation – power law potentials”, “Solutions to inverse square law potential”"),
-    ("seed 001 §2.18–2.20", "“Classification of the orbits”, “Closed orbits of the two body "
-     "problem” (the −a/r³ and harmonic potentials)"),
-    ("seed 001 §2.21", "“Small Oscillations”"),
-    ("seed 002 §0–2", "Lecture 10: generalized coordinates and forces, cylindrical and "
-     "spherical coordinates (eqs. 10.1–10.15)"),
-    ("seed 002 §3", "central force in spherical coordinates (eq. 10.19)"),
-    ("seed 002 §4", "linearly accelerated frame (eq. 10.24)"),
-    ("seed 002 §5", "constraints and undetermined multipliers (eqs. 10.25–10.30)"),
-    ("seed 002 §6", "particle inside a vertical paraboloid (eqs. 10.31–10.36)"),
-    ("seed 002 §7", "Lagrange's heavy symmetric top (eqs. 10.37–10.46)"),
-    ("seed 002 §8", "spherical pendulum, free or with a vertical torque (eqs. 10.47–10.48)"),
-    ("seed 002 §9", "spherical pendulum forced to rotate at constant ω (eqs. 10.49–10.50)"),
-    ("seed 002 §10–13", "electromagnetic potentials, charged particle, uniform B, gauge "
-     "transformation (eqs. 10.51–10.67)"),
-)
 
 
 def documents_cited(source: str) -> list[Document]:

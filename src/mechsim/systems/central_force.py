@@ -2,8 +2,10 @@
 
 Sources: PHYS0500 ch. 4 ("Central Force Motion": §4.1 reduced mass, §4.2–4.4 first
 integrals and turning points, §4.5 effective potential, §4.6 Kepler and the conic table),
-seed 001 §2.16–2.20 (two-body problem, Kepler, effective potential, −a/r³, isotropic harmonic
-and the spring V ∝ (r − l)²), seed 002 §3 (central-force particle).
+Introduction to analytical mechanics, “Central force problem – with two body” to “Closed orbits of
+the two body problem” (two-body problem, Kepler, effective potential, −a/r³, isotropic harmonic and
+the spring V ∝ (r − l)²), Lecture 10, central force in spherical coordinates (eq. 10.19)
+(central-force particle).
 
 Coordinates: the centre of mass R = (m₁r₁ + m₂r₂)/M in ``world`` (``cm_x``, ``cm_y``) and the
 relative position r = r₁ − r₂ (of body 1 from body 2, PHYS0500 line 819) in the orbital plane,
@@ -14,28 +16,32 @@ from the CM (eq. 4.1).
 ``potential`` (U(r), zero at r → ∞ except for the oscillators):
 - ``kepler``: −k/r (``force_constant`` k). The ``kepler`` system is this case with the CM at
   rest and the orbit given by its elements. The Laplace–Runge–Lenz vector is an invariant here.
-- ``inverse_cube``: −a/r³ (``inverse_cube_strength`` a, seed 001 §2.19). The effective
-  potential has a barrier at r* = 3aμ/l²; inside it (or above it) the bodies fall to the centre
-  in finite time. The event ``fall`` at r = ``capture_radius`` merges them: the relative
-  motion stops (mode ``fallen`` = 1 switches U off, ṙ = 0) and the relative energy it had goes
-  into work_dissipated, so the work balance still closes. Energy and angular momentum are
-  then not conserved: for an orbit that falls (decided from the initial state by the
-  turning-point analysis) ``laws()`` drops them (l stays published; it holds until the fall).
-- ``harmonic``: ½ k r² (``spring_constant`` k, seed 001 §2.20): centred ellipses, period
-  2π√(μ/k) for every energy.
-- ``spring``: ½ k (r − l₀)² (``rest_length`` l₀, seed 001 L1408): a vibrating rotor.
+- ``inverse_cube``: −a/r³ (``inverse_cube_strength`` a, Introduction to analytical mechanics,
+  “Closed orbits of the two body problem”). The effective potential has a barrier at r* = 3aμ/l²;
+  inside it (or above it) the bodies fall to the centre in finite time. The event ``fall`` at
+  r = ``capture_radius`` merges them: the relative motion stops (mode ``fallen`` = 1 switches U off,
+  ṙ = 0) and the relative energy it had goes into work_dissipated, so the work balance still closes.
+  Energy and angular momentum are then not conserved: for an orbit that falls (decided from the
+  initial state by the turning-point analysis) ``laws()`` drops them (l stays published; it holds
+  until the fall).
+- ``harmonic``: ½ k r² (``spring_constant`` k, Introduction to analytical mechanics, “Closed orbits
+  of the two body problem”): centred ellipses, period 2π√(μ/k) for every energy.
+- ``spring``: ½ k (r − l₀)² (``rest_length`` l₀, Introduction to analytical mechanics L1408): a
+  vibrating rotor.
 
 Typos fixed (see the catalog): ε = √(1 + 2El²/(μk²)) (PHYS0500 line 988 prints √(2 + 2El²/(μk)));
 rθ̇² = (l²/μ²)u³ (line 893 prints u²); E = ½μ(ṙ² + r²θ̇²) + U (line 843 is truncated); V = −k/r
-(seed 001 L1898 prints −k/2); the conic equation carries e²x² (seed 001 L1896).
-Orbit classes follow the conic table (PHYS0500 line 996) for −k/r; for the other potentials
-``orbit_class`` reports circle / bounded / unbounded / falls.
+(Introduction to analytical mechanics L1898 prints −k/2); the conic equation carries e²x²
+(Introduction to analytical mechanics L1896). Orbit classes follow the conic table (PHYS0500 line
+996) for −k/r; for the other potentials ``orbit_class`` reports
+circle / bounded / unbounded / falls.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -54,6 +60,9 @@ from mechsim.systems._central import (
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+if TYPE_CHECKING:
+    from mechsim.systems.curves import Curve
 
 POTENTIALS = ("kepler", "inverse_cube", "harmonic", "spring")
 
@@ -309,8 +318,19 @@ class CentralForce(LagrangianModel):
                                   lo, hi, nodes=4000)
 
     def harmonic_period(self) -> float:
-        """Isotropic oscillator: 2π√(μ/k), the same for every orbit (seed 001 §2.20)."""
+        """Isotropic oscillator: 2π√(μ/k), the same for every orbit (Introduction to analytical
+        mechanics, “Closed orbits of the two body problem”)."""
         return 2 * math.pi * math.sqrt(self.reduced_mass() / self.value("spring_constant"))
+
+    def curves(self) -> tuple[Curve, ...]:
+        """U_eff(r) with the orbit's energy and its turning points (none where the orbit's
+        radial range cannot be found: a fall to the centre)."""
+        from mechsim.systems.curves import effective_potential
+
+        try:
+            return (effective_potential(self),)
+        except (ValueError, ArithmeticError):
+            return ()
 
 
 MODEL = CentralForce

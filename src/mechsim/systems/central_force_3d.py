@@ -1,6 +1,6 @@
 """Central-force motion of a particle in three dimensions, in spherical coordinates.
 
-Source: seed 002 §3 "central force potential in spherical coordinates" (L121–124, eq. 10.19,
+Source: Lecture 10, "central force potential in spherical coordinates" (L121–124, eq. 10.19,
 reconstructed in the catalog) on the spherical-coordinate Lagrangian of §2 (L102–106):
 T = ½ m (ṙ² + r²θ̇² + r² sin²θ φ̇²), V = Ṽ(r), so that
 m(r̈ − rθ̇² − r sin²θ φ̇²) = −dṼ/dr, d/dt(mr²θ̇) − mr² sinθ cosθ φ̇² = 0 and
@@ -20,9 +20,10 @@ refuses orbits that come within 5° of a pole (use the cartesian form there).
 
 Conventions: REP-103 world axes, z up, the force centre at the origin of the static frame
 ``centre``; θ is the polar angle from +z, φ the azimuth from +x toward +y (right-handed),
-x = r sinθ cosφ, y = r sinθ sinφ, z = r cosθ (seed 001 L73–77). Frames: ``particle`` (position;
-axes of the local basis: x = θ̂, y = φ̂, z = r̂, i.e. R_z(φ)R_y(θ), catalog 002 §2) and
-``orbit`` (z along L, x toward periapsis along A for −k/r, along the ascending node otherwise).
+x = r sinθ cosφ, y = r sinθ sinφ, z = r cosθ (Introduction to analytical mechanics L73–77). Frames:
+``particle`` (position; axes of the local basis: x = θ̂, y = φ̂, z = r̂, i.e. R_z(φ)R_y(θ), catalog
+002 §2) and ``orbit`` (z along L, x toward periapsis along A for −k/r, along the ascending node
+otherwise).
 """
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
 """Charged particle in uniform static electric and magnetic fields, from the potential Lagrangian.
 
-Sources: seed 002 §10–13 (Lecture 10, "Maxwell's equations and potentials", "charged particle
+Sources: Lecture 10 ("Maxwell's equations and potentials", "charged particle
 in an external field", "uniform magnetic field", "gauge transformation", eqs. 10.51–10.67) and
-seed 001 §2.4 (velocity-dependent generalized potential); the two moving charges of seed 000
-S13 ("Action and Reaction", Case 3, L827–891) as module functions.
+Introduction to analytical mechanics, “Lagrange's equation of motion velocity dependent potentials”
+(velocity-dependent generalized potential); the two moving charges of “Action and Reaction”, Case 3
+(L827–891) as module functions.
 
 L = ½ m ṙ² − q φ + q ṙ·A (eq. 10.53), with B = B ẑ (B > 0 along +z) and a uniform E, so
 φ = −E·r. The q ṙ·A term goes in the engine's ``linear`` slot: it shapes the equations and the
@@ -22,14 +23,14 @@ In every gauge the pseudo-momentum K = m v − q r × B − q E t is conserved (
 
 Oracles: cyclotron angular frequency ω_c = |q| B / m, gyration sense φ̇ = −q B / m (clockwise
 about +z for q B > 0, eq. 10.62); Larmor radius m |u⊥| / (|q| B) with u = v − v_d; pitch
-2π m v_z / (|q| B); E × B drift v_d = E × B / B² (seed 001 §2.4). The text garbles p_φ
-(L433–436, "2 2 2p m qBj r j r= +"); it is restored as above. Initial conditions are Cartesian
-for every formulation.
+2π m v_z / (|q| B); E × B drift v_d = E × B / B² (Introduction to analytical mechanics, “Lagrange's
+equation of motion velocity dependent potentials”). The text garbles p_φ (L433–436, "2 2 2p m qBj r
+j r= +"); it is restored as above. Initial conditions are Cartesian for every formulation.
 
-Two moving charges (seed 000 S13): ``two_charge_forces`` gives the instantaneous Coulomb +
-Biot–Savart forces F₁₂ (on 1 due to 2) and F₂₁. Document errors fixed: the magnetic term carries
-v² (L859–863 drop it), v̂ × (v̂ × ĵ) = sin α cos α î − cos² α ĵ (L863 prints −sin² α), and the
-Coulomb force between like charges is repulsive (+ĵ on charge 1, not −ĵ). F₁₂ ≠ −F₂₁ in general
+Two moving charges (“Action and Reaction”, Case 3): ``two_charge_forces`` gives the instantaneous
+Coulomb + Biot–Savart forces F₁₂ (on 1 due to 2) and F₂₁. Document errors fixed: the magnetic term
+carries v² (L859–863 drop it), v̂ × (v̂ × ĵ) = sin α cos α î − cos² α ĵ (L863 prints −sin² α), and
+the Coulomb force between like charges is repulsive (+ĵ on charge 1, not −ĵ). F₁₂ ≠ −F₂₁ in general
 ("cross the T": F₁₂ = 0, |F₂₁| = μ₀ q² v² / (4π ρ²)). The missing mechanical momentum is
 carried by the field: ``interaction_field_momentum`` (ε₀ ∫ E × B dV of the pair, to order
 v²/c², = q₁ A₂(r₁) + q₂ A₁(r₂) with the Darwin / Coulomb-gauge vector potential) changes at
@@ -77,7 +78,7 @@ class ChargedParticle(LagrangianModel):
               "Introduction to analytical mechanics, “Lagrange's equation of motion velocity "
               "dependent potentials”; “Action and Reaction” (blog post), Case 3 (two moving "
               "charges)")
-    formulations = ("cylindrical", "symmetric", "landau")
+    formulations = ("cylindrical", "symmetric", "landau", "hamiltonian")
     oracles = ("exact helix/cycloid (cyclotron ω_c = |q|B/m, Larmor radius, pitch, E×B drift); "
                "p_φ = mρ²φ̇ + ½qBρ² conserved; gauges agree; two-charge F₁₂ ≠ −F₂₁ balanced by "
                "field momentum")
@@ -250,7 +251,8 @@ class ChargedParticle(LagrangianModel):
             out[k] = total
         return out
 
-    # --- analytic results (seed 002 §12, seed 001 §2.4) ---------------------------------------
+    # --- analytic results (Lecture 10, uniform B (eqs. 10.51–10.67), Introduction to analytical
+    # mechanics, “Lagrange's equation of motion velocity dependent potentials”)
     def cyclotron_frequency(self) -> float:
         """ω_c = |q| B / m."""
         return abs(self.value("charge")) * self.value("magnetic_field") / self.value("mass")
@@ -280,7 +282,7 @@ class ChargedParticle(LagrangianModel):
 MODEL = ChargedParticle
 
 
-# --- two moving point charges (seed 000 S13) ---------------------------------------------------
+# --- two moving point charges (“Action and Reaction”, Case 3) -------------------------------------
 def _vec(a: np.ndarray | tuple[float, ...]) -> np.ndarray:
     return np.asarray(a, dtype=float)
 

@@ -2,7 +2,8 @@
 
 Sources: PHYS0500 ch. 8 "Coupled Oscillations" — §8.1 two identical coupled oscillators
 (lines 1986–2088), §8.2 weak coupling and beats (2090–2139), §8.3–8.4 general small-oscillation
-theory and normal coordinates (2141–2281); seed 001 §2.21 (small oscillations, |V − ω²T| = 0).
+theory and normal coordinates (2141–2281); Introduction to analytical mechanics, “Small
+Oscillations” (small oscillations, |V − ω²T| = 0).
 
 The system: N masses m moving along x, each tied to its own anchor by a spring κ
 (``spring_constant``), neighbours joined by coupling springs κ₁₂ (``coupling_constant``).

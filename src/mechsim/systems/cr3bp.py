@@ -1,6 +1,6 @@
 """Circular restricted three-body problem (planar): a test particle near two orbiting primaries.
 
-Source: seed 000 S12, "Action and Reaction", Case 2 "Driving forces" (L804–825).
+Source: “Action and Reaction”, Case 2 "Driving forces" (L804–825).
 
 Two primaries m₁, m₂ move on circles about their barycentre (the origin of ``world``) at
 separation L and rate ω; a massless test particle moves in their plane. Its back-reaction is

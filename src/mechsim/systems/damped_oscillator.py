@@ -1,8 +1,9 @@
 """Damped free harmonic oscillator: under-, critically and over-damped motion.
 
-Sources: PHYS0500 §1.3 "Damped Oscillations" (lines 87–173; §1.3.1–1.3.3) and seed 000 S8
-(E&H Part 3 "Case 5 – E ≠ h, neither conserved", L511–529; "Action and Reaction, Case 1 –
-Dissipative forces", L786–802): m ẍ + b ẋ + k x = 0, β = b/2m, ω₀² = k/m.
+Sources: PHYS0500 §1.3 "Damped Oscillations" (lines 87–173; §1.3.1–1.3.3) and “Energy and
+Hamiltonians: Part 3 – Examples”, Case 5 (E&H Part 3 "Case 5 – E ≠ h, neither conserved", L511–529;
+"Action and Reaction, Case 1 – Dissipative forces", L786–802): m ẍ + b ẋ + k x = 0, β = b/2m,
+ω₀² = k/m.
 
 Formulation: damping enters as the Rayleigh dissipation function D = ½ b ẋ² (dissipated power
 b ẋ² = 2D), so total = E = ½ m ẋ² + ½ k x² and dE/dt = −b ẋ² is closed by work_dissipated.
@@ -43,7 +44,7 @@ class DampedOscillator(LinearOscillator):
         positive("mass", 1.0, "kg", "mass m"),
         positive("spring_constant", 4.0, "N/m", "spring constant k"),
         nonnegative("damping", 0.4, "kg/s",
-                     "linear damping coefficient b (force −b ẋ; γ in seed 000, Γ in its "
+                     "linear damping coefficient b (force −b ẋ; γ in the blog post, Γ in its "
                      "Action-Reaction post); critical at b = 2√(mk)"),
         number("initial.x", 1.0, "m", "initial displacement x₀"),
         number("initial_rate.x", 0.0, "m/s", "initial velocity ẋ₀"),

@@ -1,5 +1,6 @@
 """What a Lagrangian system declares: its ``declare(b)`` fills a :class:`LagrangianBuilder`
-with T, V, D, forces, constraints, invariants, observables, frames, events and modes, in sympy
+with T, V, D, forces, constraints (on the positions, or on the velocities), invariants,
+observables, frames, events and modes, in sympy
 expressions of the symbols the builder hands out (``mechsim.systems.lagrangian`` describes the
 whole engine; ``lagrangian_kernels`` derives the kernels from a declaration)."""
 
@@ -41,6 +42,8 @@ class LagrangianBuilder:
     linear: Expr = field(default_factory=lambda: sp.Integer(0))
     forces: list[Expr] = field(default_factory=list)
     constraints: list[tuple[str, Expr]] = field(default_factory=list)
+    # Constraints on the velocities, c = A(q, t)·q̇ + b(q, t) = 0 (``velocity_constraint``).
+    velocity_constraints: list[tuple[str, Expr]] = field(default_factory=list)
     invariants: list[tuple[Quantity, Expr]] = field(default_factory=list)
     observables: list[tuple[Quantity, Expr]] = field(default_factory=list)
     frames: list[_Frame] = field(default_factory=list)
@@ -93,6 +96,29 @@ class LagrangianBuilder:
         if active is not None:
             self.active[len(self.constraints)] = sp.sympify(active)
         self.constraints.append((name, g))
+
+    def velocity_constraint(self, name: str, c: Expr) -> sp.Symbol:
+        """A constraint on the velocities, c = A(q, t)·q̇ + b(q, t) = 0, which need not be the
+        derivative of any g(q, t) = 0 (non-integrable, non-holonomic: a blade that cannot slip
+        sideways, a wheel that rolls). This is the documents' constraint in differential form,
+        Σ_α A_α dq_α + A dt = 0 ("Dynamical Systems and Constraints: Part 1 – General
+        Theory"; PHYS 229 Lecture 10, §5; PHYS0500 §3.4), divided by dt. The equations become
+        M q̈ = f + Gᵀλ + Aᵀμ, closed by ċ = 0; the rates are projected onto c = 0; the
+        residual c is published as constraint_<name>. Returns μ, the constraint's multiplier:
+        μ A is its generalized force (for observables and events). Raises ValueError if ``c``
+        is not linear in the rates."""
+        c = sp.sympify(c)
+        if any(sp.diff(c, vi, vj) != 0 for vi in self.v for vj in self.v):
+            raise ValueError(f"velocity constraint {name}: not linear in the rates")
+        if not (c.free_symbols & set(self.v)):
+            raise ValueError(f"velocity constraint {name}: depends on no rate (a constraint "
+                             "on the positions is declared with b.constraint)")
+        self.velocity_constraints.append((name, c))
+        return self.velocity_multiplier(len(self.velocity_constraints) - 1)
+
+    def velocity_multiplier(self, index: int) -> sp.Symbol:
+        """μ of velocity constraint ``index`` (see ``velocity_constraint``)."""
+        return sp.Symbol(f"mu_{index}", real=True)
 
     def mode(self, name: str) -> sp.Symbol:
         """Declare a discrete mode entry of the state (constant between events, set by the

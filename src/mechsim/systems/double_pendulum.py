@@ -1,8 +1,8 @@
 """Double pendulum with general masses and lengths: angle and multiplier formulations.
 
-Source: seed 001 §2.3 "Double pendulum" (L671–805; again L2064–2091 as the cross-term example
-of "Small Oscillations"): absolute angles θ₁, θ₂ of two massless rods from the downward
-vertical, point masses m₁, m₂,
+Source: Introduction to analytical mechanics, "Double pendulum" (L671–805; again L2064–2091 as the
+cross-term example of "Small Oscillations"): absolute angles θ₁, θ₂ of two massless rods from the
+downward vertical, point masses m₁, m₂,
 T = ½ m₁ l₁² θ̇₁² + ½ m₂ (l₁² θ̇₁² + l₂² θ̇₂² + 2 l₁ l₂ θ̇₁ θ̇₂ cos(θ₁ − θ₂)),
 V = m₁ g [l₁ + l₂ − l₁ cos θ₁] + m₂ g [l₁ + l₂ − (l₁ cos θ₁ + l₂ cos θ₂)] (zero at the lowest
 possible position, as in the document).
@@ -49,7 +49,7 @@ class DoublePendulum(LagrangianModel):
     id = "double_pendulum"
     title = "Double pendulum (angles and Lagrange-multiplier forms)"
     source = "Introduction to analytical mechanics, “Double pendulum” and “Small Oscillations”"
-    formulations = ("angles", "multiplier")
+    formulations = ("angles", "multiplier", "hamiltonian")
     oracles = ("small-oscillation modes from |V − ω²T| = 0, (2 ± √2)g/l and A₂ = ∓√2A₁ for "
                "equal masses; E conserved over long chaotic runs; forms and tensions agree")
     parameters = (
@@ -131,7 +131,8 @@ class DoublePendulum(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / float(np.max(self.small_oscillation_frequencies()))
 
-    # --- analytic oracles (seed 001 §2.3, §2.21) ---------------------------------------------
+    # --- analytic oracles (Introduction to analytical mechanics, “Double pendulum” and “Small
+    # Oscillations”)
     def small_oscillation_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """T and V of ½ q̇ᵀTq̇ + ½ qᵀVq about θ₁ = θ₂ = 0 (catalog 001 §2.3)."""
         m1, m2 = self.value("mass_1"), self.value("mass_2")

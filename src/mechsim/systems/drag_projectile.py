@@ -1,6 +1,7 @@
 """Projectile with linear air drag, damping from a Rayleigh dissipation function.
 
-Sources: seed 001 §2.5 "Lagrange's equation of motion with frictional forces" (L832–875:
+Sources: Introduction to analytical mechanics, "Lagrange's equation of motion with frictional
+forces" (L832–875:
 Q_j = −∂D/∂q̇_j, D = ½ Σ f_kl q̇_k q̇_l, dE/dt = −2D) and §2.6 (L877–900): a particle of mass m
 with V = m g z, D = ½ α (ẋ² + ẏ² + ż²), giving m ẍ + α ẋ = 0, m ÿ + α ẏ = 0,
 m z̈ + α ż + m g = 0.

@@ -1,7 +1,8 @@
 """Rigid dumbbell (diatomic molecule): two point masses joined by a massless rigid rod, free or
 in a uniform gravitational field.
 
-Source: seed 001 §1.1 "Constraints" (L96–104: "Consider a diatomic molecule or a dumbbell ...
+Source: Introduction to analytical mechanics, "Constraints" (L96–104: "Consider a diatomic molecule
+or a dumbbell ...
 d_ij = Constant. Six degrees of freedom of two particles reduces to five due to a constraint
 r − d_ij = 0"; holonomic, L123–131) with the two-body reduction of §2.16 (L1486–1535):
 R = (m₁r₁ + m₂r₂)/M and r₁ − r₂ = d n̂ give T = ½ M Ṙ² + ½ μ d² |dn̂/dt|², μ = m₁m₂/M, and

@@ -1,6 +1,7 @@
 """Particle in a uniform, time-dependent force field: V = x F(t).
 
-Source: seed 000 S9, E&H Part 3 "Case 6 – E = h, neither conserved" (L531–551):
+Source: “Energy and Hamiltonians: Part 3 – Examples”, "Case 6 – E = h, neither conserved"
+(L531–551):
 L = ½ m ẋ² − x F(t), E = h = ½ m ẋ² + x F(t).
 
 Conventions: motion along x of the ``origin`` frame. The document's potential V = x F(t) is
@@ -86,7 +87,7 @@ class ForcedParticle(LagrangianModel):
         w = self.value("force_frequency")
         return 2 * math.pi / w if self.profile == "sinusoid" and w > 0 else 1.0
 
-    # --- analytic oracles (seed 000 S9, sign corrected) -------------------------------------
+    # --- analytic oracles (“Energy and Hamiltonians: Part 3 – Examples”, Case 6, sign corrected)
     def force_at(self, t: np.ndarray) -> np.ndarray:
         """F(t)."""
         t = np.asarray(t, dtype=float)

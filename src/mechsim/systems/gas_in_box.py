@@ -1,11 +1,11 @@
 """A gas in a container: N point particles in a rectangular box with elastic walls.
 
-Source: seed 001 §1.1, "Classification of constraints" (L159–167): constraints "expressed as
-inequalities. Gas molecules contained in container" — the non-holonomic (one-sided) example.
-Each coordinate obeys −ℓₐ/2 ≤ xₐ ≤ ℓₐ/2; inside, the particles are free (L = Σ ½ m |ṙᵢ|²,
-no potential: an ideal gas of point particles, which never meet one another). The inequality
-acts only at contact, as an impulse: a state event where a particle reaches a wall while moving
-outward, handled by reversing that velocity component (an elastic, frictionless wall). So the
+Source: Introduction to analytical mechanics, "Classification of constraints" (L159–167):
+constraints "expressed as inequalities. Gas molecules contained in container" — the non-holonomic
+(one-sided) example. Each coordinate obeys −ℓₐ/2 ≤ xₐ ≤ ℓₐ/2; inside, the particles are free (L = Σ
+½ m |ṙᵢ|², no potential: an ideal gas of point particles, which never meet one another). The
+inequality acts only at contact, as an impulse: a state event where a particle reaches a wall while
+moving outward, handled by reversing that velocity component (an elastic, frictionless wall). So the
 kinetic energy, the kinetic energy of each axis and every |vₐ| of every particle are
 conserved, and the wall ⟂ axis a receives the impulse 2m|vₐ| per hit.
 

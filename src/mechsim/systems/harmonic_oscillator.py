@@ -1,8 +1,10 @@
 """One-dimensional simple harmonic oscillator.
 
-Sources: PHYS0500 §1.1 "Simple Harmonic Oscillations, Energy" (lines 19–65) and seed 001 §2.9
-(L1007–1009, L1369–1373, L2136–2146): m ẍ = −k x, ω₀² = k/m, T = ½ k A² cos²(ω₀t − δ),
-U = ½ k A² sin²(ω₀t − δ), E = ½ k A²; seed 001 shows h = ẋ ∂L/∂ẋ − L = T + V = E.
+Sources: PHYS0500 §1.1 "Simple Harmonic Oscillations, Energy" (lines 19–65) and Introduction to
+analytical mechanics, “Conservation of energy” (L1007–1009, L1369–1373, L2136–2146): m ẍ = −k x,
+ω₀² = k/m, T = ½ k A² cos²(ω₀t − δ),
+U = ½ k A² sin²(ω₀t − δ), E = ½ k A²; Introduction to analytical mechanics shows h = ẋ
+∂L/∂ẋ − L = T + V = E.
 
 Conventions: the mass moves along x of its ``anchor`` frame (REP-103 world axes); x = 0 is the
 unstretched spring and the potential zero. Amplitude and phase follow the document's sine form
@@ -43,7 +45,8 @@ class HarmonicOscillator(LinearOscillator):
         x, _, _, k = self.spring(b)
         b.observable("spring_force", "N", -k * x)
 
-    # --- analytic oracles (PHYS0500 §1.1, seed 001 §2.9) ------------------------------------
+    # --- analytic oracles (PHYS0500 §1.1, Introduction to analytical mechanics, “Conservation of
+    # energy”)
     def period(self) -> float:
         """2π/ω₀ = 2π√(m/k)."""
         return 2 * math.pi / self.natural_frequency()

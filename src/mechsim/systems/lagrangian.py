@@ -49,6 +49,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from mechsim import codegen
+from mechsim.errors import ParameterError
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Event, FrameSpec, Law, Model, Quantity, Structure
 from mechsim.systems.declaration import LagrangianBuilder
@@ -69,10 +70,35 @@ _SUMMARY_KEYS = frozenset({"derivation_key", "coordinates", "invariants", "obser
                            "energy_function_conserved"})
 
 
+#: The formulation a Lagrangian system may offer besides its own (by listing it last in its
+#: ``formulations``): Hamilton's equations, generated from its first formulation.
+HAMILTONIAN = "hamiltonian"
+
+
 class LagrangianModel(Model):
-    """A model whose equations come from ``declare``; see the module docstring."""
+    """A model whose equations come from ``declare``; see the module docstring.
+
+    A class that lists ``"hamiltonian"`` among its ``formulations`` (last) offers Hamilton's
+    equations of its first formulation's Lagrangian (PHYS0500 – Advanced Classical Mechanics,
+    §3.6 Hamiltonian Dynamics): the state holds the canonical momenta p = ∂L/∂q̇ where the
+    others hold q̇, ``y = [q, p, work_external, work_dissipated]``, integrated by any method as
+    q̇ = M⁻¹(p − ∂L/∂q̇|₀), ṗ = ∂L/∂q − ∂D/∂q̇ + Q + u. Everything else (the system's own
+    code, its outputs) is that of the first formulation: ``formulation`` names it, while
+    ``chosen_formulation`` reports "hamiltonian"; ``rates`` gives q̇ for the published state.
+    Declarations with constraints, events or modes have none (their multipliers and event
+    handlers are written in q̇)."""
 
     declaration_version: ClassVar[int] = 1
+
+    @property
+    def formulation(self) -> str:
+        chosen = self.chosen_formulation
+        return self.formulations[0] if chosen == HAMILTONIAN else chosen
+
+    @property
+    def hamiltonian(self) -> bool:
+        """Whether the state holds the canonical momenta (formulation ``hamiltonian``)."""
+        return self.chosen_formulation == HAMILTONIAN
 
     def declare(self, b: LagrangianBuilder) -> None:
         raise NotImplementedError
@@ -123,17 +149,26 @@ class LagrangianModel(Model):
 
         d = self.declaration
         st = self._structure_of(d)
+        canonical = _canonical_ok(d, st)
+        if self.hamiltonian:
+            if d.constraints or d.velocity_constraints or d.events or d.modes:
+                raise ParameterError("formulation", f"hamiltonian: {self.id} "
+                                     f"({self.formulation}) has constraints, events or modes")
+            # the state is (q, p): no separable form in (q, q̇), no second canonical map
+            st = dataclasses.replace(st, separable=False, second_order=False)
+            canonical = False
         rows = dataclasses.astuple
         return {
             "coordinates": [rows(q) for q in d.coords],
             "invariants": [rows(q) for q, _ in d.invariants]
-            + [rows(Quantity(f"constraint_{name}", "")) for name, _ in d.constraints],
+            + [rows(Quantity(f"constraint_{name}", "")) for name, _ in d.constraints]
+            + [rows(Quantity(f"constraint_{name}", "")) for name, _ in d.velocity_constraints],
             "observables": [rows(q) for q, _ in d.observables],
             "frames": [rows(f.spec) for f in d.frames],
             "events": [rows(e) for e, _ in d.events],
             "modes": [rows(q) for q in d.modes],
             "structure": rows(st),
-            "canonical": _canonical_ok(d, st),
+            "canonical": canonical,
             "energy_function_conserved": self._energy_function_conserved_of(d),
         }
 
@@ -171,6 +206,30 @@ class LagrangianModel(Model):
     def energy_function_conserved(self) -> bool:
         return bool(self._summary["energy_function_conserved"])
 
+    def has_closed_form(self) -> bool:
+        """A system's closed form gives (q, q̇) rows: none for the Hamiltonian state."""
+        return not self.hamiltonian and super().has_closed_form()
+
+    def initial_y(self) -> np.ndarray:
+        """The initial state; in the Hamiltonian formulation with p = ∂L/∂q̇ in place of q̇."""
+        y = super().initial_y()
+        if not self.hamiltonian:
+            return y
+        z = np.empty_like(y)
+        self.kernels.to_momenta(0.0, y, self.parameter_vector(), z)
+        return z
+
+    def rates(self, t: np.ndarray, Y: np.ndarray, p: np.ndarray) -> np.ndarray:
+        if not self.hamiltonian:
+            return super().rates(t, Y, p)
+        Z = np.atleast_2d(Y)
+        times = np.broadcast_to(np.asarray(t, dtype=np.float64), Z.shape[:1])
+        out, row = np.empty((Z.shape[0], self.layout.n)), np.empty(Z.shape[1])
+        for k in range(Z.shape[0]):
+            self.kernels.from_momenta(float(times[k]), np.ascontiguousarray(Z[k]), p, row)
+            out[k] = row[self.layout.v]
+        return out.reshape(np.shape(Y)[:-1] + (self.layout.n,))
+
     @staticmethod
     def _structure_of(d: LagrangianBuilder) -> Structure:
         qs, vs, t = set(d.q), set(d.v), d.t
@@ -178,29 +237,37 @@ class LagrangianModel(Model):
         constant_mass = not (M.free_symbols & (qs | vs | {t}))
         time_dep = t in (d.kinetic.free_symbols | d.potential.free_symbols
                          | sp.sympify(d.linear).free_symbols) or any(
-            t in g.free_symbols for _, g in d.constraints)
+            t in g.free_symbols for _, g in d.constraints + d.velocity_constraints)
         dissipative = d.rayleigh != 0
-        driven = any(f != 0 for f in d.forces)
-        separable = (constant_mass and not d.constraints and not dissipative and not driven
+        # A velocity constraint with a term b free of the rates imposes a motion: its force
+        # does work (power −μ b), as a generalized force would.
+        driven = any(f != 0 for f in d.forces) or any(
+            c.subs({vi: 0 for vi in d.v}) != 0 for _, c in d.velocity_constraints)
+        n_constraints = len(d.constraints) + len(d.velocity_constraints)
+        separable = (constant_mass and not n_constraints and not dissipative and not driven
                      and d.linear == 0
                      and not time_dep and not (d.potential.free_symbols & vs)
                      and not (d.kinetic.free_symbols & qs)
                      and (len(d.q) <= 4 or M.is_diagonal()))
-        return Structure(separable=separable, n_constraints=len(d.constraints),
+        return Structure(separable=separable, n_constraints=n_constraints,
                          dissipative=dissipative, driven=driven, time_dependent=time_dep)
 
     @staticmethod
     def _energy_function_conserved_of(d: LagrangianBuilder) -> bool:
         L = d.kinetic - d.potential + d.linear
+        # An ideal scleronomic velocity constraint (c = A(q) q̇) does no work: μ A q̇ = 0.
         return bool(d.t not in L.free_symbols and d.rayleigh == 0
                     and not any(f != 0 for f in d.forces)
-                    and not any(d.t in g.free_symbols for _, g in d.constraints))
+                    and not any(d.t in g.free_symbols for _, g in d.constraints)
+                    and not any(d.t in c.free_symbols or c.subs({vi: 0 for vi in d.v}) != 0
+                                for _, c in d.velocity_constraints))
 
     @cached_property
     def kernels(self) -> codegen.Kernels:
         """Built once per declaration: derived and compiled on the first use on a machine,
         imported from the cache afterwards (see ``derivation_key``)."""
-        return codegen.build(f"{self.id}_{self.formulation}", self._summary["derivation_key"],
+        return codegen.build(f"{self.id}_{self.chosen_formulation}",
+                             self._summary["derivation_key"],
                              self.kernel_source)
 
     def _declared_layout(self, n_coordinates: int) -> ParameterLayout:
@@ -242,12 +309,13 @@ class LagrangianModel(Model):
         return codegen.fingerprint(
             GENERATOR_VERSION, GENERATOR_SOURCE, codegen.distribution_version("sympy"),
             type(self).__qualname__,
-            self.declaration_version, self.formulation,
+            self.declaration_version, self.chosen_formulation,
             sorted(self._declared_layout(len(d.q)).indices().items()),
             [(c.name, c.unit) for c in d.coords],
             sp.srepr(d.kinetic), sp.srepr(d.potential), sp.srepr(d.rayleigh),
             sp.srepr(d.linear), [sp.srepr(f) for f in d.forces],
             [(n, sp.srepr(g)) for n, g in d.constraints],
+            [(n, sp.srepr(c)) for n, c in d.velocity_constraints],
             [(q.name, sp.srepr(e)) for q, e in d.invariants],
             [(q.name, sp.srepr(e)) for q, e in d.observables],
             [(f.spec, [sp.srepr(e) for e in f.translation + f.rotation]) for f in d.frames],
@@ -261,11 +329,11 @@ class LagrangianModel(Model):
 
         d = self.declaration
         layout = self._declared_layout(len(d.q))
-        body, functions, n_constants = _derive(d, layout, self.structure)
+        body, functions, n_constants = _derive(d, layout, self.structure, self.hamiltonian)
         n = len(d.q)
         return codegen.KernelSource(
-            name=f"{self.id}_{self.formulation}", functions=functions, body=body, constants={
-                "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
+            name=f"{self.id}_{self.chosen_formulation}", functions=functions, body=body, constants={
+                "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": self.structure.n_constraints,
                 "N_INV": len(self.invariants), "N_OBS": len(self.observables),
                 "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes),
                 "N_P": layout.with_constants(n_constants).size})

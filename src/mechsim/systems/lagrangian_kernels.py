@@ -244,7 +244,8 @@ def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
     event-free, undriven, undamped, has no explicit time dependence and T is homogeneous
     quadratic in the rates — then E = T + V equals h and is conserved, so the work terms stay
     zero (a rotating-coordinate T with ω² terms, where the motor works, is excluded)."""
-    if d.constraints or d.events or d.modes or st.dissipative or st.driven or st.time_dependent:
+    if d.constraints or d.velocity_constraints or d.events or d.modes or st.dissipative \
+            or st.driven or st.time_dependent:
         return False
     v = sp.Matrix(d.v)
     M = sp.hessian(d.kinetic, d.v)
@@ -258,9 +259,14 @@ class _Derivation:
     functions of the contract it defined; those it leaves out are no-ops (no constraints, not
     separable, no canonical form, no events, nothing to output)."""
 
-    def __init__(self, d: LagrangianBuilder, layout: ParameterLayout, st: Structure) -> None:
-        self.d, self.layout, self.st = d, layout, st
+    def __init__(self, d: LagrangianBuilder, layout: ParameterLayout, st: Structure,
+                 hamiltonian: bool = False) -> None:
+        self.d, self.layout, self.st, self.hamiltonian = d, layout, st, hamiltonian
         self.n, self.nc = n, nc = len(d.q), len(d.constraints)
+        # The velocity constraints c = A q̇ + b = 0 follow the holonomic ones in every
+        # constrained solve and projection (rows G, then A; multipliers λ, then μ).
+        self.nv = nv = len(d.velocity_constraints)
+        self.nm = nc + nv
         self.hoist = _ParameterConstants(d.params, layout)
         self.parts: list[str] = []
         self.defined: set[str] = set()
@@ -279,6 +285,13 @@ class _Derivation:
         g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
         self.gdot = gdot = (G * v + g_t) if nc else sp.zeros(0, 1)
         self.gamma = (gdot.jacobian(q) * v + sp.diff(gdot, t)) if nc else sp.zeros(0, 1)
+        if nv:  # ċ = A q̈ + (∂c/∂q q̇ + ∂c/∂t): the rows A and their γ
+            c = sp.Matrix([e for _, e in d.velocity_constraints])
+            self.A = c.jacobian(v)
+            if self.A.free_symbols & set(d.v):
+                raise ValueError("a velocity constraint is not linear in the rates")
+            self.c = c
+            self.gamma_v = c.jacobian(q) * v + sp.diff(c, t)
         self.E = E = d.kinetic + d.potential
         self.h = (v.T * dL_dv)[0, 0] - L
         self.P_diss = (sum(d.v[i] * sp.diff(d.rayleigh, d.v[i]) for i in range(n))
@@ -287,9 +300,12 @@ class _Derivation:
         self.dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * d.qdd[i]
                                       for i in range(n))
         self.lam = [d.multiplier(k) for k in range(nc)]
+        self.mu = [d.velocity_multiplier(j) for j in range(nv)]
         self.act = [d.active.get(k, sp.Integer(1)) for k in range(nc)]
-        self.pre = _prelude(d, layout)
-        self.diagonal = nc == 0 and self.M.is_diagonal()
+        self.pre = self.lagrangian_pre = _prelude(d, layout)
+        if hamiltonian:  # every function reads (q, p) and first works out q̇ from p
+            self.pre = self.rates_from_momenta("y")
+        self.diagonal = self.nm == 0 and self.M.is_diagonal()
         self.accel_exprs: list[Expr] = []
         self.effort_accel: list[Expr] = []
 
@@ -308,12 +324,18 @@ class _Derivation:
         """The kernel module body, the contract functions it defines and the number of
         parameter constants."""
         self.accel()
-        self.rhs()
+        if self.hamiltonian:
+            self.hamilton_rhs()
+            self.momentum_maps()
+        else:
+            self.rhs()
         if self.nc:
             self.project()
+        elif self.nv:
+            self.project_rates()
         if self.st.separable:
             self.accel_q()
-        if _canonical_ok(self.d, self.st):
+        if not self.hamiltonian and _canonical_ok(self.d, self.st):
             self.canonical()
         self.outputs()
         functions = tuple(name for name in FUNCTIONS if name in self.defined)
@@ -337,7 +359,7 @@ class _Derivation:
             body += self.emit([(f"a[{i}]", self.accel_exprs[i]) for i in range(n)])
             body += self.emit([(f"ua_{i}", self.effort_accel[i]) for i in range(n)])
             body += [f"    a[{i}] += ua_{i}" for i in range(n)]
-        elif self.nc == 0 and n <= SCALAR_SOLVE_MAX:
+        elif self.nm == 0 and n <= SCALAR_SOLVE_MAX:
             body += _ldl_solve(M, [self.f[i] for i in range(n)], [f"x_{i}" for i in range(n)],
                                self.hoist)
             body += [f"    a[{i}] = x_{i}" for i in range(n)]
@@ -347,9 +369,10 @@ class _Derivation:
 
     def saddle_point_solve(self) -> list[str]:
         """Lines solving [[M, −Gᵀ], [G, 0]] [a, λ] = [f, −γ] (a released constraint's row
-        reads λ_k = 0) by Gaussian elimination into ``a`` and ``lam``."""
+        reads λ_k = 0) by Gaussian elimination into ``a`` and ``lam``; velocity constraints
+        add rows [A, 0] a = −γ_A and columns −Aᵀ, their μ after the λ in ``lam``."""
         n, nc, M, G, act = self.n, self.nc, self.M, self.G, self.act
-        m = n + nc
+        m = n + self.nm
         lines = [f"    A = _zero_matrix({m}, {m})", f"    b = _vector({m})"]
         assign: list[tuple[str, Expr]] = []
         for i in range(n):
@@ -363,10 +386,17 @@ class _Derivation:
             if k in self.d.active:  # released: the row reads λ_k = 0
                 assign.append((f"A[{n + k}, {n + k}]", 1 - act[k]))
             assign.append((f"b[{n + k}]", -act[k] * self.gamma[k]))
+        for j in range(self.nv):
+            row = n + nc + j
+            for i in range(n):
+                if self.A[j, i] != 0:
+                    assign.append((f"A[{row}, {i}]", self.A[j, i]))
+                    assign.append((f"A[{i}, {row}]", -self.A[j, i]))
+            assign.append((f"b[{row}]", -self.gamma_v[j]))
         lines += self.emit(assign)
         lines.append("    x = _solve(A, b)")
         lines += [f"    a[{i}] = x[{i}]" for i in range(n)]
-        lines += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
+        lines += [f"    lam[{k}] = x[{n + k}]" for k in range(self.nm)]
         return lines
 
     def rhs(self) -> None:
@@ -384,13 +414,13 @@ class _Derivation:
                               + [("P_u", P_u)])
             body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
             external = "dE + P_diss + P_u"
-        elif self.nc == 0 and n <= SCALAR_SOLVE_MAX:
+        elif self.nm == 0 and n <= SCALAR_SOLVE_MAX:
             body = list(pre) + _ldl_solve(self.M, [self.f[i] for i in range(n)], a_names,
                                           self.hoist)
             body += self.emit([("P_diss", self.P_diss), ("dE", self.dE)])
             external = "dE + P_diss"
         else:
-            body = [f"    lam = _vector({max(self.nc, 1)})", f"    acc = _vector({n})",
+            body = [f"    lam = _vector({max(self.nm, 1)})", f"    acc = _vector({n})",
                     "    accel(t, y, p, acc, lam)"]
             body += pre
             body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
@@ -400,6 +430,65 @@ class _Derivation:
         body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
         body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
         self.func("rhs", body)
+
+    def rates_from_momenta(self, source: str) -> list[str]:
+        """A prelude reading q and the momenta p from array ``source`` (``pm_<i>``), then
+        q̇ from M q̇ = p − ∂L/∂q̇|_{q̇=0} under the rates' own names, so that every expression
+        of the declaration in (q, q̇, t) evaluates as in the Lagrangian form."""
+        d, n, M = self.d, self.n, self.M
+        b0 = self.dL_dv.subs({vi: 0 for vi in d.v})
+        lines = ["    t = t"] + [f"    {qs.name} = {source}[{i}]" for i, qs in enumerate(d.q)]
+        lines += [f"    pm_{i} = {source}[{n + i}]" for i in range(n)]
+        lines += [line for line in _prelude(d, self.layout, with_v=False)
+                  if line != "    t = t" and not line.startswith(tuple(
+                      f"    {qs.name} = y[" for qs in d.q))]
+        rhs = [sp.Symbol(f"pm_{i}", real=True) - b0[i] for i in range(n)]
+        names = [vs.name for vs in d.v]
+        if M.is_diagonal():
+            return lines + self.emit([(names[i], rhs[i] / M[i, i]) for i in range(n)])
+        if n <= SCALAR_SOLVE_MAX:
+            return lines + _ldl_solve(M, rhs, names, self.hoist)
+        lines += [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
+        lines += self.emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
+                            if M[i, j] != 0] + [(f"b[{i}]", rhs[i]) for i in range(n)])
+        return lines + ["    x = _solve(A, b)"] + [f"    {v} = x[{i}]"
+                                                    for i, v in enumerate(names)]
+
+    def hamilton_rhs(self) -> None:
+        """rhs of the Hamiltonian formulation, y = [q, p, ...]: q̇ (from the prelude) and
+        ṗ = ∂L/∂q − ∂D/∂q̇ + Q + u; the power balance as in the Lagrangian form, dE/dt by the
+        chain rule with q̈ from M q̈ = f."""
+        d, n, a_names = self.d, self.n, self.a_names
+        forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
+        pdot = [sp.diff(self.L, d.q[i]) - sp.diff(d.rayleigh, d.v[i]) + forces[i]
+                + d.efforts[i] for i in range(n)]
+        body = list(self.pre)
+        if n <= SCALAR_SOLVE_MAX:
+            body += _ldl_solve(self.M, [self.f[i] for i in range(n)], a_names, self.hoist)
+        else:
+            body += ["    lam = _vector(1)", f"    acc = _vector({n})",
+                     "    accel(t, y, p, acc, lam)"]
+            body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+        body += self.emit([(f"dy[{n + i}]", pdot[i]) for i in range(n)]
+                          + [("P_diss", self.P_diss), ("dE", self.dE)])
+        body += [f"    dy[{i}] = {vs.name}" for i, vs in enumerate(d.v)]
+        body += [f"    dy[{2 * n}] = dE + P_diss", f"    dy[{2 * n + 1}] = P_diss"]
+        self.func("rhs", body)
+
+    def momentum_maps(self) -> None:
+        """to_momenta (the Lagrangian state (q, q̇) to the Hamiltonian one (q, p)) and
+        from_momenta (back), for the Hamiltonian formulation's initial state and rates."""
+        n = self.n
+        body = list(self.lagrangian_pre) + self.emit([(f"z[{n + i}]", self.dL_dv[i])
+                                                      for i in range(n)])
+        body += [f"    z[{i}] = y[{i}]" for i in range(n)]
+        body += [f"    for k in range({2 * n}, y.size):", "        z[k] = y[k]"]
+        self.func("to_momenta", body)
+        body = self.rates_from_momenta("z")
+        body += [f"    y[{i}] = z[{i}]" for i in range(n)]
+        body += [f"    y[{n + i}] = {vs.name}" for i, vs in enumerate(self.d.v)]
+        body += [f"    for k in range({2 * n}, z.size):", "        y[k] = z[k]"]
+        self.func("from_momenta", body)
 
     def project(self) -> None:
         """Positions onto g = 0 (Newton, at most six iterations), then rates onto ġ = 0."""
@@ -417,9 +506,30 @@ class _Derivation:
                  "        if _all_below(r, 1e-15):", "            break"]
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
+        if self.nv:  # the rates onto ġ = 0 and c = 0 together
+            body += [f"    G = _matrix({self.nm}, {n})", f"    r = _vector({self.nm})"]
         body += self.emit([(f"r[{k}]", act[k] * self.gdot[k]) for k in range(nc)]
                           + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
-                             for j in range(n)])
+                             for j in range(n)] + self.velocity_rows(nc))
+        body += ["    _project_onto(G, r, vv)"]
+        self.func("project", body)
+
+    def velocity_rows(self, first: int) -> list[tuple[str, Expr]]:
+        """Residuals and rows of the velocity constraints, from row ``first`` of r and G."""
+        n = self.n
+        return [(f"r[{first + j}]", self.c[j]) for j in range(self.nv)] + [
+            (f"G[{first + j}, {i}]", self.A[j, i]) for j in range(self.nv) for i in range(n)]
+
+    def project_rates(self) -> None:
+        """Without holonomic constraints: the rates onto c = A q̇ + b = 0 (least-norm
+        correction; exact for a constraint linear in the rates, so no iteration)."""
+        n, nv = self.n, self.nv
+        body = list(self.pre)
+        body[1 + n:1 + 2 * n] = []  # q̇ read from vv
+        body += [f"    G = _matrix({nv}, {n})", f"    r = _vector({nv})",
+                 f"    vv = y[{n}:{2 * n}]"]
+        body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(self.d.v)]
+        body += self.emit(self.velocity_rows(0))
         body += ["    _project_onto(G, r, vv)"]
         self.func("project", body)
 
@@ -470,10 +580,12 @@ class _Derivation:
     def solved_first(self, exprs: list[Expr]) -> list[str]:
         """Lines solving for λ and q̈ (through ``accel``) where ``exprs`` read them."""
         n, nc = self.n, self.nc
-        if not any((set(self.lam) | set(self.d.qdd)) & e.free_symbols for e in exprs):
+        if not any((set(self.lam) | set(self.mu) | set(self.d.qdd)) & e.free_symbols
+                   for e in exprs):
             return []
-        return [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
+        return [f"    lam = _vector({max(self.nm, 1)})", f"    acc = _vector({n})",
                 "    accel(t, y, p, acc, lam)", *[f"    lam_{k} = lam[{k}]" for k in range(nc)],
+                *[f"    mu_{j} = lam[{nc + j}]" for j in range(self.nv)],
                 *[f"    {self.a_names[i]} = acc[{i}]" for i in range(n)]]
 
     def outputs(self) -> None:
@@ -483,7 +595,7 @@ class _Derivation:
         self.func("energy", list(pre) + self.emit([("out[0]", d.kinetic),
                                                    ("out[1]", d.potential), ("out[2]", self.h)]))
         inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(
-            self.act, d.constraints, strict=True)]
+            self.act, d.constraints, strict=True)] + [c for _, c in d.velocity_constraints]
         if inv:
             self.func("invariants",
                       list(pre) + self.emit([(f"out[{i}]", e) for i, e in enumerate(inv)]))
@@ -499,9 +611,9 @@ class _Derivation:
             self.func("frames", list(pre) + self.emit(assign))
 
 
-def _derive(d: LagrangianBuilder, layout: ParameterLayout, st: Structure
-            ) -> tuple[str, tuple[str, ...], int]:
+def _derive(d: LagrangianBuilder, layout: ParameterLayout, st: Structure,
+            hamiltonian: bool = False) -> tuple[str, tuple[str, ...], int]:
     """The kernel module body, the contract functions it defines (those it leaves out are
     no-ops) and the number of parameter constants (in p after the efforts: ``layout`` places
     the parameters and efforts, ``ParameterLayout.constants`` the constants)."""
-    return _Derivation(d, layout, st).source()
+    return _Derivation(d, layout, st, hamiltonian).source()

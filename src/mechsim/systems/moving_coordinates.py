@@ -1,9 +1,9 @@
 """Free particle described in inertial, Galilean (co-moving) and uniformly accelerating
 coordinates: how E and h depend on the choice of coordinates.
 
-Sources: seed 000 S4 (E&H Part 3, "Case 1 – E ≠ h, both conserved", L358–395) and S5
-("Case 2 – E ≠ h, E conserved", L397–414); seed 002 §4 (particle in a linearly accelerated
-frame, L159–163, eq. 10.24 reconstructed in the catalog).
+Sources: “Energy and Hamiltonians: Part 3 – Examples” ("Case 1 – E ≠ h, both conserved", L358–395)
+and ("Case 2 – E ≠ h, E conserved", L397–414); Lecture 10, linearly accelerated frame (eq. 10.24)
+(particle in a linearly accelerated frame, L159–163, eq. 10.24 reconstructed in the catalog).
 
 Formulations (one coordinate each; all describe the same inertial motion x = x₀ + v₀t):
 - ``inertial``: x, L = ½ m ẋ²; E = h = ½ m v₀².
@@ -104,7 +104,7 @@ class MovingCoordinates(LagrangianModel):
     def time_scale(self) -> float:
         return 1.0
 
-    # --- analytic oracles (seed 000 S4–S5, corrected) ----------------------------------------
+    # --- analytic oracles (“Energy and Hamiltonians: Part 3 – Examples”, Cases 1–2, corrected) ----
     def energy(self) -> float:
         """E = ½ m v₀² in every formulation."""
         return 0.5 * self.value("mass") * self.value("initial_rate.x") ** 2

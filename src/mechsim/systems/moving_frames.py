@@ -1,6 +1,6 @@
 """Moving frames on the twisted cubic: VBN, RIC and Frenet–Serret, with their angular velocities.
 
-Source: seed 000 S14 "Moving Frames and the Twisted Cubic" (L893–981) and S15 "Minimal Frames"
+Source: “Moving Frames and the Twisted Cubic” (L893–981) and “Minimal Frames”
 (L983–1152). Prescribed kinematics: a point runs along r(u) = (u, u², u³) with the curve
 parameter u advancing at the constant rate u̇ (``initial_rate.curve_parameter``; the document
 identifies u with time, u̇ = 1, and plots u ∈ [−2, 2]). Nothing is integrated but u itself and

@@ -1,6 +1,6 @@
 """Particle sliding without friction inside the vertical paraboloid z = a r².
 
-Source: seed 002 §6 (Lecture 10, eqs. 10.31–10.36), the worked example of Lagrange's
+Source: Lecture 10 (eqs. 10.31–10.36), the worked example of Lagrange's
 undetermined multipliers: L = ½ m(ṙ² + r²φ̇² + ż²) − m g z with f = z − a r² = 0; the steady
 horizontal circle needs v₀ = r₀√(2ag), and "for total (conserved) energy E and (conserved)
 angular momentum J_z the Lagrange multiplier has the form" λ = (m g + 4aE + 8a³J_z²/m)/(1 + 4a²r²)².
@@ -102,7 +102,8 @@ class ParaboloidBead(LagrangianModel):
         return (*out, Visual("sphere", "particle", radius=0.05, color=(230, 120, 60)),
                 Visual("trail", "particle", color=(120, 170, 255)))
 
-    # --- analytic oracles (seed 002 §6, reconstructed and sympy-checked) --------------------
+    # --- analytic oracles (Lecture 10, particle inside a vertical paraboloid (eqs. 10.31–10.36),
+    # reconstructed and sympy-checked)
     def steady_rate(self) -> float:
         """φ̇ of the horizontal circle: φ̇² = 2ag (any r₀), so v₀ = r₀√(2ag)."""
         return math.sqrt(2 * self.value("paraboloid_coefficient") * self.value("gravity"))

@@ -1,6 +1,6 @@
 """Simple pendulum, reduced coordinates and Lagrange-multiplier form.
 
-Source: seed 000, S1 "Dynamical Systems and Constraints: Part 3 – Simple Pendulum" (L3–97).
+Source: “Dynamical Systems and Constraints: Part 3 – Simple Pendulum” (L3–97).
 
 Conventions (the document's are ambiguous or wrong here):
 - Axes follow REP-103: z up. The pendulum swings in the y–z plane of its ``pivot`` frame;
@@ -42,7 +42,7 @@ class Pendulum(LagrangianModel):
     id = "pendulum"
     title = "Simple pendulum (reduced, polar and Cartesian multiplier, small-angle forms)"
     source = "“Dynamical Systems and Constraints: Part 3 – Simple Pendulum” (blog post)"
-    formulations = ("reduced", "multiplier", "polar_multiplier", "small_angle")
+    formulations = ("reduced", "multiplier", "polar_multiplier", "small_angle", "hamiltonian")
     oracles = ("closed-form φ(t) (Jacobi sn, am; libration and rotation) = radau15; exact "
                "period 4√(R/g)K(k); tension mg(3cosφ − 2cosφ₀); polar and Cartesian λ = −T; "
                "forms agree; small angle: φ₀cos ω₀t, period 2π√(R/g) for every amplitude")

@@ -1,7 +1,8 @@
 """Planar isotropic harmonic oscillator, Cartesian and polar formulations.
 
-Sources: PHYS0500 §1.2 "Harmonic Oscillations in Two Dimensions" (lines 67–85) and seed 000 S6
-"Energy and Hamiltonians, Case 3 – E = h, both conserved: Planar SHO" (L416–470):
+Sources: PHYS0500 §1.2 "Harmonic Oscillations in Two Dimensions" (lines 67–85) and “Energy and
+Hamiltonians: Part 3 – Examples”, Case 3 "Energy and Hamiltonians, Case 3 – E = h, both conserved:
+Planar SHO" (L416–470):
 V = ½ k (x² + y²), m r̈ = −k r, L = ½ m (ṙ² + r²θ̇²) − ½ k r² in polar coordinates.
 
 Conventions: motion in the x–y plane of the ``center`` frame (world z up, right-handed, θ
@@ -103,7 +104,7 @@ class PlanarOscillator(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / self.natural_frequency()
 
-    # --- analytic oracles (PHYS0500 §1.2, seed 000 S6) ---------------------------------------
+    # --- analytic oracles (PHYS0500 §1.2, “Energy and Hamiltonians: Part 3 – Examples”, Case 3) ---
     def natural_frequency(self) -> float:
         """ω₀ = √(k/m)."""
         return math.sqrt(self.value("spring_constant") / self.value("mass"))

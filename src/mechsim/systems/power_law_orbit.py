@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -61,6 +62,9 @@ from mechsim.systems._central import (
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Law, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+if TYPE_CHECKING:
+    from mechsim.systems.curves import Curve
 
 
 class PowerLawOrbit(LagrangianModel):
@@ -291,6 +295,16 @@ class PowerLawOrbit(LagrangianModel):
         r0, K = self.circular_radius(), self.value("force_constant")
         return math.sqrt((self.exponent + 3.0) * K * r0 ** (self.exponent - 1.0)
                          / self.value("mass"))
+
+    def curves(self) -> tuple[Curve, ...]:
+        """U_eff(r) with the orbit's energy and its turning points (none where the orbit's
+        radial range cannot be found: a fall to the centre)."""
+        from mechsim.systems.curves import effective_potential
+
+        try:
+            return (effective_potential(self),)
+        except (ValueError, ArithmeticError):
+            return ()
 
 
 MODEL = PowerLawOrbit

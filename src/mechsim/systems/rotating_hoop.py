@@ -1,6 +1,6 @@
 """Pendulum (bead on a hoop) whose plane is forced to turn about the vertical at constant ω.
 
-Source: seed 002 §9 (Lecture 10, eqs. 10.49–10.50 and the multiplier remark L323–327): "the
+Source: Lecture 10 (eqs. 10.49–10.50 and the multiplier remark L323–327): "the
 plane of the pendulum is spun at constant angular velocity φ̇ = ω", the torque being "adjusted
 to give the constant rotation"; equivalently a bead on a frictionless hoop of radius l spinning
 about its vertical diameter.
@@ -103,7 +103,8 @@ class RotatingHoop(LagrangianModel):
                 Visual("sphere", "bead", radius=0.05, color=(230, 120, 60)),
                 Visual("trail", "bead", color=(120, 170, 255)))
 
-    # --- analytic oracles (seed 002 §9, sympy-checked) --------------------------------------
+    # --- analytic oracles (Lecture 10, spherical pendulum forced to rotate (eqs. 10.49–10.50),
+    # sympy-checked)
     def critical_speed(self) -> float:
         """ω_c = √(g/l): above it θ = 0 is unstable and the off-axis equilibrium appears."""
         return math.sqrt(self.value("gravity") / self.value("length"))

@@ -1,7 +1,8 @@
 """Mass on a spring driven round at a constant rate by a motor (constrained planar SHO).
 
-Source: seed 000 S7, E&H Part 3 "Case 4 – E ≠ h, h conserved" (L472–509): the rheonomic
-constraint θ̇ = ω, L = ½ m (ṙ² + r²ω²) − ½ k (r − ℓ₀)², E = ½ m (ṙ² + r²ω²) + ½ k (r − ℓ₀)²,
+Source: “Energy and Hamiltonians: Part 3 – Examples”, "Case 4 – E ≠ h, h conserved" (L472–509): the
+rheonomic constraint θ̇ = ω, L = ½ m (ṙ² + r²ω²) − ½ k (r − ℓ₀)², E = ½ m (ṙ² + r²ω²) + ½ k
+(r − ℓ₀)²,
 h_r = ½ m (ṙ² − r²ω²) + ½ k (r − ℓ₀)².
 
 Formulations:
@@ -102,7 +103,8 @@ class RotatingSpring(LagrangianModel):
     def time_scale(self) -> float:
         return 2 * math.pi / max(self.natural_frequency(), abs(self.value("angular_velocity")))
 
-    # --- analytic oracles (seed 000 S7, units made consistent) ------------------------------
+    # --- analytic oracles (“Energy and Hamiltonians: Part 3 – Examples”, Case 4, units made
+    # consistent)
     def natural_frequency(self) -> float:
         """ω₀ = √(k/m)."""
         return math.sqrt(self.value("spring_constant") / self.value("mass"))

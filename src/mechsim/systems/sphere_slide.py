@@ -1,8 +1,9 @@
 """Particle sliding off a fixed smooth sphere: a one-sided constraint that lets go.
 
-Source: seed 001 §1.1 (L159–167), the "particle rolling from the top of a sphere", the
-document's example of a constraint "expressed as an inequality". The document gives only the
-figure; the departure angle cos θ = 2/3 is the catalog's derived oracle.
+Source: Introduction to analytical mechanics, “Classification of constraints” (L159–167), the
+"particle rolling from the top of a sphere", the document's example of a constraint "expressed as an
+inequality". The document gives only the figure; the departure angle cos θ = 2/3 is the catalog's
+derived oracle.
 
 Model: a point mass on the outside of a fixed frictionless sphere of radius R, released near the
 top. The contact is one-sided, r ≥ R: the wall can push (normal force N ≥ 0) but not pull.

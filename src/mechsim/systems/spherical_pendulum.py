@@ -1,6 +1,6 @@
 """Spherical pendulum, free or driven by an applied torque G about the vertical.
 
-Source: seed 002 §8 (Lecture 10, eqs. 10.47–10.48): "a mass moving on the surface of a sphere
+Source: Lecture 10 (eqs. 10.47–10.48): "a mass moving on the surface of a sphere
 of radius l", θ from the down direction, φ the azimuth; L = ½ m l²(θ̇² + sin²θ φ̇²) + m g l cos θ
 and d/dt(m l² sin²θ φ̇) = G.
 

@@ -1,7 +1,7 @@
 """Spring (elastic) pendulum: a bob on a spring swinging in a vertical plane.
 
-Source: seed 001 §2.2 "Spring pendulum" (L630–669): spring length l + x, angle θ from the
-downward vertical, T = ½ m (ẋ² + (l + x)² θ̇²), V = −m g (l + x) cos θ + ½ k x².
+Source: Introduction to analytical mechanics, "Spring pendulum" (L630–669): spring length l + x,
+angle θ from the downward vertical, T = ½ m (ẋ² + (l + x)² θ̇²), V = −m g (l + x) cos θ + ½ k x².
 
 Formulations:
 - ``polar``: the document's coordinates (``extension`` x, ``angle`` θ).

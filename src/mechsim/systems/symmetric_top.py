@@ -1,7 +1,7 @@
 """Symmetric top: torque-free (gravity 0) and heavy (Lagrange's top), with one point fixed.
 
 Sources: PHYS0500 §7.6 (Euler angles), §7.8 (torque-free symmetric top), §7.8.1–7.8.2 (heavy
-symmetric top, steady precession, nutation); seed 002 §7 (Lecture 10, eqs. 10.37–10.46:
+symmetric top, steady precession, nutation); Lecture 10 (eqs. 10.37–10.46:
 Lagrange's top, Ω± from I₁cosθ Ω² − I₃ω₃Ω + MgR = 0, reality condition, slow/fast limits,
 the suspended top as a conical compound pendulum).
 
@@ -29,7 +29,7 @@ Formulations:
   f(u), catalog 003 §7.8.1 [SUPPLEMENT, not in the seeds; Goldstein §5.7]; φ, ψ by
   quadrature of their rates as Fourier series), except near the vertical.
 - ``euler_angles``: the Lagrangian L = ½I₁(θ̇² + φ̇² sin²θ) + ½I₃(ψ̇ + φ̇ cosθ)² − MgR cosθ
-  (PHYS0500 line 1874, seed 002 eq. 10.38) given to the engine; singular at sin θ = 0, so it
+  (PHYS0500 line 1874, Lecture 10, eq. 10.38) given to the engine; singular at sin θ = 0, so it
   refuses initial θ within 0.01 rad of 0 or π. Both publish the same invariants p_φ, p_ψ and
   observables, for comparison.
 
@@ -43,7 +43,7 @@ the roots of E′ = V(θ), not asymptotes of V (§7.8.2).
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -65,6 +65,9 @@ from mechsim.systems._rotation import euler_zxz_angles, euler_zxz_quat, quat_fro
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import FrameSpec, Model, Quantity, Visual
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+if TYPE_CHECKING:
+    from mechsim.systems.curves import Curve
 
 # --- quaternion-formulation kernels -----------------------------------------------------------
 # Index of cm_distance in p (the third numeric parameter, after the rigid-body block); the
@@ -413,7 +416,7 @@ class SymmetricTop(Model):
 
     def steady_precession_rates(self, theta: float | None = None,
                                 omega3: float | None = None) -> tuple[float, ...]:
-        """Real roots Ω of I₁cosθ Ω² − I₃ω₃Ω + MgR = 0 (seed 002 eq. 10.41), ascending.
+        """Real roots Ω of I₁cosθ Ω² − I₃ω₃Ω + MgR = 0 (Lecture 10, eq. 10.41), ascending.
 
         Empty when the reality condition I₃²ω₃² ≥ 4I₁MgR cosθ (10.42) fails.
         """
@@ -449,6 +452,16 @@ class SymmetricTop(Model):
         pphi, ppsi = self.momenta()
         th = np.asarray(theta, dtype=float)
         return (pphi - ppsi * np.cos(th)) ** 2 / (2 * I1 * np.sin(th) ** 2) + mgr * np.cos(th)
+
+    def curves(self) -> tuple[Curve, ...]:
+        """V(θ) with E′ and the nutation bounds where they meet (none where the bounds
+        cannot be found)."""
+        from mechsim.systems.curves import top_potential
+
+        try:
+            return (top_potential(self),)
+        except (ValueError, ArithmeticError):
+            return ()
 
     def nutation_bounds(self) -> tuple[float, float]:
         """Turning points θ₁ ≤ θ ≤ θ₂: roots u = cosθ in [−1, 1] of

@@ -1,7 +1,8 @@
 """Two bodies attracting each other in a uniform external field: the centre of mass falls as a
 free particle while the relative motion is the Kepler problem.
 
-Source: seed 001 §2.16 "Central force problem – with two body" (L1392–1695: Newton's equations
+Source: Introduction to analytical mechanics, "Central force problem – with two body" (L1392–1695:
+Newton's equations
 m₁r̈₁ = m₁g + F, m₂r̈₂ = m₂g − F, L1416–1485; the change to centre of mass and relative
 coordinates, L1486–1535; the Lagrangian, L1536–1595) with §2.17 (Kepler problem, L1697–1896).
 With R = (m₁r₁ + m₂r₂)/M and r = r₁ − r₂ (body 1 seen from body 2),
@@ -169,7 +170,8 @@ class TwoBodyField(LagrangianModel):
         _, _, r, v = self._state()
         return pericentre_time(self.value("force_constant") / self.reduced_mass(), r, v)
 
-    # --- analytic oracles (seed 001 §2.16–2.17) -----------------------------------------------
+    # --- analytic oracles (Introduction to analytical mechanics, “Central force problem – with two
+    # body”)
     def reduced_mass(self) -> float:
         """μ = m₁m₂/(m₁ + m₂)."""
         m1, m2 = self.value("mass_1"), self.value("mass_2")

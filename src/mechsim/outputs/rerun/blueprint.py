@@ -111,6 +111,8 @@ class _Plots:
             drifts = [self.plot(f"{st.ns}: invariant drifts", root, ["$origin/drift/**"])]
         diagnostics = sorted(f"/{e}" for e in entities
                              if f"/{e}".startswith(f"{root}/diagnostics/"))
+        curves = [rrb.Spatial2DView(name=title, origin=f"/{entity}")
+                  for entity, title in st.curves]
         return rrb.Vertical(
             self.plot(f"{st.ns}: energy [J]", f"{root}/energy",
                       entities=[f"{root}/energy/{t}" for t in ENERGY_TERMS]),
@@ -118,6 +120,7 @@ class _Plots:
             _row(values),
             self.plot(f"{st.ns}: diagnostics (0 OK … 3 STALE)", f"{root}/diagnostics",
                       entities=diagnostics, axis_y=rrb.ScalarAxis(range=(-0.2, 3.2))),
+            *([_row(curves)] if curves else []),
             name=st.ns)
 
 

@@ -44,6 +44,8 @@ class System:
     #: "<stream>/<name>" (state, invariants, drift, observables) -> unit, from the model: the
     #: blueprint draws one unit per plot
     units: dict[str, str] = field(default_factory=dict)
+    #: (entity, title) of each of the model's curves (``Model.curves``), drawn as 2D plots
+    curves: list[tuple[str, str]] = field(default_factory=list)
 
     def rebase(self) -> None:
         """A new epoch: drifts, the balance and trails start again."""
@@ -124,6 +126,40 @@ class World:
             return  # not a system this mechsim knows: transforms and plots only
         self._log_visuals(st, model)
         self._label_units(st, model)
+        self._log_curves(st, model)
+
+    def _log_curves(self, st: System, model: Any) -> None:
+        """The model's curves for these parameters, static under ``curves/<ns>/<curve>``: the
+        curve, each level as a horizontal line labelled with its value, and the points where
+        the curve meets it (the turning points)."""
+        import rerun as rr
+
+        root = path("curves", st.ns)
+        if st.curves:
+            self.rec.log(root, rr.Clear(recursive=True), static=True)
+        st.curves.clear()
+        for curve in model.curves():
+            x, y = np.asarray(curve.x, dtype=float), np.asarray(curve.y, dtype=float)
+            keep = np.isfinite(x) & np.isfinite(y)
+            if not keep.any():
+                continue
+            x, y = x[keep], y[keep]
+            base = path("curves", st.ns, curve.name)
+            title = (f"{st.ns}: {curve.y_label} [{curve.y_unit}] against {curve.x_label} "
+                     f"[{curve.x_unit}]")
+            self.rec.log(f"{base}/curve", rr.LineStrips2D(
+                [np.column_stack([x, y])], labels=[curve.y_label],
+                colors=[(60, 150, 255)]), static=True)
+            for k, level in enumerate(curve.levels):
+                label = f"{level.label} = {level.value:.6g} {curve.y_unit}"
+                self.rec.log(f"{base}/level_{k}", rr.LineStrips2D(
+                    [[[x[0], level.value], [x[-1], level.value]]], labels=[label],
+                    colors=[(255, 130, 30)]), static=True)
+                if level.crossings:
+                    self.rec.log(f"{base}/level_{k}/crossings", rr.Points2D(
+                        [[c, level.value] for c in level.crossings],
+                        colors=[(255, 130, 30)], radii=[-4.0]), static=True)
+            st.curves.append((base, title))
 
     def _label_plots(self, st: System, info: Any) -> None:
         import rerun as rr
