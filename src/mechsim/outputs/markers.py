@@ -15,7 +15,7 @@ instance's namespace (``Marker.ns``, ids in the order of ``visuals()``):
 A frame named "world" in a visual is the instance's origin. Every message is self-contained: a
 DELETEALL of the namespace first (RViz and Foxglove then hold exactly this system's current
 markers), then every visual, stamped with the sample. All messages of one model share one
-layout, so a block of samples is encoded at once (``outputs.cdr.Layout``: only the moving
+layout, so a block of samples is encoded at once (``outputs.wire.Layout``: only the moving
 points and the stamps change).
 """
 
@@ -30,7 +30,7 @@ from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from mechsim.outputs.cdr import Layout
+from mechsim.outputs.wire import Layout
 from mechsim.systems._rotation import quat_product, rotate
 from mechsim.systems.base import Model, Visual
 
