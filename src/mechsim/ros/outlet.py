@@ -290,6 +290,12 @@ class Outlet:
                                             channels[topic].qos, rows, message)
                                  for topic, rows, message in topics], columns, part)
 
+    @property
+    def in_flight(self) -> int:
+        """Samples published (lossless) that a reliable subscriber may not have acknowledged
+        yet, as last looked at."""
+        return self._in_flight
+
     def _make_room(self, samples: int) -> None:
         """Before ``samples`` more samples go out (lossless): if they would not fit in the
         publishers' history beside those in flight, wait until every reliable subscriber has
