@@ -12,7 +12,7 @@ import pytest
 
 import mechsim
 from mechsim.errors import IntegrationError
-from mechsim.integrators import make_stepper
+from mechsim.integrators import DOP853, StepLimitError, make_stepper
 from mechsim.integrators.state import Status
 from mechsim.params import number, positive
 from mechsim.systems import symmetric_top
@@ -103,10 +103,11 @@ def test_python_call_of_a_hand_written_kernel_matches_the_compiled_one() -> None
 
 
 def test_loops_return_the_shared_status() -> None:
-    """The status a loop returns is a ``Status`` member and its reason reaches the user."""
+    """The status a loop returns is a ``Status`` member; its reason reaches the user, in the
+    integration error of its own type."""
     model = mechsim.load_system("kepler")
-    st = make_stepper(model, "dop853", 1e-10)
-    st.max_steps = 3
-    with pytest.raises(IntegrationError, match=Status.MAX_STEPS.reason):
+    st = DOP853(model, model.initial_y(), 0.0, 1e-10, max_steps=3)
+    with pytest.raises(StepLimitError, match=Status.MAX_STEPS.reason) as e:
         st.advance(np.array([10.0]))
+    assert isinstance(e.value, IntegrationError)
     assert st.n_steps == 3

@@ -13,6 +13,7 @@ import sympy as sp
 from mechsim.integrators import make_stepper
 from mechsim.systems import load_system
 from mechsim.systems.lagrangian_kernels import _ParameterConstants
+from mechsim.systems.layout import ParameterLayout
 
 
 def _index(model, name: str) -> int:  # type: ignore[no-untyped-def]
@@ -59,7 +60,7 @@ def test_a_vector_of_another_layout_is_refused() -> None:
 def test_constants_are_taken_out_and_computed_with_ieee_arithmetic() -> None:
     a, b = sp.symbols("p_a p_b", real=True)
     x = sp.Symbol("x", real=True)
-    pc = _ParameterConstants({"a": a, "b": b}, {"a": 0, "b": 1}, 2)
+    pc = _ParameterConstants({"a": a, "b": b}, ParameterLayout(("a", "b")))
     expr = x * sp.sqrt(a) / b + sp.log(a - b) + sp.sin(x + a * b)
     hoisted = pc.hoist(expr)
     assert hoisted.free_symbols == {x, *pc.found.values()}  # no parameter read directly

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import mechsim
-from mechsim.integrators import loops, make_stepper
+from mechsim.integrators import Radau15, loops, make_stepper
 
 
 def test_nodes_are_gauss_radau() -> None:
@@ -153,8 +153,7 @@ def test_outputs_the_expansion_cannot_give_take_steps_of_their_own() -> None:
     R = make_stepper(model, "exact").advance(t)
     loose = make_stepper(model, "radau15", 1e-3)
     assert _relative(loose.advance(t), R, 2) > 1e-10  # the expansions alone would not do
-    st = make_stepper(model, "radau15", 1e-3)
-    st.dense_tolerance = 1e-10
+    st = Radau15(model, model.initial_y(), 0.0, 1e-3, dense_tolerance=1e-10)
     Y = st.advance(t)
     assert _relative(Y, R, 2) <= 1e-10
     assert 0 < st.n_side < t.size  # both ways taken
@@ -187,8 +186,7 @@ def test_events_located_on_steps_of_their_own() -> None:
     th0 = 0.3
     m = mechsim.load_system("sphere_slide", formulation="polar",
                             **{"initial.angle": th0, "initial_rate.angle": 0.0})
-    st = make_stepper(m, "radau15", 1e-12)
-    st.dense_tolerance = 0.0
+    st = Radau15(m, m.initial_y(), 0.0, 1e-12, dense_tolerance=0.0)
     st.advance(np.arange(1, 301) / 100.0)
     assert [name for _, name in st.events] == ["departure"] and st.n_side > 0
     y = make_stepper(m, "radau15", 1e-12).advance(np.array([st.events[0][0]]))[0]

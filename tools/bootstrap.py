@@ -356,11 +356,11 @@ def step_loops() -> Pending:
                                     f"i.precompile({part})"] for part in (0, 1)), env=env)
 
 
-#: What the compiled loops are made from (their cache key inside mechsim covers the same).
-LOOP_SOURCES = ("src/mechsim/integrators/kernels.py", "src/mechsim/integrators/state.py",
-                "src/mechsim/integrators/dop853_tableau.py", "src/mechsim/integrators/__init__.py",
-                "src/mechsim/codegen/__init__.py", "src/mechsim/codegen/contract.py",
-                "src/mechsim/codegen/support.py")
+#: What the compiled loops are made from (their cache key inside mechsim covers the same): the
+#: integrators package (the loops' fragments, the tableaus, the state records, the steppers)
+#: and the code generator, every module of both.
+LOOP_SOURCES = tuple(sorted(str(p.relative_to(ROOT)) for d in ("integrators", "codegen")
+                            for p in (ROOT / "src" / "mechsim" / d).rglob("*.py")))
 
 
 

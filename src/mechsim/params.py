@@ -87,23 +87,32 @@ class Parameter:
 
     def validate(self, value: Any) -> Value:
         """Return ``value`` converted to this parameter's type or raise ParameterError."""
-        name = self.name
-        kind = self.kind
-        if kind is bool:
-            if isinstance(value, bool):
-                return value
-            if isinstance(value, str) and value.lower() in ("true", "false"):
-                return value.lower() == "true"
-            raise ParameterError(name, f"must be true or false (got {shown(value)})")
-        if kind is str:
-            if not isinstance(value, str):
-                raise ParameterError(name, f"must be a string (got {shown(value)})")
-            if self.choices is not None and value not in self.choices:
-                raise ParameterError(
-                    name, f"must be one of {', '.join(self.choices)} (got {shown(value)})")
-            if self.choices is None:
-                check_text(name, value, MAX_TEXT)
+        if self.kind is bool:
+            return self._boolean(value)
+        if self.kind is str:
+            return self._text(value)
+        return self._within_range(self._number(value))
+
+    def _boolean(self, value: Any) -> bool:
+        if isinstance(value, bool):
             return value
+        if isinstance(value, str) and value.lower() in ("true", "false"):
+            return value.lower() == "true"
+        raise ParameterError(self.name, f"must be true or false (got {shown(value)})")
+
+    def _text(self, value: Any) -> str:
+        if not isinstance(value, str):
+            raise ParameterError(self.name, f"must be a string (got {shown(value)})")
+        if self.choices is not None and value not in self.choices:
+            raise ParameterError(
+                self.name, f"must be one of {', '.join(self.choices)} (got {shown(value)})")
+        if self.choices is None:
+            check_text(self.name, value, MAX_TEXT)
+        return value
+
+    def _number(self, value: Any) -> float | int:
+        """``value`` as a finite number of this parameter's type (a string is read as one)."""
+        name = self.name
         if isinstance(value, bool):
             raise ParameterError(name, f"must be a number (got {shown(value)})")
         if isinstance(value, str):
@@ -117,23 +126,28 @@ class Parameter:
             raise ParameterError(name, f"must be a number (got {shown(value)})")
         if isinstance(value, int) and not INT_MIN <= value <= INT_MAX:
             raise ParameterError(name, f"out of range (got {shown(value)})")
-        if kind is int:
-            if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
-                raise ParameterError(name, f"must be an integer (got {shown(value)})")
-            if isinstance(value, float) and not INT_MIN <= value <= INT_MAX:
-                raise ParameterError(name, f"out of range (got {shown(value)})")
-            number: float | int = int(value)
-        else:
-            number = float(value)
+        if self.kind is int:
+            return self._integer(value)
+        number = float(value)
         if not math.isfinite(number):
             raise ParameterError(name, f"must be finite (got {shown(value)})")
+        return number
+
+    def _integer(self, value: float | int) -> int:
+        if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
+            raise ParameterError(self.name, f"must be an integer (got {shown(value)})")
+        if isinstance(value, float) and not INT_MIN <= value <= INT_MAX:
+            raise ParameterError(self.name, f"out of range (got {shown(value)})")
+        return int(value)
+
+    def _within_range(self, number: float | int) -> float | int:
         lo, hi = self.minimum, self.maximum
         if lo is not None and (number < lo or (self.exclusive_minimum and number == lo)):
             op = ">" if self.exclusive_minimum else ">="
-            raise ParameterError(name, f"must be {op} {lo:g} (got {number:g})")
+            raise ParameterError(self.name, f"must be {op} {lo:g} (got {number:g})")
         if hi is not None and (number > hi or (self.exclusive_maximum and number == hi)):
             op = "<" if self.exclusive_maximum else "<="
-            raise ParameterError(name, f"must be {op} {hi:g} (got {number:g})")
+            raise ParameterError(self.name, f"must be {op} {hi:g} (got {number:g})")
         return number
 
     def check(self, value: Any, field: str) -> Value:

@@ -44,15 +44,15 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 from mechsim import files
-from mechsim.codegen.names import FUNCTIONS, HOT, SIZES
+from mechsim.codegen.names import ARGUMENTS, CONTRACT, FUNCTIONS, HOT, SIZES, KernelContract
 
 if TYPE_CHECKING:
     from mechsim.codegen.contract import KernelSet
 
-__all__ = ["FUNCTIONS", "HOT", "SIZES", "Kernels", "KernelSource", "build", "cache_clear",
-           "cache_dir", "cache_info", "decorator", "distribution_version", "fingerprint",
-           "load_module", "package_fingerprint", "recall", "remember", "source_fingerprint",
-           "write_atomic"]
+__all__ = ["ARGUMENTS", "FUNCTIONS", "HOT", "SIZES", "Kernels", "KernelSource", "build",
+           "cache_clear", "cache_dir", "cache_info", "decorator", "distribution_version",
+           "fingerprint", "load_module", "package_fingerprint", "recall", "remember",
+           "source_fingerprint", "write_atomic"]
 
 
 #: At most this many generated modules are kept; the least recently used go first.
@@ -132,7 +132,7 @@ def decorator(name: str) -> str:
     nan, which the loops report as a non-finite state, instead of raising inside a loop).
 
     Numba gives every compiled function two entry points besides its own: one for calls from
-    Python and one for calls through a function value; building them is about a third of
+    Python and one for calls through a function value; building them is much of the work of
     compiling a small kernel. A helper (any name outside the contract) is only called from
     the module's compiled code, so it gets neither; a ``HOT`` function is called from Python
     and through its pointer wrapper (``KernelSource.text``), so it gets no function-value
@@ -162,8 +162,6 @@ from mechsim.codegen.support import zero_matrix as _zero_matrix
 from mechsim.codegen.support import zero_vector as _zero_vector
 
 '''
-#: Arrays of each hot function's pointer wrapper (``contract.HOT``), by size constant.
-_POINTER_SIZES = {"rhs": ("N_Y", "N_P", "N_Y"), "canonical_rhs": ("N_Y", "N_P", "N_Y")}
 
 
 @dataclass
@@ -184,7 +182,7 @@ class KernelSource:
         for n in self.functions:
             if n in HOT:  # compiled as a C callback by Kernels when a loop needs it
                 a, b, c = (f"carray({x}, ({size},))" for x, size in zip(
-                    ("y", "p", "out"), _POINTER_SIZES[n], strict=True))
+                    ("y", "p", "out"), CONTRACT[n].pointer_sizes, strict=True))
                 wrappers.append(f"def _pointer_{n}(t, y, p, out):\n    {n}(t, {a}, {b}, {c})\n")
         pointers = ", ".join(f'"{n}": _pointer_{n}' for n in self.functions if n in HOT)
         return (_HEADER.format(name=self.name, key=key) + f"{consts}\n\n{self.body}\n\n"
@@ -192,10 +190,11 @@ class KernelSource:
                 f"POINTER_KERNELS = {{{pointers}}}\n")
 
 
-class Kernels:
+class Kernels(KernelContract):
     """A model's kernel functions (numba functions, callable from Python and compiled code,
-    see ``contract.py``), its sizes (``n_q``, ``n_y``, …) and, from ``kernel_set``, the
-    compiled record of both that the shared integrator loops take."""
+    see ``contract.py``), its sizes (``n_q``, ``n_y``, …; the attributes of ``KernelContract``)
+    and, from ``kernel_set``, the compiled record of both that the shared integrator loops
+    take."""
 
     def __init__(self, name: str, module: ModuleType) -> None:
         from mechsim.codegen import contract
@@ -252,28 +251,6 @@ class Kernels:
         ks = make_kernel_set({n: self._compile(n) for n in have}, self.sizes)
         self._sets[have] = ks
         return ks
-
-    # Typed views of the attributes set above (for readers and type checkers).
-    rhs: Callable[..., None]
-    project: Callable[..., None]
-    accel_q: Callable[..., None]
-    energy: Callable[..., None]
-    invariants: Callable[..., None]
-    observables: Callable[..., None]
-    frames: Callable[..., None]
-    event: Callable[..., None]
-    to_momenta: Callable[..., None]
-    from_momenta: Callable[..., None]
-    canonical_rhs: Callable[..., None]
-    n_q: int
-    n_y: int
-    n_c: int
-    n_inv: int
-    n_obs: int
-    n_frames: int
-    n_ev: int
-    n_mode: int
-    n_p: int
 
 
 def _import(modname: str, path: Path) -> ModuleType:

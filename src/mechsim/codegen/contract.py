@@ -24,7 +24,7 @@ work_dissipated, modes (N_MODE)]``):
 
 A module leaves out what it does not have; ``NOTHING`` gives the no-op for each name.
 
-The shared loops (``mechsim.integrators.kernels``) are compiled once per machine and are
+The shared loops (``mechsim.integrators.compiled``) are compiled once per machine and are
 generic over the model: they receive a ``KernelSet``, a numba structure holding the model's
 compiled functions as first-class function values (calls through them stay compiled, no
 Python in between) and the model's sizes. It is built once per kernel module and set of
@@ -32,8 +32,8 @@ needed functions (``make_kernel_set``; converting the functions costs about a mi
 and then passed to every loop call at the cost of one pointer. The functions called many times
 per step (``HOT``: the right-hand sides) are C callbacks taking raw pointers
 (``POINTER_SIGNATURE``, a wrapper around the array function that fixes the sizes): a call
-through a pointer costs about 1 ns more than an inlined call, a call of a numba function value
-with three array arguments about 5 ns more.
+through a pointer costs little more than an inlined call, and less than a call of a numba
+function value with array arguments.
 """
 
 from __future__ import annotations
@@ -42,10 +42,11 @@ import warnings
 
 from numba import cfunc, njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
+from numba.core.typing.templates import Signature
 from numba.experimental import structref
 
 from mechsim.codegen import support  # noqa: F401 - compiles the helpers kernels call
-from mechsim.codegen.names import FUNCTIONS, HOT, SIZES
+from mechsim.codegen.names import CONTRACT, FUNCTIONS, HOT, SIZES, Function
 
 # First-class function values are what keeps the loops generic and compiled; numba labels the
 # feature experimental, which is not news to the user at every compilation.
@@ -55,31 +56,16 @@ F8 = types.float64
 VEC = types.float64[::1]
 MAT = types.float64[:, ::1]
 
+
+def _signature(f: Function) -> Signature:
+    return types.none(F8, *(MAT if a in f.matrices else VEC for a in f.arguments[1:]))
+
+
 #: name -> numba signature of each kernel function.
-SIGNATURES: dict[str, types.Signature] = {
-    "rhs": types.none(F8, VEC, VEC, VEC),
-    "project": types.none(F8, VEC, VEC),
-    "accel_q": types.none(F8, VEC, VEC, VEC),
-    "energy": types.none(F8, VEC, VEC, VEC),
-    "invariants": types.none(F8, VEC, VEC, VEC),
-    "observables": types.none(F8, VEC, VEC, VEC),
-    "frames": types.none(F8, VEC, VEC, MAT),
-    "event": types.none(F8, VEC, VEC, VEC),
-    "to_momenta": types.none(F8, VEC, VEC, VEC),
-    "from_momenta": types.none(F8, VEC, VEC, VEC),
-    "canonical_rhs": types.none(F8, VEC, VEC, VEC),
-}
-assert tuple(SIGNATURES) == FUNCTIONS
+SIGNATURES: dict[str, Signature] = {n: _signature(f) for n, f in CONTRACT.items()}
 #: How the ``HOT`` functions are called from the loops: (t, y, p, out) as (float64, double*,
 #: double*, double*), sizes fixed by the model (``codegen.KernelSource`` writes the wrappers).
 POINTER_SIGNATURE = types.none(F8, types.CPointer(F8), types.CPointer(F8), types.CPointer(F8))
-#: Argument names of each kernel function (for generated source).
-ARGUMENTS: dict[str, str] = {
-    "rhs": "t, y, p, dy", "project": "t, y, p", "accel_q": "t, q, p, a",
-    "energy": "t, y, p, out", "invariants": "t, y, p, out", "observables": "t, y, p, out",
-    "frames": "t, y, p, out", "event": "t, y, p, out", "to_momenta": "t, y, p, z",
-    "from_momenta": "t, z, p, y", "canonical_rhs": "t, z, p, dz",
-}
 
 
 @njit(SIGNATURES["project"], cache=True)
@@ -103,9 +89,10 @@ def _nothing_pointers(t, y, p, out):  # type: ignore[no-untyped-def]
 
 
 #: The no-op standing in for each kernel function a module does not define (as the array
-#: function; ``NOTHING_POINTER`` is the pointer one for the ``HOT`` functions).
-NOTHING = {name: (_nothing_3 if name == "project" else _nothing_frames if name == "frames"
-                  else _nothing_4) for name in FUNCTIONS}
+#: function, the one of its signature; ``NOTHING_POINTER`` is the pointer one for the ``HOT``
+#: functions).
+_NO_OPS = {f.nopython_signatures[0]: f for f in (_nothing_3, _nothing_4, _nothing_frames)}
+NOTHING = {name: _NO_OPS[SIGNATURES[name]] for name in FUNCTIONS}
 NOTHING_POINTER = _nothing_pointers
 
 
@@ -132,14 +119,10 @@ KERNEL_SET = KernelSetType([*((name, field_type(name)) for name in FUNCTIONS),
                             *((s.lower(), types.int64) for s in SIZES)])
 
 
-@njit(KERNEL_SET(*(field_type(n) for n in FUNCTIONS), *(types.int64 for _ in SIZES)),
-      cache=True)
-def _new_kernel_set(rhs, project, accel_q, energy, invariants, observables, frames,
-                    event, to_momenta, from_momenta, canonical_rhs, n_q, n_y, n_c, n_inv,
-                    n_obs, n_frames, n_ev, n_mode, n_p):  # type: ignore[no-untyped-def]
-    return KernelSet(rhs, project, accel_q, energy, invariants, observables, frames, event,
-                     to_momenta, from_momenta, canonical_rhs, n_q, n_y, n_c, n_inv, n_obs,
-                     n_frames, n_ev, n_mode, n_p)
+@njit(KERNEL_SET(types.Tuple([field_type(n) for n in FUNCTIONS]),
+                 types.UniTuple(types.int64, len(SIZES))), cache=True)
+def _new_kernel_set(functions, sizes):  # type: ignore[no-untyped-def]
+    return KernelSet(*functions, *sizes)
 
 
 def make_kernel_set(functions: dict[str, object], sizes: dict[str, int]) -> KernelSet:
@@ -150,4 +133,7 @@ def make_kernel_set(functions: dict[str, object], sizes: dict[str, int]) -> Kern
     if unknown:
         raise ValueError(f"not kernel functions: {', '.join(sorted(unknown))}")
     chosen = [functions.get(n, NOTHING_POINTER if n in HOT else NOTHING[n]) for n in FUNCTIONS]
-    return _new_kernel_set(*chosen, *(int(sizes[s]) for s in SIZES))  # type: ignore[no-any-return]
+    with warnings.catch_warnings():  # (a caller's filters may have brought it back)
+        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+        return _new_kernel_set(  # type: ignore[no-any-return]
+            tuple(chosen), tuple(int(sizes[s]) for s in SIZES))

@@ -3,7 +3,7 @@ allocation, a residual test).
 
 Kernel code calls these rather than numpy's functions (``np.empty``, ``np.max``, ...): numba
 compiles its own implementation of a numpy function anew in every process that compiles a
-caller (up to a second for ``np.max``), while these are compiled once per machine and loaded
+caller, while these are compiled once per machine and loaded
 from numba's cache, so a new model's kernels compile without them. Same arithmetic and the
 same arrays as the numpy calls they stand for. The allocators have explicit signatures: a
 size written as a literal in kernel code converts to them (without, numba would compile one

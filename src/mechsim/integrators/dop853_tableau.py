@@ -158,20 +158,22 @@ def stages_source(name: str, doc: str, nodes: np.ndarray, stages: np.ndarray,
 
 def loop_source() -> str:
     """The step's stage sums as straight-line numba source (coefficients as literals, zero
-    entries left out): about 15 % faster than loops over the dense tableau. The shared loops
-    module (``kernels.py``) is built with this text in place of its stubs."""
+    entries left out, faster than loops over the dense tableau). The shared loops' module is
+    joined with this text in place of the stand-ins of ``mechsim.integrators.compiled.stages``;
+    the sums of a component are inlined into the loop, the stages (each with its calls of the
+    model) are functions of their own."""
     out = stages_source("_dop853_stages",
                         "Stages 2 … 12 from (t0, y0) into K[1 … 11]; ytmp ends as stage 12's y.",
                         NODES, STAGES, range(1, N_STAGES))
     out += stages_source("_dop853_dense_stages",
                          "Stages 14 … 16 (dense output only) into K[13 … 15].",
                          NODES, STAGES, range(N_STAGES + 1, N_STAGES_EXTENDED))
-    out += ["@njit(cache=True, error_model=\"numpy\")", "def _dop853_increment(K, i):",
+    out += ["@njit(inline=\"always\")", "def _dop853_increment(K, i):",
             '    """(Σ b_j k_j, Σ E5_j k_j, Σ E3_j k_j) of component i."""',
             f"    return ({stage_sum(WEIGHTS, range(N_STAGES))}, "
             f"{stage_sum(ERROR_5, range(N_STAGES + 1))}, "
             f"{stage_sum(ERROR_3, range(N_STAGES + 1))})"]
-    out += ["", "", "@njit(cache=True, error_model=\"numpy\")", "def _dop853_dense_sums(K, i):",
+    out += ["", "", "@njit(inline=\"always\")", "def _dop853_dense_sums(K, i):",
             '    """Σ_j D[r][j] k_j of component i, r = 0 … 3."""',
             "    return (" + ", ".join(stage_sum(DENSE[r], range(N_STAGES_EXTENDED))
                                      for r in range(4)) + ")"]

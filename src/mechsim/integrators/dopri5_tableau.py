@@ -80,14 +80,14 @@ def loop_source() -> str:
     # (not there yet: the loop adds it, ``_dopri5_error_fsal``). The third sum is DOP853's
     # 3rd-order estimate, absent here: with it zero, DOP853's error norm
     # e₅² / √(e₅² + 0.01 e₃²) is the plain norm e₅ of DOPRI5.
-    out += ["@njit(cache=True, error_model=\"numpy\")", "def _dopri5_increment(K, i):",
+    out += ["@njit(inline=\"always\")", "def _dopri5_increment(K, i):",
             '    """(Σ b_j k_j, Σ_{j<7} E_j k_j, 0) of component i."""',
             f"    return ({stage_sum(WEIGHTS, range(N_STAGES))}, "
             f"{stage_sum(ERROR, range(N_STAGES))}, 0.0)", "", "",
-            "@njit(cache=True, error_model=\"numpy\")", "def _dopri5_error_fsal(K, i):",
+            "@njit(inline=\"always\")", "def _dopri5_error_fsal(K, i):",
             '    """E_7 k_7 of component i (k_7: f at the new point)."""',
             f"    return {stage_sum(ERROR, range(N_STAGES, N_STAGES_FSAL))}"]
-    out += ["", "", "@njit(cache=True, error_model=\"numpy\")", "def _dopri5_dense_sum(K, i):",
+    out += ["", "", "@njit(inline=\"always\")", "def _dopri5_dense_sum(K, i):",
             '    """Σ_j D_j k_j of component i."""',
             f"    return {stage_sum(DENSE, range(N_STAGES_FSAL))}"]
     return "\n".join(out) + "\n"

@@ -1,36 +1,21 @@
 """What a stepper needs of a model: the protocol the integrators define and every system
-satisfies. The integrators never import the physics layer; they see a model through this."""
+satisfies. The integrators never import the physics layer; they see a model through this, and
+its compiled kernels through the kernel contract (``mechsim.codegen.names.KernelContract``)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any, Protocol
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from mechsim.codegen import Kernels
 
 
 class StructureLike(Protocol):
     separable: bool  # H = T(p) + V(q): compositions of velocity Verlet apply
-
-
-class KernelsLike(Protocol):
-    """A model's compiled kernels (``mechsim.codegen.Kernels``): the functions of the kernel
-    contract (``mechsim.codegen.contract``), its sizes, and ``kernel_set(*needed)``, the
-    compiled record of both that the shared loops take."""
-
-    rhs: Callable[..., None]
-    project: Callable[..., None]
-    accel_q: Callable[..., None]
-    energy: Callable[..., None]
-    event: Callable[..., None]
-    to_momenta: Callable[..., None]
-    from_momenta: Callable[..., None]
-    canonical_rhs: Callable[..., None]
-    n_q: int
-    n_y: int
-    n_ev: int
-
-    def kernel_set(self, *needed: str) -> Any: ...
+    dissipative: bool  # a Rayleigh function acts: errors decay, damping may be stiff
 
 
 class SteppableModel(Protocol):
@@ -39,7 +24,7 @@ class SteppableModel(Protocol):
     coordinates: Sequence[Any]
     events: Sequence[Any]
     structure: StructureLike
-    kernels: KernelsLike
+    kernels: Kernels
 
     def parameter_vector(self) -> np.ndarray: ...
     def complete_parameters(self, p: np.ndarray) -> np.ndarray: ...

@@ -31,7 +31,7 @@ class Status(IntEnum):
 
 
 class Pair(IntEnum):
-    """The explicit Runge–Kutta pair the shared loop (``kernels._erk_advance``) steps with."""
+    """The explicit Runge–Kutta pair the shared loop (``compiled.erk._erk_advance``) steps with."""
 
     DOP853 = 0
     DOPRI5 = 1

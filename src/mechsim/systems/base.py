@@ -5,7 +5,9 @@ observables, the frames it poses, the conservation laws that hold for it, and a 
 module (see ``mechsim.codegen``) with the numeric functions the integrators and outputs call.
 State layout everywhere: ``y = [q (n), v = q̇ (n), work_external, work_dissipated]``, followed
 by the model's discrete mode entries, if it declares any (``modes``; see ``Event``); one helper,
-``StateLayout`` (``Model.layout``), says where each part sits. A ``Law`` owns the meaning of
+``StateLayout`` (``Model.layout``), says where each part sits, and ``ParameterLayout``
+(``Model.parameter_layout``) where each part of the kernels' parameter vector does (both in
+``layout``). A ``Law`` owns the meaning of
 each conservation law (value, drift, scale, thresholds).
 """
 
@@ -20,6 +22,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 
 from mechsim.params import Parameter, Value, resolve
+from mechsim.systems.layout import ParameterLayout, StateLayout
 
 if TYPE_CHECKING:
     from mechsim.codegen import Kernels
@@ -214,52 +217,6 @@ class Law:
         if not math.isfinite(drift) or drift >= error:
             return 2
         return 1 if drift >= warn else 0
-
-
-@dataclass(frozen=True)
-class StateLayout:
-    """Where each part of the state vector sits:
-    ``y = [q (n), v = q̇ (n), work_external, work_dissipated, modes (n_modes)]``.
-
-    The index attributes work on one state ``y[layout.q]`` and, with ``[..., index]``, on rows
-    of states ``Y[..., layout.q]``; :meth:`compose` builds a state.
-    """
-
-    n: int
-    n_modes: int = 0
-
-    @property
-    def size(self) -> int:
-        return 2 * self.n + 2 + self.n_modes
-
-    @property
-    def q(self) -> slice:
-        return slice(0, self.n)
-
-    @property
-    def v(self) -> slice:
-        return slice(self.n, 2 * self.n)
-
-    @property
-    def work_external(self) -> int:
-        return 2 * self.n
-
-    @property
-    def work_dissipated(self) -> int:
-        return 2 * self.n + 1
-
-    @property
-    def modes(self) -> slice:
-        return slice(2 * self.n + 2, self.size)
-
-    def compose(self, q: Any, v: Any, work_external: float = 0.0, work_dissipated: float = 0.0,
-                modes: Any = ()) -> np.ndarray:
-        y = np.concatenate([np.asarray(q, dtype=np.float64), np.asarray(v, dtype=np.float64),
-                            [work_external, work_dissipated],
-                            np.asarray(modes, dtype=np.float64)]).astype(np.float64)
-        if y.size != self.size:
-            raise ValueError(f"state of size {y.size}, layout needs {self.size}")
-        return y
 
 
 @dataclass(frozen=True)
@@ -500,8 +457,15 @@ class Model(ABC):
         return p
 
     def _make_parameter_vector(self) -> np.ndarray:
-        return np.array([float(self.values[p.name]) for p in self.parameter_spec()  # type: ignore[arg-type]
-                         if p.is_numeric], dtype=np.float64)
+        """The numeric parameters' values, in the order of ``parameter_layout.parameters``."""
+        return np.array([float(self.values[name])  # type: ignore[arg-type]
+                         for name in self.parameter_layout.parameters], dtype=np.float64)
+
+    @property
+    def parameter_layout(self) -> ParameterLayout:
+        """Where each parameter sits in the kernels' parameter vector (default: the numeric
+        parameters in the order of ``parameter_spec``, nothing else)."""
+        return ParameterLayout(tuple(p.name for p in self.parameter_spec() if p.is_numeric))
 
     @property
     def layout(self) -> StateLayout:

@@ -77,10 +77,11 @@ MAX_CONSTANT_EXPONENT = 100.0  # |n| of x**n when n is a constant
 _BINARY: dict[type, Callable[[float, float], float]] = {
     ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
     ast.Div: operator.truediv, ast.Pow: operator.pow}
-_MATH = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
-         "sqrt": math.sqrt, "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh,
-         "atan": math.atan, "asin": math.asin, "acos": math.acos, "asinh": math.asinh,
-         "acosh": math.acosh, "atanh": math.atanh, "abs": abs}
+_MATH: dict[str, Callable[[float], float]] = {
+    "sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
+    "sqrt": math.sqrt, "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh,
+    "atan": math.atan, "asin": math.asin, "acos": math.acos, "asinh": math.asinh,
+    "acosh": math.acosh, "atanh": math.atanh, "abs": abs}
 
 
 def _bounded(node: ast.AST, text: str, depth: int = 0, powers: int = 0) -> float | None:
@@ -90,56 +91,64 @@ def _bounded(node: ast.AST, text: str, depth: int = 0, powers: int = 0) -> float
     if depth > MAX_CURVE_DEPTH:
         raise ParameterError("curve", f"nested deeper than {MAX_CURVE_DEPTH} levels")
     try:
-        if isinstance(node, ast.Expression):
-            return _bounded(node.body, text, depth, powers)
-        if isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
-                and not isinstance(node.value, bool):
-            if abs(node.value) > MAX_LITERAL:
-                raise ParameterError("curve", f"number {node.value:g} larger than "
-                                     f"{MAX_LITERAL:g} in magnitude")
-            return float(node.value)
-        if isinstance(node, ast.Name):
-            if node.id == "x":
-                return None
-            if node.id in ("pi", "E"):
-                return math.pi if node.id == "pi" else math.e
-        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.UAdd | ast.USub):
-            v = _bounded(node.operand, text, depth + 1, powers)
-            return None if v is None else (-v if isinstance(node.op, ast.USub) else v)
-        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
-            if isinstance(node.op, ast.Pow):
-                powers += 1
-                if powers > MAX_POWER_DEPTH:
-                    raise ParameterError("curve", f"powers nested more than "
-                                         f"{MAX_POWER_DEPTH} deep")
-                if any(isinstance(n, ast.BinOp) and isinstance(n.op, ast.Pow)
-                       for n in ast.walk(node.right)):
-                    raise ParameterError("curve", "a power in an exponent (a**b**c) is not "
-                                         "allowed")
-            a = _bounded(node.left, text, depth + 1, powers)
-            b = _bounded(node.right, text, depth + 1, powers)
-            if isinstance(node.op, ast.Pow) and b is not None \
-                    and abs(b) > MAX_CONSTANT_EXPONENT:
-                raise ParameterError("curve", f"exponent {b:g} larger than "
-                                     f"{MAX_CONSTANT_EXPONENT:g} in magnitude")
-            if a is None or b is None:
-                return None
-            value = _BINARY[type(node.op)](a, b)
-        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
-                and node.func.id in _MATH and len(node.args) == 1 and not node.keywords:
-            v = _bounded(node.args[0], text, depth + 1, powers)
-            if v is None:
-                return None
-            value = _MATH[node.func.id](v)
-        else:
-            raise ParameterError("curve", f"cannot read {text!r} as an expression in x")
+        value = _node_value(node, text, depth, powers)
     except (OverflowError, ZeroDivisionError, ValueError, TypeError) as e:
         if isinstance(e, ParameterError):
             raise
         raise ParameterError("curve", "a constant part is not a finite real number") from None
+    if value is None:
+        return None
     if not (isinstance(value, float | int) and math.isfinite(value)):
         raise ParameterError("curve", "a constant part is not a finite real number")
     return float(value)
+
+
+#: The names a curve may use, and their values (None: the variable).
+_NAMES: dict[str, float | None] = {"x": None, "pi": math.pi, "E": math.e}
+
+
+def _node_value(node: ast.AST, text: str, depth: int, powers: int) -> Any:
+    """The value of ``node`` (see ``_bounded``; not yet checked to be finite and real)."""
+    if isinstance(node, ast.Expression):
+        return _bounded(node.body, text, depth, powers)
+    if isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
+            and not isinstance(node.value, bool):
+        if abs(node.value) > MAX_LITERAL:
+            raise ParameterError("curve", f"number {node.value:g} larger than "
+                                 f"{MAX_LITERAL:g} in magnitude")
+        return float(node.value)
+    if isinstance(node, ast.Name) and node.id in _NAMES:
+        return _NAMES[node.id]
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.UAdd | ast.USub):
+        v = _bounded(node.operand, text, depth + 1, powers)
+        return None if v is None else (-v if isinstance(node.op, ast.USub) else v)
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+        return _binary_value(node, text, depth, powers)
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+            and node.func.id in _MATH and len(node.args) == 1 and not node.keywords:
+        v = _bounded(node.args[0], text, depth + 1, powers)
+        return None if v is None else _MATH[node.func.id](v)
+    raise ParameterError("curve", f"cannot read {text!r} as an expression in x")
+
+
+def _binary_value(node: ast.BinOp, text: str, depth: int, powers: int) -> Any:
+    """The value of a binary operation (see ``_bounded``), its powers bounded."""
+    power = isinstance(node.op, ast.Pow)
+    if power:
+        powers += 1
+        if powers > MAX_POWER_DEPTH:
+            raise ParameterError("curve", f"powers nested more than {MAX_POWER_DEPTH} deep")
+        if any(isinstance(n, ast.BinOp) and isinstance(n.op, ast.Pow)
+               for n in ast.walk(node.right)):
+            raise ParameterError("curve", "a power in an exponent (a**b**c) is not allowed")
+    a = _bounded(node.left, text, depth + 1, powers)
+    b = _bounded(node.right, text, depth + 1, powers)
+    if power and b is not None and abs(b) > MAX_CONSTANT_EXPONENT:
+        raise ParameterError("curve", f"exponent {b:g} larger than "
+                             f"{MAX_CONSTANT_EXPONENT:g} in magnitude")
+    if a is None or b is None:
+        return None
+    return _BINARY[type(node.op)](a, b)
 
 
 def parse_curve(text: str) -> sp.Expr:

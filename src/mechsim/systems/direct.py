@@ -12,9 +12,9 @@ under the names the kernel module gives them (``_vector``, ``_matrix``, ``_tenso
 ``_zero_vector``, ``_zero_matrix``, ``_solve``, …; import them under the same names). Allocating
 through these rather than ``np.empty``/``np.zeros`` spares each new model's compilation numba's
 own implementation of those, an element loop instead of a slice assignment
-``a[i, :] = b[j, :]`` spares it the shape check's error path (about two seconds), and products
+``a[i, :] = b[j, :]`` spares it the shape check's error path, and products
 instead of integer powers (``x * x`` for ``x ** 2``: the value numba computes for it) its
-compiled power subroutine (0.1 s). Missing contract functions do nothing.
+compiled power subroutine. Missing contract functions do nothing.
 
 The functions stay callable from Python too, with the constants of their own module. So that
 both agree, every upper-case constant a kernel function reads must be defined with the same
@@ -30,11 +30,13 @@ from __future__ import annotations
 import inspect
 import textwrap
 from collections.abc import Callable
+from dataclasses import replace
 from functools import cached_property
 from typing import ClassVar
 
 from mechsim import codegen
 from mechsim.systems.base import Model
+from mechsim.systems.layout import ParameterLayout
 
 
 class KernelContractError(ValueError):
@@ -73,16 +75,20 @@ class DirectModel(Model):
         """Constants of the kernel module besides the sizes and parameter indices."""
         return {}
 
+    @property
+    def parameter_layout(self) -> ParameterLayout:
+        """The derived block (``parameter_offset`` entries), then the numeric parameters."""
+        return replace(super().parameter_layout, offset=self.parameter_offset())
+
     def kernel_source(self) -> codegen.KernelSource:
-        numeric = [p.name for p in self.parameter_spec() if p.is_numeric]
-        offset = self.parameter_offset()
+        layout = self.parameter_layout
         n = len(self.coordinates)
         constants: dict[str, int | float] = {
             "N_Q": n, "N_Y": 2 * n + 2 + len(self.modes), "N_C": self.structure.n_constraints,
             "N_INV": len(self.invariants), "N_OBS": len(self.observables),
             "N_FRAMES": len(self.frames), "N_EV": len(self.events), "N_MODE": len(self.modes),
-            "N_P": offset + len(numeric)}
-        constants.update({parameter_constant(name): offset + i for i, name in enumerate(numeric)})
+            "N_P": layout.size}
+        constants.update({parameter_constant(name): i for name, i in layout.indices().items()})
         constants.update(self.kernel_constants())
         self._check_constants(constants)
         parts = []

@@ -8,8 +8,9 @@ that declaration sympy derives, once per declaration (the generated module is ca
   + u, so that M q̈ = f + Gᵀλ, with G = ∂g/∂q and G q̈ = −γ (the constraints differentiated
   twice). u is the *effort*: one generalized force per coordinate (N for a length, N·m for an
   angle) applied from outside at run time, read from the parameter vector after the numeric
-  parameters (``LagrangianModel.effort_slice``; zero unless a caller sets it, as the simulator
-  node does from its ``effort`` topic); it enters only the right-hand side (``accel``,
+  parameters (``ParameterLayout.efforts``, ``LagrangianModel.effort_slice``; zero unless a
+  caller sets it, as the simulator node does from its ``effort`` topic); it enters only the
+  right-hand side (``accel``,
   ``rhs``): the separable and canonical forms, for the symplectic methods, leave it out;
 - the energy function h = Σ q̇ ∂L/∂q̇ − L;
 - the power balance: dissipated power P_d = Σ q̇ ∂D/∂q̇, and the external power
@@ -19,7 +20,8 @@ that declaration sympy derives, once per declaration (the generated module is ca
 - constraint projection, invariants, observables (which may use the multipliers λ) and frames;
 - the *parameter constants*: every subexpression of these that depends on the parameters alone
   (ω = √(G(m₁ + m₂)/L³), L/M, …) is computed once per parameter vector, into slots after the
-  efforts (``_ParameterConstants``), instead of at every call of a kernel;
+  efforts (``_ParameterConstants``, ``ParameterLayout.constants``), instead of at every call of
+  a kernel;
 - state events (``b.event``: a sign change of an expression, which may use λ) with discrete
   modes (``b.mode``: extra state entries an expression may switch on, e.g. a constraint that is
   active only in contact, ``b.constraint(name, g, active=...)``); the model handles each event
@@ -33,7 +35,8 @@ reads its shape and structure (coordinates, invariants, frames, events, modes, s
 canonical form) and the derivation key of its kernels from a *summary*: made from the
 declaration the first time a class is built with these parameter values and this code, then
 recalled from the cache (``codegen.recall``), so that a model derived before is set up without
-importing sympy (``_symbolic``): a third of the CPU of a warm ``mechsim run``.
+importing sympy (``_symbolic``), which would otherwise be much of the CPU of a warm
+``mechsim run``.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ from mechsim import codegen
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Event, FrameSpec, Law, Model, Quantity, Structure
 from mechsim.systems.declaration import LagrangianBuilder
+from mechsim.systems.layout import ParameterLayout
 
 #: Part of every derivation's cache key, with the source text of this module, of
 #: ``declaration`` (what a system declares) and of ``lagrangian_kernels`` (the derivation): any
@@ -199,21 +203,29 @@ class LagrangianModel(Model):
         return codegen.build(f"{self.id}_{self.formulation}", self._summary["derivation_key"],
                              self.kernel_source)
 
-    def _param_index(self) -> dict[str, int]:
-        numeric = [p.name for p in self.parameter_spec() if p.is_numeric]
-        return {name: i for i, name in enumerate(numeric)}
+    def _declared_layout(self, n_coordinates: int) -> ParameterLayout:
+        """The numeric parameters and the efforts on ``n_coordinates`` coordinates: what the
+        derivation is given (the parameter constants it takes out follow them)."""
+        return ParameterLayout(super().parameter_layout.parameters, n_efforts=n_coordinates)
+
+    @cached_property
+    def parameter_layout(self) -> ParameterLayout:
+        """The numeric parameters, the efforts and the parameter constants (as many as the
+        derivation took out: the rest of the kernels' ``N_P``)."""
+        declared = self._declared_layout(len(self.coordinates))
+        return declared.with_constants(self.kernels.n_p - declared.size)
 
     def effort_slice(self) -> slice:
         """Where the effort u (one generalized force per coordinate) sits in the parameter
         vector: after the numeric parameters. Not a parameter of the system: no name, no
         range, not in ``parameter_spec`` (so not a ROS or scene parameter)."""
-        start = len(self._param_index())
-        return slice(start, start + len(self.coordinates))
+        return self._declared_layout(len(self.coordinates)).efforts
 
     def _make_parameter_vector(self) -> np.ndarray:
         """The numeric parameters, the efforts (zero) and the parameter constants."""
-        p = super()._make_parameter_vector()
-        return self.complete_parameters(np.concatenate([p, np.zeros(self.kernels.n_p - p.size)]))
+        p = np.zeros(self.parameter_layout.size)
+        p[self.parameter_layout.values] = super()._make_parameter_vector()
+        return self.complete_parameters(p)
 
     def complete_parameters(self, p: np.ndarray) -> np.ndarray:
         """``p`` (a copy) with its parameter constants computed afresh from its parameters."""
@@ -230,7 +242,8 @@ class LagrangianModel(Model):
         return codegen.fingerprint(
             GENERATOR_VERSION, GENERATOR_SOURCE, codegen.distribution_version("sympy"),
             type(self).__qualname__,
-            self.declaration_version, self.formulation, sorted(self._param_index().items()),
+            self.declaration_version, self.formulation,
+            sorted(self._declared_layout(len(d.q)).indices().items()),
             [(c.name, c.unit) for c in d.coords],
             sp.srepr(d.kinetic), sp.srepr(d.potential), sp.srepr(d.rayleigh),
             sp.srepr(d.linear), [sp.srepr(f) for f in d.forces],
@@ -243,18 +256,19 @@ class LagrangianModel(Model):
             [q.name for q in d.modes], sorted((k, sp.srepr(v)) for k, v in d.params.items()))
 
     def kernel_source(self) -> codegen.KernelSource:
-        """Derive the kernel functions (sympy; about a second for most systems)."""
+        """Derive the kernel functions (sympy: the slow part of a model's first run)."""
         from mechsim.systems.lagrangian_kernels import _derive
 
         d = self.declaration
-        body, functions, n_constants = _derive(d, self._param_index(), self.structure)
+        layout = self._declared_layout(len(d.q))
+        body, functions, n_constants = _derive(d, layout, self.structure)
         n = len(d.q)
         return codegen.KernelSource(
             name=f"{self.id}_{self.formulation}", functions=functions, body=body, constants={
                 "N_Q": n, "N_Y": 2 * n + 2 + len(d.modes), "N_C": len(d.constraints),
                 "N_INV": len(self.invariants), "N_OBS": len(self.observables),
                 "N_FRAMES": len(d.frames), "N_EV": len(d.events), "N_MODE": len(d.modes),
-                "N_P": self.effort_slice().stop + n_constants})
+                "N_P": layout.with_constants(n_constants).size})
 
     def laws(self) -> tuple[Law, ...]:
         laws = list(super().laws())

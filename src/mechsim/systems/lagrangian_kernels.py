@@ -18,8 +18,9 @@ from sympy.printing.precedence import PRECEDENCE
 from sympy.printing.pycode import PythonCodePrinter
 
 from mechsim import codegen
-from mechsim.codegen import FUNCTIONS
+from mechsim.codegen import ARGUMENTS, FUNCTIONS
 from mechsim.systems.base import Structure
+from mechsim.systems.layout import ParameterLayout
 
 if TYPE_CHECKING:
     from sympy import Expr
@@ -34,7 +35,7 @@ def _binary_power(base: str, n: int) -> str:
     """``base**n`` (n ≥ 1) written out as the products numba evaluates for it: repeated
     squaring, the powers of the set bits of n multiplied in increasing order (numba's
     ``int_power``), so the value is the same to the last bit. Numba compiles ``int_power`` as
-    a subroutine in every process that compiles a kernel using ``**`` (about 0.1 s)."""
+    a subroutine in every process that compiles a kernel using ``**``."""
     result = ""
     square = base
     while n:
@@ -77,17 +78,15 @@ _CONSTANT_FUNCTIONS = (sp.sin, sp.cos, sp.tan, sp.asin, sp.acos, sp.atan, sp.ata
 class _ParameterConstants:
     """The parameter constants of one derivation: subexpressions of the kernels in the
     parameters and numbers alone, each replaced by a symbol ``pc_<i>`` that the kernels load
-    from ``p[first + i]`` like a parameter. The kernel module's ``parameter_constants(p)``
+    from ``p[layout.constant(i)]`` like a parameter. The kernel module's ``parameter_constants(p)``
     (plain Python on numpy scalars, so the same IEEE results as the compiled kernels: a
     division by zero gives inf, not an exception) fills those slots from the parameters;
     ``LagrangianModel.complete_parameters`` calls it for every parameter vector."""
 
-    def __init__(self, params: dict[str, sp.Symbol], pindex: dict[str, int], first: int
-                 ) -> None:
+    def __init__(self, params: dict[str, sp.Symbol], layout: ParameterLayout) -> None:
         self.params = params
-        self.pindex = pindex
+        self.layout = layout
         self.symbols = set(params.values())
-        self.first = first
         self.found: dict[Expr, sp.Symbol] = {}
         self._pure: dict[Expr, bool] = {}
 
@@ -124,7 +123,8 @@ class _ParameterConstants:
         return e.func(*[self.hoist(a) for a in e.args])
 
     def loads(self) -> list[str]:
-        return [f"    {s.name} = p[{self.first + i}]" for i, s in enumerate(self.found.values())]
+        return [f"    {s.name} = p[{self.layout.constant(i)}]"
+                for i, s in enumerate(self.found.values())]
 
     def source(self) -> str:
         """``parameter_constants(p)``: fills p[first:] from the parameters, in place."""
@@ -132,9 +132,9 @@ class _ParameterConstants:
         lines = ["def parameter_constants(p):",
                  '    """The parameter constants (``_ParameterConstants``) into p, in place."""',
                  '    with numpy.errstate(all="ignore"):']
-        lines += [f"        {sym.name} = p[{self.pindex[name]}]"
+        lines += [f"        {sym.name} = p[{self.layout.index(name)}]"
                   for name, sym in self.params.items()]
-        lines += [f"        p[{self.first + i}] = {pr.doprint(e)}"
+        lines += [f"        p[{self.layout.constant(i)}] = {pr.doprint(e)}"
                   for i, e in enumerate(self.found)]
         if not self.found:
             lines[2:] = ["    return"]
@@ -205,7 +205,7 @@ def _ldl_solve(M: sp.Matrix, f: list[Expr], x: list[str],
     return lines
 
 
-def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
+def _prelude(d: LagrangianBuilder, layout: ParameterLayout, with_v: bool = True,
              q_name: str = "y") -> list[str]:
     lines = ["    t = t"]
     n = len(d.q)
@@ -217,9 +217,9 @@ def _prelude(d: LagrangianBuilder, pindex: dict[str, int], with_v: bool = True,
         for i, ms in enumerate(d.mode_symbols):
             lines.append(f"    {ms.name} = y[{2 * n + 2 + i}]")
     for name, sym in d.params.items():
-        lines.append(f"    {sym.name} = p[{pindex[name]}]")
-    for i, u in enumerate(d.efforts):  # after the parameters: LagrangianModel.effort_slice
-        lines.append(f"    {u.name} = p[{len(pindex) + i}]")
+        lines.append(f"    {sym.name} = p[{layout.index(name)}]")
+    for i, u in enumerate(d.efforts):
+        lines.append(f"    {u.name} = p[{layout.effort(i)}]")
     return lines
 
 
@@ -251,223 +251,257 @@ def _canonical_ok(d: LagrangianBuilder, st: Structure) -> bool:
     return sp.expand(d.kinetic - (v.T * M * v)[0, 0] / 2) == 0
 
 
-def _derive(d: LagrangianBuilder, pindex: dict[str, int], st: Structure
-            ) -> tuple[str, tuple[str, ...], int]:
-    """The kernel module body, the contract functions it defines (those it leaves out are
-    no-ops: no constraints, not separable, no canonical form, no events, nothing to output)
-    and the number of parameter constants (in p after the efforts)."""
-    n, nc = len(d.q), len(d.constraints)
-    hoist = _ParameterConstants(d.params, pindex, len(pindex) + len(d.efforts))
 
-    def emit(assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
-        return _emit(assign, indent, hoist)
+class _Derivation:
+    """The kernel functions of one declaration, derived and printed in order (``source``).
+    Each function printed is recorded as it is written (``_func``): the derivation knows which
+    functions of the contract it defined; those it leaves out are no-ops (no constraints, not
+    separable, no canonical form, no events, nothing to output)."""
 
-    def func(name: str, args: str, body: list[str]) -> str:
-        return _func(name, args, hoist.loads() + body)  # (loads it does not read are dropped)
+    def __init__(self, d: LagrangianBuilder, layout: ParameterLayout, st: Structure) -> None:
+        self.d, self.layout, self.st = d, layout, st
+        self.n, self.nc = n, nc = len(d.q), len(d.constraints)
+        self.hoist = _ParameterConstants(d.params, layout)
+        self.parts: list[str] = []
+        self.defined: set[str] = set()
+        t, q, v = d.t, sp.Matrix(d.q), sp.Matrix(d.v)
+        self.L = L = d.kinetic - d.potential + d.linear
+        self.dL_dv = dL_dv = sp.Matrix([sp.diff(L, vi) for vi in d.v])
+        self.M = sp.hessian(d.kinetic, d.v)
+        forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
+        self.f0 = f0 = sp.Matrix([  # without the effort u (f = f0 + u)
+            sp.diff(L, d.q[i]) - sum(sp.diff(dL_dv[i], d.q[j]) * d.v[j] for j in range(n))
+            - sp.diff(dL_dv[i], t) - sp.diff(d.rayleigh, d.v[i]) + forces[i]
+            for i in range(n)])
+        self.f = f0 + sp.Matrix(d.efforts)
+        self.g = g = sp.Matrix([c for _, c in d.constraints]) if nc else sp.zeros(0, 1)
+        self.G = G = g.jacobian(q) if nc else sp.zeros(0, n)
+        g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
+        self.gdot = gdot = (G * v + g_t) if nc else sp.zeros(0, 1)
+        self.gamma = (gdot.jacobian(q) * v + sp.diff(gdot, t)) if nc else sp.zeros(0, 1)
+        self.E = E = d.kinetic + d.potential
+        self.h = (v.T * dL_dv)[0, 0] - L
+        self.P_diss = (sum(d.v[i] * sp.diff(d.rayleigh, d.v[i]) for i in range(n))
+                       if d.rayleigh != 0 else sp.Integer(0))
+        self.a_names = [a.name for a in d.qdd]
+        self.dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * d.qdd[i]
+                                      for i in range(n))
+        self.lam = [d.multiplier(k) for k in range(nc)]
+        self.act = [d.active.get(k, sp.Integer(1)) for k in range(nc)]
+        self.pre = _prelude(d, layout)
+        self.diagonal = nc == 0 and self.M.is_diagonal()
+        self.accel_exprs: list[Expr] = []
+        self.effort_accel: list[Expr] = []
 
-    t, q, v = d.t, sp.Matrix(d.q), sp.Matrix(d.v)
-    T, V, D = d.kinetic, d.potential, d.rayleigh
-    L = T - V + d.linear
-    dL_dv = sp.Matrix([sp.diff(L, vi) for vi in d.v])
-    M = sp.hessian(T, d.v)
-    forces = list(d.forces) + [sp.Integer(0)] * (n - len(d.forces))
-    f0 = sp.Matrix([  # without the effort u (f = f0 + u)
-        sp.diff(L, d.q[i]) - sum(sp.diff(dL_dv[i], d.q[j]) * d.v[j] for j in range(n))
-        - sp.diff(dL_dv[i], t) - sp.diff(D, d.v[i]) + forces[i] for i in range(n)])
-    f = f0 + sp.Matrix(d.efforts)
-    g = sp.Matrix([c for _, c in d.constraints]) if nc else sp.zeros(0, 1)
-    G = g.jacobian(q) if nc else sp.zeros(0, n)
-    g_t = sp.diff(g, t) if nc else sp.zeros(0, 1)
-    gdot = (G * v + g_t) if nc else sp.zeros(0, 1)
-    gamma = (gdot.jacobian(q) * v + sp.diff(gdot, t)) if nc else sp.zeros(0, 1)
-    E = T + V
-    h = (v.T * dL_dv)[0, 0] - L
-    P_diss = sum(d.v[i] * sp.diff(D, d.v[i]) for i in range(n)) if D != 0 else sp.Integer(0)
-    a_syms = d.qdd
-    a_names = [a.name for a in a_syms]
-    dE = sp.diff(E, t) + sum(sp.diff(E, d.q[i]) * d.v[i] + sp.diff(E, d.v[i]) * a_syms[i]
-                             for i in range(n))
-    lam = [d.multiplier(k) for k in range(nc)]
-    active = d.active
-    act = [active.get(k, sp.Integer(1)) for k in range(nc)]
+    def emit(self, assign: list[tuple[str, Expr]], indent: str = "    ") -> list[str]:
+        return _emit(assign, indent, self.hoist)
 
-    out: list[str] = []
-    pre = _prelude(d, pindex)
+    def func(self, name: str, body: list[str], args: str | None = None) -> None:
+        """Print function ``name`` (a contract function, arguments from the contract, or a
+        helper with ``args``), the parameter constants found so far loaded first (the loads
+        it does not read are dropped)."""
+        self.parts.append(_func(name, ARGUMENTS[name] if args is None else args,
+                                self.hoist.loads() + body))
+        self.defined.add(name)
+
+    def source(self) -> tuple[str, tuple[str, ...], int]:
+        """The kernel module body, the contract functions it defines and the number of
+        parameter constants."""
+        self.accel()
+        self.rhs()
+        if self.nc:
+            self.project()
+        if self.st.separable:
+            self.accel_q()
+        if _canonical_ok(self.d, self.st):
+            self.canonical()
+        self.outputs()
+        functions = tuple(name for name in FUNCTIONS if name in self.defined)
+        return ("\n\n".join([*self.parts, self.hoist.source()]), functions,
+                len(self.hoist.found))
+
     # accel(t, y, p, a, lam): M a = f + Gᵀ λ, G a = −γ
-    body = list(pre)
-    diagonal = nc == 0 and M.is_diagonal()
-    accel_exprs: list[Expr] = []
-    if diagonal:
-        # simplify only small quotients: on large ones (rational functions of square roots)
-        # its cancel() step can take hours; cse in _emit still shares the work.
-        accel_exprs = [sp.simplify(f0[i] / M[i, i]) if sp.count_ops(f0[i] / M[i, i]) <= 40
-                       else f0[i] / M[i, i] for i in range(n)]
-        # The effort's share u/M is added apart (own cse pass), so without an effort every
-        # expression evaluates exactly as without the input (W_ext of a free or damped
-        # system stays exactly 0).
-        effort_accel = [d.efforts[i] / M[i, i] for i in range(n)]
-        body += emit([(f"a[{i}]", accel_exprs[i]) for i in range(n)])
-        body += emit([(f"ua_{i}", effort_accel[i]) for i in range(n)])
-        body += [f"    a[{i}] += ua_{i}" for i in range(n)]
-    elif nc == 0 and n <= SCALAR_SOLVE_MAX:
-        body += _ldl_solve(M, [f[i] for i in range(n)], [f"x_{i}" for i in range(n)], hoist)
-        body += [f"    a[{i}] = x_{i}" for i in range(n)]
-    else:
+    def accel(self) -> None:
+        d, n, M, f0 = self.d, self.n, self.M, self.f0
+        body = list(self.pre)
+        if self.diagonal:
+            # simplify only small quotients: on large ones (rational functions of square
+            # roots) its cancel() step can take hours; cse in _emit still shares the work.
+            self.accel_exprs = [sp.simplify(f0[i] / M[i, i])
+                                if sp.count_ops(f0[i] / M[i, i]) <= 40 else f0[i] / M[i, i]
+                                for i in range(n)]
+            # The effort's share u/M is added apart (own cse pass), so without an effort every
+            # expression evaluates exactly as without the input (W_ext of a free or damped
+            # system stays exactly 0).
+            self.effort_accel = [d.efforts[i] / M[i, i] for i in range(n)]
+            body += self.emit([(f"a[{i}]", self.accel_exprs[i]) for i in range(n)])
+            body += self.emit([(f"ua_{i}", self.effort_accel[i]) for i in range(n)])
+            body += [f"    a[{i}] += ua_{i}" for i in range(n)]
+        elif self.nc == 0 and n <= SCALAR_SOLVE_MAX:
+            body += _ldl_solve(M, [self.f[i] for i in range(n)], [f"x_{i}" for i in range(n)],
+                               self.hoist)
+            body += [f"    a[{i}] = x_{i}" for i in range(n)]
+        else:
+            body += self.saddle_point_solve()
+        self.func("accel", body, args="t, y, p, a, lam")
+
+    def saddle_point_solve(self) -> list[str]:
+        """Lines solving [[M, −Gᵀ], [G, 0]] [a, λ] = [f, −γ] (a released constraint's row
+        reads λ_k = 0) by Gaussian elimination into ``a`` and ``lam``."""
+        n, nc, M, G, act = self.n, self.nc, self.M, self.G, self.act
         m = n + nc
-        body.append(f"    A = _zero_matrix({m}, {m})")
-        body.append(f"    b = _vector({m})")
+        lines = [f"    A = _zero_matrix({m}, {m})", f"    b = _vector({m})"]
         assign: list[tuple[str, Expr]] = []
         for i in range(n):
-            for j in range(n):
-                if M[i, j] != 0:
-                    assign.append((f"A[{i}, {j}]", M[i, j]))
-            assign.append((f"b[{i}]", f[i]))
+            assign += [(f"A[{i}, {j}]", M[i, j]) for j in range(n) if M[i, j] != 0]
+            assign.append((f"b[{i}]", self.f[i]))
         for k in range(nc):
             for j in range(n):
                 if G[k, j] != 0:
                     assign.append((f"A[{n + k}, {j}]", act[k] * G[k, j]))
                     assign.append((f"A[{j}, {n + k}]", -act[k] * G[k, j]))
-            if k in active:  # released: the row reads λ_k = 0
+            if k in self.d.active:  # released: the row reads λ_k = 0
                 assign.append((f"A[{n + k}, {n + k}]", 1 - act[k]))
-            assign.append((f"b[{n + k}]", -act[k] * gamma[k]))
-        body += emit(assign)
-        body.append("    x = _solve(A, b)")
-        body += [f"    a[{i}] = x[{i}]" for i in range(n)]
-        body += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
-    out.append(func("accel", "t, y, p, a, lam", body))
+            assign.append((f"b[{n + k}]", -act[k] * self.gamma[k]))
+        lines += self.emit(assign)
+        lines.append("    x = _solve(A, b)")
+        lines += [f"    a[{i}] = x[{i}]" for i in range(n)]
+        lines += [f"    lam[{k}] = x[{n + k}]" for k in range(nc)]
+        return lines
 
-    # rhs: without constraints the accelerations are written inline (no array allocation
-    # per call; a full mass matrix solved in scalars up to SCALAR_SOLVE_MAX coordinates);
-    # otherwise through accel's linear solve.
-    if diagonal:
-        dE_inline = dE.subs(dict(zip(a_syms, accel_exprs, strict=True)))
-        P_u = sum(sp.diff(E, d.v[i]) * effort_accel[i] for i in range(n))  # dE's effort part
-        body = list(pre) + emit([(a_names[i], accel_exprs[i]) for i in range(n)]
-                                + [("P_diss", P_diss), ("dE", dE_inline)])
-        body += emit([(f"ua_{i}", effort_accel[i]) for i in range(n)] + [("P_u", P_u)])
-        body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
-        external = "dE + P_diss + P_u"
-    elif nc == 0 and n <= SCALAR_SOLVE_MAX:
-        body = list(pre) + _ldl_solve(M, [f[i] for i in range(n)], a_names, hoist)
-        body += emit([("P_diss", P_diss), ("dE", dE)])
-        external = "dE + P_diss"
-    else:
-        body = [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
-                "    accel(t, y, p, acc, lam)"]
-        body += pre
-        body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
-        body += emit([("P_diss", P_diss), ("dE", dE)])
-        external = "dE + P_diss"
-    body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
-    body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
-    body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
-    out.append(func("rhs", "t, y, p, dy", body))
+    def rhs(self) -> None:
+        """rhs: without constraints the accelerations are written inline (no array allocation
+        per call; a full mass matrix solved in scalars up to SCALAR_SOLVE_MAX coordinates);
+        otherwise through accel's linear solve."""
+        d, n, a_names, pre = self.d, self.n, self.a_names, self.pre
+        if self.diagonal:
+            dE_inline = self.dE.subs(dict(zip(d.qdd, self.accel_exprs, strict=True)))
+            P_u = sum(sp.diff(self.E, d.v[i]) * self.effort_accel[i]  # dE's effort part
+                      for i in range(n))
+            body = list(pre) + self.emit([(a_names[i], self.accel_exprs[i]) for i in range(n)]
+                                         + [("P_diss", self.P_diss), ("dE", dE_inline)])
+            body += self.emit([(f"ua_{i}", self.effort_accel[i]) for i in range(n)]
+                              + [("P_u", P_u)])
+            body += [f"    {a_names[i]} = {a_names[i]} + ua_{i}" for i in range(n)]
+            external = "dE + P_diss + P_u"
+        elif self.nc == 0 and n <= SCALAR_SOLVE_MAX:
+            body = list(pre) + _ldl_solve(self.M, [self.f[i] for i in range(n)], a_names,
+                                          self.hoist)
+            body += self.emit([("P_diss", self.P_diss), ("dE", self.dE)])
+            external = "dE + P_diss"
+        else:
+            body = [f"    lam = _vector({max(self.nc, 1)})", f"    acc = _vector({n})",
+                    "    accel(t, y, p, acc, lam)"]
+            body += pre
+            body += [f"    {a_names[i]} = acc[{i}]" for i in range(n)]
+            body += self.emit([("P_diss", self.P_diss), ("dE", self.dE)])
+            external = "dE + P_diss"
+        body += [f"    dy[{i}] = y[{n + i}]" for i in range(n)]
+        body += [f"    dy[{n + i}] = {a_names[i]}" for i in range(n)]
+        body += [f"    dy[{2 * n}] = {external}", f"    dy[{2 * n + 1}] = P_diss"]
+        self.func("rhs", body)
 
-    # project
-    if nc:
-        body = list(pre)
+    def project(self) -> None:
+        """Positions onto g = 0 (Newton, at most six iterations), then rates onto ġ = 0."""
+        d, n, nc, G, act = self.d, self.n, self.nc, self.G, self.act
+        body = list(self.pre)
         body[1:1 + n] = []  # q read inside the loop
         body += [f"    G = _matrix({nc}, {n})", f"    r = _vector({nc})",
                  f"    qq = y[0:{n}]", f"    vv = y[{n}:{2 * n}]", "    for _it in range(6):"]
-        inner = [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
-        inner += emit([(f"r[{k}]", act[k] * g[k]) for k in range(nc)]
-                      + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
-                         for j in range(n)],
-                      indent="        ")
-        inner += ["        _project_onto(G, r, qq)",
-                  "        if _all_below(r, 1e-15):", "            break"]
-        body += inner
+        body += [f"        {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
+        body += self.emit([(f"r[{k}]", act[k] * self.g[k]) for k in range(nc)]
+                          + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                             for j in range(n)],
+                          indent="        ")
+        body += ["        _project_onto(G, r, qq)",
+                 "        if _all_below(r, 1e-15):", "            break"]
         body += [f"    {qs.name} = qq[{i}]" for i, qs in enumerate(d.q)]
         body += [f"    {vs.name} = vv[{i}]" for i, vs in enumerate(d.v)]
-        body += emit([(f"r[{k}]", act[k] * gdot[k]) for k in range(nc)]
-                     + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
-                        for j in range(n)])
+        body += self.emit([(f"r[{k}]", act[k] * self.gdot[k]) for k in range(nc)]
+                          + [(f"G[{k}, {j}]", act[k] * G[k, j]) for k in range(nc)
+                             for j in range(n)])
         body += ["    _project_onto(G, r, vv)"]
-        out.append(func("project", "t, y, p", body))
+        self.func("project", body)
 
-    # accel_q for separable systems
-    if st.separable:
-        Minv = M.inv()
-        gradV = sp.Matrix([sp.diff(V, qi) for qi in d.q])
-        acc = Minv * (-gradV)
-        body = _prelude(d, pindex, with_v=False, q_name="q")
-        body += emit([(f"a[{i}]", sp.simplify(acc[i])) for i in range(n)])
-        out.append(func("accel_q", "t, q, p, a", body))
+    def accel_q(self) -> None:
+        """The acceleration of a separable system, a function of q alone."""
+        d = self.d
+        gradV = sp.Matrix([sp.diff(d.potential, qi) for qi in d.q])
+        acc = self.M.inv() * (-gradV)
+        body = _prelude(d, self.layout, with_v=False, q_name="q")
+        body += self.emit([(f"a[{i}]", sp.simplify(acc[i])) for i in range(self.n)])
+        self.func("accel_q", body)
 
-    # canonical form (conservative, unconstrained, no events): z = [q, p = ∂L/∂q̇, ...]
-    if _canonical_ok(d, st):
+    def canonical(self) -> None:
+        """Hamilton's equations in z = [q, p = ∂L/∂q̇, ...] (conservative, unconstrained, no
+        events) and the maps between y and z."""
+        d, n, M, dL_dv = self.d, self.n, self.M, self.dL_dv
         b0 = dL_dv.subs({vi: 0 for vi in d.v})
         p_syms = [sp.Symbol(f"pm_{i}", real=True) for i in range(n)]
         zpre = ["    t = t"] + [f"    {qs.name} = z[{i}]" for i, qs in enumerate(d.q)]
         zpre += [f"    pm_{i} = z[{n + i}]" for i in range(n)]
-        zpre += [f"    {sym.name} = p[{pindex[name]}]" for name, sym in d.params.items()]
+        zpre += [f"    {sym.name} = p[{self.layout.index(name)}]"
+                 for name, sym in d.params.items()]
         if M.is_diagonal():
-            vel = emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
-                        for i, vs in enumerate(d.v)])
+            vel = self.emit([(vs.name, (p_syms[i] - b0[i]) / M[i, i])
+                             for i, vs in enumerate(d.v)])
         else:
             vel = [f"    A = _zero_matrix({n}, {n})", f"    b = _vector({n})"]
-            vel += emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
-                         if M[i, j] != 0] + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
+            vel += self.emit([(f"A[{i}, {j}]", M[i, j]) for i in range(n) for j in range(n)
+                              if M[i, j] != 0]
+                             + [(f"b[{i}]", p_syms[i] - b0[i]) for i in range(n)])
             vel += ["    x = _solve(A, b)"] + [f"    {vs.name} = x[{i}]"
                                                 for i, vs in enumerate(d.v)]
-        body = list(pre) + emit([(f"z[{n + i}]", dL_dv[i]) for i in range(n)])
+        body = list(self.pre) + self.emit([(f"z[{n + i}]", dL_dv[i]) for i in range(n)])
         body += [f"    z[{i}] = y[{i}]" for i in range(n)]
         body += [f"    for k in range({2 * n}, y.size):", "        z[k] = y[k]"]
-        out.append(func("to_momenta", "t, y, p, z", body))
+        self.func("to_momenta", body)
         body = list(zpre) + vel
         body += [f"    y[{i}] = z[{i}]" for i in range(n)]
         body += [f"    y[{n + i}] = {vs.name}" for i, vs in enumerate(d.v)]
         body += [f"    for k in range({2 * n}, z.size):", "        y[k] = z[k]"]
-        out.append(func("from_momenta", "t, z, p, y", body))
-        dL_dq = [sp.diff(L, qi) for qi in d.q]
-        body = list(zpre) + vel + emit([(f"dz[{n + i}]", dL_dq[i]) for i in range(n)])
+        self.func("from_momenta", body)
+        dL_dq = [sp.diff(self.L, qi) for qi in d.q]
+        body = list(zpre) + vel + self.emit([(f"dz[{n + i}]", dL_dq[i]) for i in range(n)])
         body += [f"    dz[{i}] = {vs.name}" for i, vs in enumerate(d.v)]
         body += [f"    for k in range({2 * n}, z.size):", "        dz[k] = 0.0"]
-        out.append(func("canonical_rhs", "t, z, p, dz", body))
+        self.func("canonical_rhs", body)
 
-    # energy
-    body = list(pre) + emit([("out[0]", T), ("out[1]", V), ("out[2]", h)])
-    out.append(func("energy", "t, y, p, out", body))
-
-    # invariants (declared ones, then constraint residuals)
-    inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(act, d.constraints,
-                                                                      strict=True)]
-    if inv:
-        body = list(pre) + emit([(f"out[{i}]", e) for i, e in enumerate(inv)])
-        out.append(func("invariants", "t, y, p, out", body))
-
-    # observables (may use the multipliers)
-    def solved_first(exprs: list[Expr]) -> list[str]:
+    def solved_first(self, exprs: list[Expr]) -> list[str]:
         """Lines solving for λ and q̈ (through ``accel``) where ``exprs`` read them."""
-        if not any((set(lam) | set(a_syms)) & e.free_symbols for e in exprs):
+        n, nc = self.n, self.nc
+        if not any((set(self.lam) | set(self.d.qdd)) & e.free_symbols for e in exprs):
             return []
         return [f"    lam = _vector({max(nc, 1)})", f"    acc = _vector({n})",
                 "    accel(t, y, p, acc, lam)", *[f"    lam_{k} = lam[{k}]" for k in range(nc)],
-                *[f"    {a_names[i]} = acc[{i}]" for i in range(n)]]
+                *[f"    {self.a_names[i]} = acc[{i}]" for i in range(n)]]
 
-    obs = [e for _, e in d.observables]
-    if obs:
-        body = list(pre) + solved_first(obs)
-        body += emit([(f"out[{i}]", e) for i, e in enumerate(obs)])
-        out.append(func("observables", "t, y, p, out", body))
+    def outputs(self) -> None:
+        """Energy terms; invariants (declared ones, then constraint residuals); observables
+        and events (which may use the multipliers and accelerations); frames."""
+        d, pre = self.d, self.pre
+        self.func("energy", list(pre) + self.emit([("out[0]", d.kinetic),
+                                                   ("out[1]", d.potential), ("out[2]", self.h)]))
+        inv = [e for _, e in d.invariants] + [a * c for a, (_, c) in zip(
+            self.act, d.constraints, strict=True)]
+        if inv:
+            self.func("invariants",
+                      list(pre) + self.emit([(f"out[{i}]", e) for i, e in enumerate(inv)]))
+        for name, exprs in (("observables", [e for _, e in d.observables]),
+                            ("event", [e for _, e in d.events])):
+            if exprs:
+                body = list(pre) + self.solved_first(exprs)
+                body += self.emit([(f"out[{i}]", e) for i, e in enumerate(exprs)])
+                self.func(name, body)
+        assign = [(f"out[{k}, {c}]", e) for k, fr in enumerate(d.frames)
+                  for c, e in enumerate(fr.translation + fr.rotation)]
+        if assign:
+            self.func("frames", list(pre) + self.emit(assign))
 
-    # events (may use the multipliers, like observables)
-    evx = [e for _, e in d.events]
-    if evx:
-        body = list(pre) + solved_first(evx)
-        body += emit([(f"out[{i}]", e) for i, e in enumerate(evx)])
-        out.append(func("event", "t, y, p, out", body))
 
-    # frames
-    assign = []
-    for k, fr in enumerate(d.frames):
-        for c, e in enumerate(fr.translation + fr.rotation):
-            assign.append((f"out[{k}, {c}]", e))
-    if assign:
-        out.append(func("frames", "t, y, p, out", list(pre) + emit(assign)))
-    functions = tuple(name for name in FUNCTIONS
-                      if any(text.startswith(f"{codegen.decorator(name)}\ndef {name}(")
-                             for text in out))
-    out.append(hoist.source())
-    return "\n\n".join(out), functions, len(hoist.found)
-
+def _derive(d: LagrangianBuilder, layout: ParameterLayout, st: Structure
+            ) -> tuple[str, tuple[str, ...], int]:
+    """The kernel module body, the contract functions it defines (those it leaves out are
+    no-ops) and the number of parameter constants (in p after the efforts: ``layout`` places
+    the parameters and efforts, ``ParameterLayout.constants`` the constants)."""
+    return _Derivation(d, layout, st).source()
