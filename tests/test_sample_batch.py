@@ -274,19 +274,21 @@ def test_a_bad_bag_topics_is_refused_in_one_line() -> None:
 
 
 #: A consumer in another process: the per-sample topics it is given and the batch topic,
-#: counted (distinct stamps) and, for the batches, decoded with the helper and saved.
+#: counted (distinct stamps) and, for the batches, decoded with the helper and saved. It
+#: stops once the batches and every topic hold the samples expected, or at the deadline.
 _CONSUMER = """
-import json, sys
+import json, sys, time
 import numpy as np
+import mechsim
 from mechsim.outputs.batch import joined
-from mechsim.ros.batches import BatchSubscriber
 from mechsim.environment import import_rclpy
 rclpy = import_rclpy()
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from mechsim.outputs.wire import message_class
 topics, out = json.loads(sys.argv[1]), sys.argv[2]
-with BatchSubscriber(["/swing/sample_batch"]) as sub:
+expected, deadline = int(sys.argv[3]), time.monotonic() + float(sys.argv[4])
+with mechsim.subscribe_batches("swing") as sub:
     qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
                      reliability=ReliabilityPolicy.RELIABLE)
     stamps = {t: [] for t in topics}
@@ -299,7 +301,12 @@ with BatchSubscriber(["/swing/sample_batch"]) as sub:
         sub.node.create_subscription(message_class(type_name), t,
                                      keep(t, message_class(type_name)), qos, raw=True)
     print("ready", flush=True)
-    got = [b for _, b in sub.batches(idle=10.0)]
+    got = []
+    def short():
+        return (sum(len(b) for b in got) < expected
+                or any(len(s) < expected for s in stamps.values()))
+    while short() and time.monotonic() < deadline:
+        got += [b for _, b in sub.take(timeout=0.1)]
 b = joined(got)
 np.savez(out, stamps=b.stamps, time=b.time, theta=b.positions["angle"],
          omega=b.velocities["angle"], total=b.energy["total"], tension=b.observables["tension"])
@@ -335,8 +342,10 @@ def test_lossless_delivers_every_sample_of_every_topic_with_several_slices_in_fl
                   "/swing/energy": "mechsim_msgs/msg/Energy",
                   "/swing/observables": "mechsim_msgs/msg/NamedScalars"}
     out = tmp_path / "batches.npz"
+    samples = 6001  # 60 s at 100 Hz, both ends
     consumer = subprocess.Popen([sys.executable, "-c", _CONSUMER, json.dumps(per_sample),
-                                 str(out)], env=ros_env, stdout=subprocess.PIPE, text=True)
+                                 str(out), str(samples), str(DEADLINE)], env=ros_env,
+                                stdout=subprocess.PIPE, text=True)
     stopped = [False]
     peak = [0]
     nodes: list[Any] = []
@@ -381,8 +390,7 @@ def test_lossless_delivers_every_sample_of_every_topic_with_several_slices_in_fl
             os.kill(consumer.pid, signal.SIGCONT)
             consumer.kill()
         consumer.wait()
-    samples = run.samples["swing"]
-    assert samples == 6001
+    assert run.samples["swing"] == samples
     assert report["per_sample"] == {t: [samples, samples] for t in per_sample}
     assert report["batches"] == run.messages["/swing/sample_batch"]
     got = np.load(out)
