@@ -231,8 +231,9 @@ def test_a_bag_records_what_the_scene_asks_and_the_helper_reads_its_batches(
     bag."""
     from rclpy.serialization import deserialize_message
 
+    from mechsim import read_batches
     from mechsim.outputs.bag import read_messages
-    from mechsim.outputs.batch import joined, read_batches
+    from mechsim.outputs.batch import joined
     from mechsim.ros.record import run_with_outputs
     from mechsim.scene import parse_scene
     from mechsim_msgs.msg import Energy
@@ -256,6 +257,15 @@ def test_a_bag_records_what_the_scene_asks_and_the_helper_reads_its_batches(
     assert _bits(batch.energy["total"]) == _bits([m.total for m in energy])
     assert _bits(batch.energy["work_dissipated"]) == _bits([m.work_dissipated
                                                             for m in energy])
+
+
+def test_the_helper_names_an_instance_s_batch_topic_or_takes_one_as_given() -> None:
+    from mechsim.ros.batches import batch_topic
+
+    assert batch_topic("pendulum") == "/pendulum/sample_batch"
+    assert batch_topic("/lab/swing/") == "/lab/swing/sample_batch"
+    assert batch_topic("/swing/sample_batch") == "/swing/sample_batch"
+    assert batch_topic("sample_batch") == "sample_batch"  # relative, as ROS resolves it
 
 
 def test_a_bad_bag_topics_is_refused_in_one_line() -> None:

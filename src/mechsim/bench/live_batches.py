@@ -88,6 +88,13 @@ def build_c_consumer(directory: Path) -> tuple[Path | None, str]:
     return exe, ""
 
 
+def stop(proc: subprocess.Popen[str]) -> None:
+    """End a consumer that is still running (a failed measurement) and reap it."""
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait()
+
+
 def _line(proc: subprocess.Popen[str], timeout: float) -> str:
     assert proc.stdout is not None
     if not select.select([proc.stdout], [], [], timeout)[0]:
@@ -113,8 +120,7 @@ def start_consumer(kind: str, topic: str, c_exe: Path | None,
         if _line(proc, 120.0) != "ready":
             raise RuntimeError(f"the {kind} consumer did not start")
     except BaseException:
-        proc.kill()
-        proc.wait()
+        stop(proc)
         raise
     return proc
 
@@ -127,9 +133,7 @@ def finish_consumer(proc: subprocess.Popen[str], messages: int) -> dict[str, Any
         proc.stdin.flush()
         return dict(json.loads(_line(proc, DEADLINE)))
     finally:
-        if proc.poll() is None:
-            proc.kill()
-        proc.wait()
+        stop(proc)
 
 
 def _wait_matched(publisher: Any) -> None:
@@ -176,8 +180,7 @@ def batch_consumer_rtf(system: str, duration: float, kind: str,
                             node.outlet.channels[topic].publisher))
         ended = time.monotonic()
     except BaseException:
-        proc.kill()
-        proc.wait()
+        stop(proc)
         raise
     sent = run.messages.get(topic, 0)
     got = finish_consumer(proc, sent)
@@ -236,8 +239,7 @@ def bare_batch_rtf(system: str, sim_s: float, samples: int, kind: str,
             pub.wait_for_all_acked(Duration(seconds=60))
             ended = time.monotonic()
         except BaseException:
-            proc.kill()
-            proc.wait()
+            stop(proc)
             raise
         got = finish_consumer(proc, messages)
     finally:

@@ -36,6 +36,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from mechsim.bench.live_batches import stop
+
 
 def _cpu() -> float:
     r = resource.getrusage(resource.RUSAGE_SELF)
@@ -144,9 +146,7 @@ def _received(sub: Any, mode: str, sent: int) -> tuple[int, float]:
     try:
         got = json_.loads(sub.stdout.readline())
     finally:
-        if sub.poll() is None:
-            sub.kill()
-        sub.wait()
+        stop(sub)
     return sum(got["counts"].values()), float(got["last"])
 
 
@@ -210,8 +210,7 @@ def live_subscriber_rtf(system: str, duration: float, mode: str = "drain",
                         before_first_message=matched)
         ended = time.monotonic()
     except BaseException:
-        sub.kill()
-        sub.wait()
+        stop(sub)
         raise
     published = {t: run.messages.get(t, 0) for t, _ in topics}
     sent = sum(published.values())
@@ -270,8 +269,7 @@ def _bare_loop_wall(topics: list[list[str]], qos: dict[str, Any], rows: dict[str
                 p.wait_for_all_acked(Duration(seconds=60))
             ended = time.monotonic()
         except BaseException:
-            sub.kill()
-            sub.wait()
+            stop(sub)
             raise
         _, last = _received(sub, mode, sum(counts.values()))
         return max(ended, last) - t0
@@ -337,7 +335,11 @@ def _first_message(executor: Any, got: list[float], system: str,
             executor.spin_once(timeout_sec=0.005)
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=30)
+        try:
+            proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:  # a probe that does not stop: no output to keep
+            proc.kill()
+            proc.wait()
     return got[0] - t0 if got else None
 
 
