@@ -231,9 +231,8 @@ def test_a_bag_records_what_the_scene_asks_and_the_helper_reads_its_batches(
     bag."""
     from rclpy.serialization import deserialize_message
 
-    from mechsim import read_batches
     from mechsim.outputs.bag import read_messages
-    from mechsim.outputs.batch import joined
+    from mechsim.outputs.batch import joined, read_batches
     from mechsim.ros.record import run_with_outputs
     from mechsim.scene import parse_scene
     from mechsim_msgs.msg import Energy
@@ -289,8 +288,8 @@ def test_a_bad_bag_topics_is_refused_in_one_line() -> None:
 _CONSUMER = """
 import json, sys, time
 import numpy as np
-import mechsim
 from mechsim.outputs.batch import joined
+from mechsim.ros.batches import subscribe_batches
 from mechsim.environment import import_rclpy
 rclpy = import_rclpy()
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -298,7 +297,7 @@ from rclpy.serialization import deserialize_message
 from mechsim.outputs.wire import message_class
 topics, out = json.loads(sys.argv[1]), sys.argv[2]
 expected, deadline = int(sys.argv[3]), time.monotonic() + float(sys.argv[4])
-with mechsim.subscribe_batches("swing") as sub:
+with subscribe_batches("swing") as sub:
     qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
                      reliability=ReliabilityPolicy.RELIABLE)
     stamps = {t: [] for t in topics}

@@ -6,7 +6,8 @@ new process: the real-time factor from the first sample to the last sample taken
 consumer (whichever ends later: the run, every message acknowledged, or the consumer's last
 take), and whether every sample arrived. Consumers:
 
-- ``python``: ``mechsim.subscribe_batches`` (rclpy, every message decoded into numpy columns);
+- ``python``: ``mechsim.ros.batches.subscribe_batches`` (rclpy, every message decoded into
+  numpy columns);
 - ``c``: a subscriber written against rcl alone (``rcl_subscriber.c``: serialized messages
   taken in a loop, samples counted from the bytes), compiled here with the C compiler and the
   ROS headers and libraries of this environment, where they are.
@@ -34,17 +35,18 @@ from typing import Any
 #: Seconds any one consumer may take in all (a condition ends every wait long before).
 DEADLINE = 600.0
 
-#: The Python consumer: ``mechsim.subscribe_batches`` on one topic; prints "ready", stops
-#: once it holds the number of messages a line on stdin gives (or at the deadline), prints
+#: The Python consumer: ``mechsim.ros.batches.subscribe_batches`` on one topic; prints
+#: "ready", stops once it holds the number of messages a line on stdin gives (or at the
+#: deadline), prints
 #: {"messages", "samples", "last"} ("last": time.monotonic() of the last take, the
 #: CLOCK_MONOTONIC seconds the C consumer and this process read too).
 _PYTHON_CONSUMER = """
 import json, select, sys, time
-import mechsim
+from mechsim.ros.batches import subscribe_batches
 topic, deadline = sys.argv[1], time.monotonic() + float(sys.argv[2])
 messages = samples = 0
 last, expected = 0.0, None
-with mechsim.subscribe_batches(topic) as sub:
+with subscribe_batches(topic) as sub:
     print("ready", flush=True)
     while (expected is None or messages < expected) and time.monotonic() < deadline:
         if expected is None and select.select([sys.stdin], [], [], 0)[0]:

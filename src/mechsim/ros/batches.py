@@ -1,11 +1,11 @@
 """Sample batches from a live graph: ``<ns>/sample_batch`` messages as numpy arrays.
 
 For a consumer in its own process that wants every sample of a system, many at a time
-(``mechsim.subscribe_batches`` makes the same subscriber)::
+(``subscribe_batches("pendulum")`` is ``BatchSubscriber(["/pendulum/sample_batch"])``)::
 
-    from mechsim.ros.batches import BatchSubscriber
+    from mechsim.ros.batches import subscribe_batches
 
-    with BatchSubscriber(["/pendulum/sample_batch"]) as sub:
+    with subscribe_batches("pendulum") as sub:
         for topic, batch in sub.batches(idle=5.0):      # until 5 s pass without one
             theta = batch.positions["angle"]            # (samples,) float64
             energy = batch.energy["total"]
@@ -57,6 +57,15 @@ def batch_topic(name: str) -> str:
     if name.rpartition("/")[2] == TOPIC:
         return name
     return f"/{name.strip('/')}/{TOPIC}"
+
+
+def subscribe_batches(topics: str | list[str], *, context: Any = None) -> BatchSubscriber:
+    """A :class:`BatchSubscriber` (a hidden node of its own, in a ROS context of its own
+    unless one is given) to the batch topics of ``topics``: batch topics or instance names
+    (``"pendulum"`` is ``/pendulum/sample_batch``). Use it as a context manager, or call
+    ``close()``."""
+    return BatchSubscriber([topics] if isinstance(topics, str) else list(topics),
+                           context=context)
 
 
 class BatchSubscriber:
