@@ -157,7 +157,7 @@ def test_descriptors_carry_the_rules_and_the_pace_reads_its_value(ros_context: A
     d, v = got["descriptors"], got["values"]
     assert d["mass"].additional_constraints == "> 0"
     assert d["formulation"].additional_constraints == ("one of: reduced, multiplier, "
-                                                       "polar_multiplier, small_angle")
+                                                       "polar_multiplier, small_angle, hamiltonian")
     assert d["method"].additional_constraints.startswith("one of: auto, ")
     r = d["publish_rate"].floating_point_range[0]
     assert (r.from_value, r.to_value) == (0.01, 10000.0)

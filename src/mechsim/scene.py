@@ -8,7 +8,9 @@ Format (every field validated; unknown keys are errors)::
     duration: 20.0              # simulated seconds (omit: run until stopped)
     publish_rate: 100.0         # Hz of simulation time, per system
     diagnostics: {warn_drift: 1.0e-6, error_drift: 1.0e-3}   # relative drifts in (0, 1]
-    outputs: {bag: runs/pendulum_bag, rrd: runs/pendulum.rrd}
+    outputs: {bag: runs/pendulum_bag, rrd: runs/pendulum.rrd, bag_topics: samples}
+                                # bag_topics: samples (every topic but <ns>/sample_batch),
+                                # batches (it instead of the per-sample topics), both
     systems:
       - system: pendulum        # system id (`mechsim systems`)
         name: pendulum          # namespace, default the system id; unique in the scene
@@ -72,6 +74,12 @@ MAX_SET_CHARS = 10_000
 #: A number YAML 1.1 reads as text (``1e-10``: no dot), taken as the number it spells.
 _NUMBER_TEXT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
+#: What a recording holds (``outputs.bag_topics``, ``--bag-topics``): every topic but the
+#: sample batches (``samples``, the default), the batches instead of the per-sample topics
+#: (``batches``), or ``both``; the other topics (system_info, /tf_static, /diagnostics, the
+#: efforts applied) always (``mechsim.outputs.batch.recorded``).
+BAG_TOPICS = ("samples", "batches", "both")
+
 #: Run settings of one instance (besides ``method``), under the names of the simulator node's
 #: ROS parameters: keys of a ``systems`` entry, names in its ``parameters``, and ``--set``
 #: names (every instance, or ``INSTANCE:NAME``).
@@ -126,6 +134,8 @@ class Scene:
     error_drift: float = Law.ERROR_DRIFT
     bag: str | None = None
     rrd: str | None = None
+    #: What a recording holds (:data:`BAG_TOPICS`).
+    bag_topics: str = "samples"
     source: Path | None = None
     #: Existing outputs may be replaced (``--force``): an .rrd, once the new one is complete.
     force: bool = False
@@ -360,11 +370,21 @@ def _outputs(scene: Scene, outputs: Any) -> None:
     """The scene's ``outputs:`` paths (checked as text; as paths when a run opens them)."""
     if not isinstance(outputs, dict):
         raise ParameterError("outputs", "must be a mapping")
-    _keys("outputs", outputs, {"bag", "rrd"})
+    _keys("outputs", outputs, {"bag", "rrd", "bag_topics"})
     for key in ("bag", "rrd"):
         if outputs.get(key) is not None:
             check_text(f"outputs.{key}", outputs[key])
     scene.bag, scene.rrd = outputs.get("bag"), outputs.get("rrd")
+    if outputs.get("bag_topics") is not None:
+        scene.bag_topics = bag_topics("outputs.bag_topics", outputs["bag_topics"])
+
+
+def bag_topics(field_name: str, value: Any) -> str:
+    """What a recording holds (:data:`BAG_TOPICS`), checked."""
+    if value not in BAG_TOPICS:
+        raise ParameterError(field_name, f"got {shown(value)}"
+                             + did_you_mean(str(value), BAG_TOPICS, "choices"))
+    return str(value)
 
 
 def _with_scene_overrides(data: dict[str, Any],
@@ -470,7 +490,8 @@ def scene_data(scene: Scene) -> dict[str, Any]:
             "real_time_factor": scene.real_time_factor, "duration": scene.duration,
             "publish_rate": scene.publish_rate, "warn_drift": scene.warn_drift,
             "error_drift": scene.error_drift, "bag": scene.bag, "rrd": scene.rrd,
-            "force": scene.force, "source": None if scene.source is None else str(scene.source),
+            "bag_topics": scene.bag_topics, "force": scene.force,
+            "source": None if scene.source is None else str(scene.source),
             "systems": [{"system": i.system, "name": i.name, "parameters": i.parameters,
                          "method": i.method, "tolerance": i.tolerance,
                          "origin": list(i.origin), "settings": dict(i.settings)}
@@ -502,6 +523,7 @@ def scene_from_data(data: Any) -> Scene:
                      warn_drift=float(data["warn_drift"]),
                      error_drift=float(data["error_drift"]),
                      bag=_optional(data["bag"], str), rrd=_optional(data["rrd"], str),
+                     bag_topics=bag_topics("bag_topics", data["bag_topics"]),
                      source=None if source is None else Path(source),
                      force=_optional(data["force"], bool) is True)
     except (AttributeError, KeyError, TypeError, ValueError):

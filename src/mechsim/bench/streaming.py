@@ -8,16 +8,19 @@
    (compilation excluded). The per-sample cost split: wall time per sample in each stage
    (integrate, evaluate, encode, publish incl. the hand-off to the recorder, diagnostics,
    and write: the bag writer's thread, which overlaps the others on a second core).
-   The same without the bag, ``--lossless``, with one live subscriber per streamed topic in
-   another process (Python, raw): the real-time factor and whether every message arrived,
-   beside the ceiling of this machine: a bare rclpy loop sending the same messages the same
-   way to a new subscriber of the same kind, with nothing to simulate.
-2. The CPU share of a scene with every system streaming in real time at 100 Hz (one instance
+2. Live consumers in another process of a fast ``--lossless`` run (no bag): on the per-sample
+   topics (one subscription per streamed topic: Python, or a subscriber written against rcl
+   alone) and on the batch topic (``mechsim.bench.live_batches``: the Python helper, the rcl
+   subscriber, every system), each beside its ceiling: a bare rclpy loop sending the same
+   messages the same way to a new consumer of the same kind, with nothing to simulate.
+3. The CPU share of a scene with every system streaming in real time at 100 Hz (one instance
    each), without and with a bag and a Rerun recording: process CPU time / wall time from the
    first sample to the end (start-up excluded; also given with it), so 1.0 is one full core.
-3. Start-up: wall time from launching ``mechsim run pendulum`` in a new process to the first
-   ``/clock`` message arriving in this process (warm kernel cache), 3 runs; and for a few
-   systems the first run with the model not derived yet against the two after it.
+4. Start-up of scenes of 1 to 100 instances, where it goes, and the alternatives
+   (``mechsim.bench.startup``); and the wall time from launching ``mechsim run pendulum`` in a
+   new process to the first ``/clock`` message arriving in this process (warm kernel cache),
+   3 runs, and for a few systems the first run with the model not derived yet against the
+   two after it.
 
 Writes ``streaming.json`` and ``streaming.md``; every figure is measured in the run.
 """
@@ -32,6 +35,8 @@ import tempfile
 import time
 from pathlib import Path
 from typing import Any
+
+from mechsim.bench.live_batches import stop
 
 
 def _cpu() -> float:
@@ -61,9 +66,10 @@ def recording_rtf(system: str, duration: float) -> dict[str, Any]:
 
 #: A live subscriber in another process: raw (no deserialisation), reliable, KEEP_ALL, one
 #: subscription per streamed topic given as JSON [[topic, type], ...]; prints "ready", then,
-#: once nothing arrived for 3 s, the count per topic as JSON.
+#: once nothing arrived for 3 s, the count per topic and the time.monotonic() of the last
+#: take as JSON.
 _SUBSCRIBER = """
-import importlib, json, sys
+import importlib, json, sys, time
 from mechsim.environment import import_rclpy
 rclpy = import_rclpy()
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -71,7 +77,7 @@ rclpy.init()
 node = rclpy.create_node("live_subscriber")
 qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
                  reliability=ReliabilityPolicy.RELIABLE)
-got, subs = {}, {}
+got, subs, last = {}, {}, [0.0]
 drain = sys.argv[2] == "drain"
 for topic, type_name in json.loads(sys.argv[1]):
     pkg, _, name = type_name.split("/")
@@ -83,6 +89,7 @@ for topic, type_name in json.loads(sys.argv[1]):
         sub = subs[topic]
         while drain and sub.handle.take_message(sub.msg_type, True) is not None:
             got[topic] += 1
+        last[0] = time.monotonic()
     subs[topic] = node.create_subscription(cls, topic, take, qos, raw=True)
 print("ready", flush=True)
 quiet = 0
@@ -90,26 +97,32 @@ while quiet < 30 or not any(got.values()):
     before = sum(got.values())
     rclpy.spin_once(node, timeout_sec=0.1)
     quiet = 0 if sum(got.values()) != before else quiet + 1
-print(json.dumps(got), flush=True)
+print(json.dumps({"counts": got, "last": last[0]}), flush=True)
 """
 
 
-#: Live-subscriber runs: (system, simulated seconds, subscriber). The subscriber takes each
-#: message through rclpy's executor ("executor": one callback a message, about 30 µs) or,
-#: woken by the executor, takes every waiting message of the topic in a loop ("drain"). 200 s
-#: shows the sustained rate: a subscriber that falls behind has the reliable protocol's
-#: repairs pace the writer.
+#: Live-subscriber runs on the per-sample topics: (system, simulated seconds, subscriber).
+#: The Python subscriber takes each message through rclpy's executor ("executor": one
+#: callback a message) or, woken by the executor, takes every waiting message of the topic
+#: in a loop ("drain"); "c": the rcl subscriber (``rcl_subscriber.c``), every topic in one
+#: wait set, where it can be built. 200 s shows the sustained rate: a subscriber that falls
+#: behind has the reliable protocol's repairs pace the writer.
 LIVE_RUNS = (("pendulum", 30.0, "drain"), ("kepler", 30.0, "drain"),
              ("rigid_body", 30.0, "drain"), ("double_pendulum", 30.0, "drain"),
-             ("pendulum", 200.0, "drain"), ("pendulum", 30.0, "executor"),
-             ("pendulum", 200.0, "executor"))
+             ("pendulum", 200.0, "drain"), ("pendulum", 200.0, "c"),
+             ("pendulum", 30.0, "executor"))
 
 
-def _live_subscriber(topics: list[list[str]], mode: str) -> Any:
-    """The subscriber process (``_SUBSCRIBER``), started and ready."""
+def _live_subscriber(topics: list[list[str]], mode: str, c_exe: Path | None = None) -> Any:
+    """The subscriber process (``_SUBSCRIBER``, or the rcl one for ``mode`` "c"), started
+    and ready."""
     import json as json_
     import subprocess
 
+    from mechsim.bench.live_batches import start_consumer
+
+    if mode == "c":
+        return start_consumer("c", "", c_exe, others=tuple((t, ty) for t, ty in topics))
     sub = subprocess.Popen([sys.executable, "-c", _SUBSCRIBER, json_.dumps(topics), mode],
                            stdout=subprocess.PIPE, text=True)
     assert sub.stdout is not None
@@ -118,6 +131,23 @@ def _live_subscriber(topics: list[list[str]], mode: str) -> Any:
         sub.wait()
         raise RuntimeError("the live subscriber did not start")
     return sub
+
+
+def _received(sub: Any, mode: str, sent: int) -> tuple[int, float]:
+    """Messages the subscriber took (all topics) and the time.monotonic() of its last take,
+    once it is done (``sent``: how many were published)."""
+    import json as json_
+
+    from mechsim.bench.live_batches import finish_consumer
+
+    if mode == "c":
+        got = finish_consumer(sub, sent)
+        return int(got["messages"]), float(got["last"])
+    try:
+        got = json_.loads(sub.stdout.readline())
+    finally:
+        stop(sub)
+    return sum(got["counts"].values()), float(got["last"])
 
 
 def _wait_matched(publishers: list[Any]) -> None:
@@ -146,13 +176,14 @@ class _FirstRows:
         self.rows.setdefault(topic, data)
 
 
-def live_subscriber_rtf(system: str, duration: float, mode: str = "drain") -> dict[str, Any]:
-    """Real-time factor of a fast, lossless run (no recording) with one live subscriber per
-    streamed topic in another process (``mode``, see ``LIVE_RUNS``), and whether every
-    message arrived; and the ceiling: the same messages, as many of each, sent to the same
-    kind of subscriber by a bare rclpy loop that simulates nothing (``bare_rtf``)."""
-    import json as json_
-
+def live_subscriber_rtf(system: str, duration: float, mode: str = "drain",
+                        c_exe: Path | None = None) -> dict[str, Any]:
+    """Real-time factor of a fast, lossless run (no recording) with one live subscriber to
+    every per-sample topic in another process (``mode``, see ``LIVE_RUNS``), from the first
+    sample to the last one taken, and whether every message arrived; and the ceiling: the
+    same messages, as many of each, sent to the same kind of subscriber by a bare rclpy loop
+    that simulates nothing (``bare_rtf``)."""
+    from mechsim.outputs.batch import is_batch_topic
     from mechsim.ros.launch import run_scene
     from mechsim.ros.outlet import streamed
     from mechsim.scene import single_system_scene
@@ -164,12 +195,12 @@ def live_subscriber_rtf(system: str, duration: float, mode: str = "drain") -> di
 
     def listed(node: Any) -> None:
         topics[:] = [[t, ch.type_name] for t, ch in node.outlet.channels.items()
-                     if streamed(ch.qos)]
+                     if streamed(ch.qos) and not is_batch_topic(t)]
         qos.update({t: node.outlet.channels[t].publisher.qos_profile for t, _ in topics})
 
     run_scene(scene, fast=True, duration=0.2, before_first_message=listed,  # warm-up
               sinks=[first])
-    sub = _live_subscriber(topics, mode)
+    sub = _live_subscriber(topics, mode, c_exe)
     try:
         def matched(node: Any) -> None:
             _wait_matched([node.outlet.channels[t].publisher for t, _ in topics])
@@ -177,28 +208,27 @@ def live_subscriber_rtf(system: str, duration: float, mode: str = "drain") -> di
         t0 = time.monotonic()
         run = run_scene(scene, fast=True, duration=duration, lossless=True,
                         before_first_message=matched)
-        wall = time.monotonic() - t0 - run.startup_time
-        assert sub.stdout is not None
-        received = json_.loads(sub.stdout.readline())
-    finally:
-        if sub.poll() is None:
-            sub.kill()
-        sub.wait()
+        ended = time.monotonic()
+    except BaseException:
+        stop(sub)
+        raise
     published = {t: run.messages.get(t, 0) for t, _ in topics}
-    bare = _bare_loop_wall(topics, qos, first.rows, published, mode)
+    sent = sum(published.values())
+    received, last = _received(sub, mode, sent)
+    wall = max(ended, last) - (t0 + run.startup_time)
+    bare = _bare_loop_wall(topics, qos, first.rows, published, mode, c_exe)
     return {"system": system, "subscriber": mode, "sim_s": run.sim_time, "wall_s": wall,
-            "rtf": run.sim_time / wall, "messages": sum(published.values()),
-            "every_message": received == published,
-            "lost": sum(published.values()) - sum(received.values()),
-            "bare_rtf": run.sim_time / bare}
+            "rtf": run.sim_time / wall, "messages": sent, "every_message": received == sent,
+            "lost": sent - received, "bare_rtf": run.sim_time / bare}
 
 
 def _bare_loop_wall(topics: list[list[str]], qos: dict[str, Any], rows: dict[str, bytes],
-                    counts: dict[str, int], mode: str) -> float:
+                    counts: dict[str, int], mode: str, c_exe: Path | None = None) -> float:
     """Wall seconds a bare rclpy loop takes to send ``counts[topic]`` copies of each topic's
-    payload, sample by sample in slices of ``LOSSLESS_DEPTH`` acknowledged before the next
-    (as ``--lossless`` does), to a new subscriber process of the same kind: what the machine
-    allows an rclpy publisher with nothing to simulate."""
+    payload, sample by sample in slices of ``LOSSLESS_DEPTH``, at most ``LOSSLESS_SLICES``
+    of them unacknowledged (as ``--lossless`` does), to a new subscriber process of the same
+    kind, up to its last take: what the machine allows an rclpy publisher with nothing to
+    simulate."""
     from mechsim.environment import import_rclpy
 
     rclpy = import_rclpy()
@@ -206,7 +236,7 @@ def _bare_loop_wall(topics: list[list[str]], qos: dict[str, Any], rows: dict[str
     from rclpy.qos import QoSProfile
 
     from mechsim.outputs.bag import message_class
-    from mechsim.ros.outlet import LOSSLESS_DEPTH
+    from mechsim.ros.outlet import LOSSLESS_DEPTH, LOSSLESS_SLICES
 
     context = rclpy.context.Context()
     rclpy.init(context=context)
@@ -217,25 +247,32 @@ def _bare_loop_wall(topics: list[list[str]], qos: dict[str, Any], rows: dict[str
             q = qos[t]
             pubs[t] = node.create_publisher(
                 message_class(type_name), t,
-                QoSProfile(depth=max(q.depth, LOSSLESS_DEPTH), history=q.history,
-                           reliability=q.reliability, durability=q.durability))
-        sub = _live_subscriber(topics, mode)
+                QoSProfile(depth=max(q.depth, LOSSLESS_DEPTH * LOSSLESS_SLICES),
+                           history=q.history, reliability=q.reliability,
+                           durability=q.durability))
+        sub = _live_subscriber(topics, mode, c_exe)
         try:
             _wait_matched(list(pubs.values()))
             samples = max(counts.values())
             t0 = time.monotonic()
+            window = LOSSLESS_DEPTH * LOSSLESS_SLICES
             for start in range(0, samples, LOSSLESS_DEPTH):
+                if start and start % window == 0:
+                    for p in pubs.values():
+                        p.wait_for_all_acked(Duration(seconds=60))
                 for t, p in pubs.items():
                     data, publish = rows.get(t, b""), p.publish
                     # a topic sent less often than every sample (diagnostics) keeps its count
                     for _ in range(max(0, min(start + LOSSLESS_DEPTH, counts[t]) - start)):
                         publish(data)
-                for p in pubs.values():
-                    p.wait_for_all_acked(Duration(seconds=60))
-            return time.monotonic() - t0
-        finally:
-            sub.kill()
-            sub.wait()
+            for p in pubs.values():
+                p.wait_for_all_acked(Duration(seconds=60))
+            ended = time.monotonic()
+        except BaseException:
+            stop(sub)
+            raise
+        _, last = _received(sub, mode, sum(counts.values()))
+        return max(ended, last) - t0
     finally:
         node.destroy_node()
         rclpy.shutdown(context=context)
@@ -298,7 +335,11 @@ def _first_message(executor: Any, got: list[float], system: str,
             executor.spin_once(timeout_sec=0.005)
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=30)
+        try:
+            proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:  # a probe that does not stop: no output to keep
+            proc.kill()
+            proc.wait()
     return got[0] - t0 if got else None
 
 
@@ -364,8 +405,18 @@ def first_message_latency(repeats: int = 3, cold: tuple[str, ...] = COLD_SYSTEMS
     return {"warm_pendulum_s": warm, "cold": cold_rows}
 
 
+#: Targets of the figures this benchmark measures (real-time factors; seconds).
+TARGETS = {"batch_pendulum": 1000.0, "batch_every_system": 300.0, "recording": 1000.0,
+           "startup_100": 3.0}
+
+
 def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
-                  realtime_duration: float = 10.0) -> dict[str, Any]:
+                  realtime_duration: float = 10.0, batch_duration: float = 300.0,
+                  pendulum_batch_duration: float = 2000.0) -> dict[str, Any]:
+    """Every measurement of the module docstring and of ``live_batches`` and ``startup``, in
+    one run; writes ``streaming.json`` and ``streaming.md``."""
+    from mechsim.bench.live_batches import build_c_consumer, live_batches
+    from mechsim.bench.startup import startup
     from mechsim.systems import system_ids
 
     out.mkdir(parents=True, exist_ok=True)
@@ -376,73 +427,184 @@ def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
         print(f"  {s:22s} RTF {row['rtf']:8.1f}  ({row['us_per_sample']:.1f} µs/sample: "
               f"{_split(row['split_us'])})", file=sys.stderr)
         rows.append(row)
-    # CPU share of the real-time run, measured on the run alone: subtract a start-up-only
-    # measurement is not possible inside run_scene, so time the run part with process CPU
-    # deltas around a second, identical run whose kernels are now loaded (start-up ~0).
+    batches = live_batches(ids, batch_duration, pendulum_batch_duration)
     live = []
-    for s, live_duration, mode in LIVE_RUNS:
-        row = live_subscriber_rtf(s, live_duration, mode)
-        print(f"  {s:22s} live subscriber ({mode}): RTF {row['rtf']:8.1f} (bare rclpy loop "
-              f"{row['bare_rtf']:.1f}), every message: {row['every_message']}",
-              file=sys.stderr)
-        live.append(row)
+    with tempfile.TemporaryDirectory() as tmp:
+        c_exe, _ = build_c_consumer(Path(tmp))
+        for s, live_duration, mode in LIVE_RUNS:
+            if mode == "c" and c_exe is None:
+                continue
+            row = live_subscriber_rtf(s, live_duration, mode, c_exe)
+            print(f"  {s:22s} per-sample topics ({mode}): RTF {row['rtf']:8.1f} (bare rclpy "
+                  f"loop {row['bare_rtf']:.1f}), every message: {row['every_message']}",
+                  file=sys.stderr)
+            live.append(row)
     all_systems_realtime(1.0)  # warm: load every kernel once
     cpu = all_systems_realtime(realtime_duration)
     cpu_rec = all_systems_realtime(realtime_duration, record=True)
+    starts = startup()
     latency = first_message_latency()
-    result = {"schema": "mechsim-streaming/1", "recording": rows, "live": live,
-              "realtime_all": cpu, "realtime_all_recording": cpu_rec,
-              "first_message_s": latency,
+    result = {"schema": "mechsim-streaming/2", "recording": rows, "batches": batches,
+              "live": live, "realtime_all": cpu, "realtime_all_recording": cpu_rec,
+              "startup": starts, "first_message_s": latency, "targets": TARGETS,
               "host": {"cores": os.cpu_count(), "loadavg": os.getloadavg()}}
     (out / "streaming.json").write_text(json.dumps(result, indent=2))
-    lines = ["# Streaming throughput", "",
+    lines = (_summary(result) + _live_lines(result) + _recording_lines(result, duration)
+             + _realtime_lines(result) + _startup_lines(result) + _latency_lines(result))
+    (out / "streaming.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return result
+
+
+def _verdict(value: float, target: float, at_least: bool = True) -> str:
+    return "met" if (value >= target if at_least else value <= target) else "**missed**"
+
+
+def _summary(r: dict[str, Any]) -> list[str]:
+    t = r["targets"]
+    py = [x for x in r["batches"]["pendulum"] if x["consumer"] == "python"][0]
+    every = min(r["batches"]["systems"], key=lambda x: x["rtf"])
+    rec = min(r["recording"], key=lambda x: x["rtf"])
+    one = [x for x in r["startup"]["one_process"] if x["graph_check"]]
+    largest = max(one, key=lambda x: x["instances"])
+    h = r["host"]
+    return ["# Streaming throughput", "",
+            f"Every figure below was measured in one run of `mechsim bench --streaming` on "
+            f"{h['cores']} cores (load average at the end {h['loadavg'][0]:.1f}); real-time "
+            f"factor = simulated seconds / wall seconds.", "",
+            "| target | measured | |", "|---|---|---|",
+            f"| a Python subscriber in another process gets every sample of a fast pendulum "
+            f"run through `<ns>/sample_batch` at ≥ {t['batch_pendulum']:g}× | "
+            f"{py['rtf']:.0f}× (every sample: {'yes' if py['every_sample'] else 'no'}) | "
+            f"{_verdict(py['rtf'], t['batch_pendulum'])} |",
+            f"| the same for every system at ≥ {t['batch_every_system']:g}× | slowest "
+            f"{every['rtf']:.0f}× ({every['system']}) | "
+            f"{_verdict(every['rtf'], t['batch_every_system'])} |",
+            f"| recording at ≥ {t['recording']:g}× for every system | slowest "
+            f"{rec['rtf']:.0f}× ({rec['system']}) | {_verdict(rec['rtf'], t['recording'])} |",
+            f"| start-up of a {largest['instances']}-instance scene ≤ {t['startup_100']:g} s | "
+            f"{largest['startup_s']:.2f} s | "
+            f"{_verdict(largest['startup_s'], t['startup_100'], at_least=False)} |", ""]
+
+
+def _live_lines(r: dict[str, Any]) -> list[str]:
+    b = r["batches"]
+    lines = ["## Live consumers in another process", "",
+             "A fast `--lossless` run (no recording) with one consumer in a new process; "
+             "real-time factor from the first sample to the last one the consumer took. "
+             "Per-sample topics: one subscription per streamed topic (`state`, `energy`, "
+             "`invariants`, `observables`, `/tf`, ... as the system has them). Batch topic: "
+             "`<ns>/sample_batch` alone, the Python consumer "
+             "`mechsim.ros.batches.subscribe_batches` "
+             "(every message decoded into numpy columns). The C consumer is written against "
+             "rcl alone (`src/mechsim/bench/rcl_subscriber.c`, serialized messages taken in "
+             "one wait set), compiled in the run"
+             + ("." if b["c_consumer"] == "built" else f": not built here ({b['c_consumer']}).")
+             + " The ceiling beside each: a bare rclpy loop that simulates nothing sends the "
+             "same messages (per-sample: one recorded payload of each topic as many times as "
+             "the run sent it; batches: a full recorded batch as often as the run's samples "
+             "need), with the same slices in flight as `--lossless`, to a new consumer of the "
+             "same kind.", "",
+             "| system | topics | consumer | simulated [s] | real-time factor | bare rclpy "
+             "loop (ceiling) | every sample arrived |", "|---|---|---|---|---|---|---|"]
+    for x in r["live"]:
+        lines.append(f"| {x['system']} | per-sample | {x['subscriber']} | {x['sim_s']:g} | "
+                     f"{x['rtf']:.0f} | {x['bare_rtf']:.0f} | "
+                     + ("yes" if x["every_message"] else f"no ({x['lost']} lost)") + " |")
+    for x in b["pendulum"]:
+        lines.append(f"| {x['system']} | batch | {x['consumer']} | {x['sim_s']:g} | "
+                     f"{x['rtf']:.0f} | {x['bare']['rtf']:.0f} | "
+                     + ("yes" if x["every_sample"] else "no") + " |")
+    lines += ["", "The batch topic for every system, Python consumer "
+              f"({b['systems'][0]['sim_s']:g} s simulated each):" if b["systems"] else "", "",
+              "| system | real-time factor | samples | messages | every sample arrived |",
+              "|---|---|---|---|---|"]
+    for x in sorted(b["systems"], key=lambda x: x["rtf"]):
+        lines.append(f"| {x['system']} | {x['rtf']:.0f} | {x['samples']} | {x['messages']} | "
+                     + ("yes" if x["every_sample"] else "no") + " |")
+    return lines + [""]
+
+
+def _recording_lines(r: dict[str, Any], duration: float) -> list[str]:
+    lines = ["## Recording", "",
              f"Recording at 100 Hz output, as fast as possible, bag writer attached "
              f"({duration:g} s simulated per system; real-time factor = simulated / wall "
-             f"seconds after start-up, to the bag complete on disk; load average at the end "
-             f"{os.getloadavg()[0]:.1f} on "
-             f"{os.cpu_count()} cores).", "",
+             f"seconds after start-up, to the bag complete on disk).", "",
              "Per-sample cost split, µs of wall time per sample in each stage (write runs in "
              "the bag writer's thread, alongside the others).", "",
              "| system | real-time factor | µs per sample | " + " | ".join(STAGES)
              + " | messages |", "|---|---|---|" + "---|" * len(STAGES) + "---|"]
-    for r in sorted(rows, key=lambda r: r["rtf"]):
-        split = r["split_us"]
-        lines.append(f"| {r['system']} | {r['rtf']:.0f} | {r['us_per_sample']:.1f} | "
+    for x in sorted(r["recording"], key=lambda x: x["rtf"]):
+        split = x["split_us"]
+        lines.append(f"| {x['system']} | {x['rtf']:.0f} | {x['us_per_sample']:.1f} | "
                      + " | ".join(f"{split.get(k, 0.0):.1f}" for k in STAGES)
-                     + f" | {r['messages']} |")
-    lines += ["", "With one live subscriber per streamed topic in another process (rclpy, raw, "
-              "reliable, KEEP_ALL) and `--lossless` (no bag): real-time factor until every "
-              "message was acknowledged, and whether every message arrived. Subscriber "
-              "`executor`: one executor callback a message; `drain`: woken by the executor, "
-              "it takes every waiting message of the topic in a loop.", "",
-              "The ceiling: a bare rclpy loop that simulates nothing sends the same "
-              "messages (one recorded payload of each topic, as many as the run sent) the "
-              "same way to a new subscriber of the same kind; its real-time factor is the "
-              "run's simulated time over that loop's wall time.", "",
-              "| system | simulated [s] | subscriber | real-time factor | bare rclpy loop "
-              "(ceiling) | messages | every message arrived |",
-              "|---|---|---|---|---|---|---|"]
-    for r in live:
-        lines.append(f"| {r['system']} | {r['sim_s']:g} | {r['subscriber']} | {r['rtf']:.1f} | "
-                     f"{r['bare_rtf']:.1f} | {r['messages']} | "
-                     + ("yes" if r["every_message"] else f"no ({r['lost']} lost)") + " |")
-    lines += ["", f"All {cpu['systems']} systems streaming together in real time at 100 Hz "
-              f"(one process, {cpu['sim_s']:g} s): CPU share {cpu['cpu_share_run']:.2f} of one "
-              f"core after start-up ({cpu['cpu_share_total']:.2f} with the "
-              f"{cpu['startup_s']:.2f} s start-up), {cpu['samples']} samples; with a bag "
-              f"and a Rerun recording: {cpu_rec['cpu_share_run']:.2f} of one core.", "",
-              "Start-up: launch of `mechsim run pendulum` in a new process to its first "
-              "/clock message here (warm kernel cache): "
-              + ", ".join(f"{x:.2f} s" for x in latency["warm_pendulum_s"]) + ".", "",
-              "Cold start (the model not derived yet, the shared loops compiled by set-up) "
-              "against the two runs after it:", "",
-              "| system | first message, cold [s] | warm [s] | cold / warm |",
-              "|---|---|---|---|"]
-    for r in latency["cold"]:
-        cold_s = "—" if r["cold_s"] is None else f"{r['cold_s']:.2f}"
-        ratio = "—" if r["ratio"] is None else f"{r['ratio']:.2f}"
-        lines.append(f"| {r['system']} | {cold_s} | "
-                     + ", ".join(f"{x:.2f}" for x in r["warm_s"]) + f" | {ratio} |")
-    (out / "streaming.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    return result
+                     + f" | {x['messages']} |")
+    return lines + [""]
+
+
+def _realtime_lines(r: dict[str, Any]) -> list[str]:
+    cpu, rec = r["realtime_all"], r["realtime_all_recording"]
+    return ["## Real time", "",
+            f"All {cpu['systems']} systems streaming together in real time at 100 Hz (one "
+            f"process, {cpu['sim_s']:g} s): CPU share {cpu['cpu_share_run']:.2f} of one core "
+            f"after start-up ({cpu['cpu_share_total']:.2f} with the {cpu['startup_s']:.2f} s "
+            f"start-up), {cpu['samples']} samples; with a bag and a Rerun recording: "
+            f"{rec['cpu_share_run']:.2f} of one core.", ""]
+
+
+def _startup_lines(r: dict[str, Any]) -> list[str]:
+    st = r["startup"]
+    lines = ["## Start-up of scenes of many instances", "",
+             "A scene of N pendulums in one process (`run_scene`, as `mechsim run` runs it, "
+             "kernels warm): seconds from the call to the first sample. The graph check "
+             "looks at the graph for its discovery window before any node exists (one name, "
+             "one node).", "", "| instances | graph check | start-up [s] |", "|---|---|---|"]
+    for x in st["one_process"]:
+        lines.append(f"| {x['instances']} | {'yes' if x['graph_check'] else 'no'} | "
+                     f"{x['startup_s']:.2f} |")
+    prof = st["profile"]
+    lines += ["", f"Where the start-up of {prof['instances']} goes (a profiled start, "
+              f"{prof['startup_s']:.2f} s with the profiler; seconds inside each call, all "
+              "calls together; rclpy's `Node()` makes its parameter and type-description "
+              "services with `create_service`, counted in both rows):", "",
+              "| call | seconds |", "|---|---|"]
+    for name, secs in sorted(prof["profile_s"].items(), key=lambda kv: -kv[1]):
+        lines.append(f"| {name} | {secs:.2f} |")
+    n = max(x["instances"] for x in st["one_process"])
+    lines += ["", f"The same endpoints made by bare rclpy, {n} nodes of a simulator node's "
+              f"{st['publishers_per_node']} publishers, one subscription and three services of "
+              "its own, in new processes (imports not counted unless said):", "",
+              "| variant | processes | seconds |", "|---|---|---|"]
+    names = {"node": "a node per instance, as mechsim makes them",
+             "no_rclpy_services": "a node per instance without the parameter and "
+             "type-description services rclpy adds",
+             "one_node": "one node carrying every instance's endpoints"}
+    for x in st["bare"]:
+        extra = (f" (launch to the last process ready, imports included: "
+                 f"{x['launch_to_ready_s']:.2f} s)" if "launch_to_ready_s" in x else "")
+        lines.append(f"| {names[x['variant']]} | {x['processes']} | {x['seconds']:.2f}"
+                     f"{extra} |")
+    sp = st["split"]
+    lines += ["", f"The scene split: {sp['instances']} pendulums as {sp['processes']} "
+              f"processes of `run_scene` started together (no graph check), launch to the "
+              f"last one's first sample, Python, rclpy and the models' start included: "
+              f"{sp['launch_to_first_sample_s']:.2f} s.", ""]
+    return lines
+
+
+def _latency_lines(r: dict[str, Any]) -> list[str]:
+    latency = r["first_message_s"]
+    lines = ["## First message", "",
+             "Launch of `mechsim run pendulum` in a new process to its first /clock message "
+             "here (warm kernel cache): "
+             + ", ".join(f"{x:.2f} s" for x in latency["warm_pendulum_s"]) + ".", "",
+             "Cold start (the model not derived yet, the shared loops compiled by set-up) "
+             "against the two runs after it:", "",
+             "| system | first message, cold [s] | warm [s] | cold / warm |",
+             "|---|---|---|---|"]
+    for x in latency["cold"]:
+        cold_s = "—" if x["cold_s"] is None else f"{x['cold_s']:.2f}"
+        ratio = "—" if x["ratio"] is None else f"{x['ratio']:.2f}"
+        lines.append(f"| {x['system']} | {cold_s} | "
+                     + ", ".join(f"{v:.2f}" for v in x["warm_s"]) + f" | {ratio} |")
+    return lines

@@ -28,8 +28,10 @@ def add_parser(sub: Any) -> None:
                    help="measure a scene with all outputs consumed vs state only")
     b.add_argument("--duration", type=float, help="simulated seconds for --scene")
     b.add_argument("--streaming", action="store_true",
-                   help="real-time factor of each system recording at 100 Hz, and the CPU "
-                   "share of all systems streaming in real time")
+                   help="real-time factor of each system recording at 100 Hz, of live "
+                   "consumers of the per-sample and batch topics in another process beside "
+                   "rclpy's ceiling, start-up of scenes of many instances, and the CPU share "
+                   "of all systems streaming in real time (streaming.md, streaming.json)")
     b.add_argument("--brouwer", action="store_true",
                    help="Brouwer's law: radau15's energy error against the number of steps "
                    "on perturbed Kepler orbits (brouwer.png, brouwer.json)")

@@ -44,6 +44,10 @@ def add_scene_options(parser: Any, verb: str) -> None:
                         "publish_rate setting)")
     # One name per meaning: `--rate` is replay's speed factor (as in `ros2 bag play`).
     parser.add_argument("--rate", type=float, dest="deprecated_rate", help=argparse.SUPPRESS)
+    parser.add_argument("--bag-topics", metavar="WHAT", help="what the bag records: samples "
+                        "(every topic but <ns>/sample_batch; the default), batches "
+                        "(<ns>/sample_batch instead of the per-sample topics) or both; "
+                        "default: the scene's outputs.bag_topics")
     add_force(parser)
     parser.set_defaults(verb=verb)
 
@@ -73,6 +77,10 @@ def scene_of(a: Any, *, fast: bool = False) -> Any:
         scene.publish_rate = check_rate(rate, option)
     if a.duration is not None:
         scene.duration = check_duration(a.duration)
+    if getattr(a, "bag_topics", None) is not None:
+        from mechsim.scene import bag_topics
+
+        scene.bag_topics = bag_topics("--bag-topics", a.bag_topics)
     if fast:
         scene.pacing = "fast"
     return scene

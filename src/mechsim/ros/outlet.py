@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -32,14 +33,19 @@ DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                              history=HistoryPolicy.KEEP_LAST)
 
 
-#: History a publisher keeps for a reliable subscriber in a lossless run: a chunk is sent in
-#: slices of this many samples, each acknowledged by every such subscriber before the next
-#: (Fast DDS acknowledges about once per heartbeat period of the project's profile, so with
-#: the usual depth of 10 a topic would carry about ten messages per heartbeat at most).
+#: A lossless run sends a chunk in slices of this many samples and keeps up to
+#: ``LOSSLESS_SLICES`` of them in flight: each streamed publisher's history holds that many
+#: samples' messages, and before a slice that would not fit the node waits until every
+#: reliable subscriber has acknowledged everything (Fast DDS acknowledges about once per
+#: heartbeat period of the project's profile: a slice acknowledged before the next one goes
+#: out would leave the subscriber idle for a heartbeat per slice).
 LOSSLESS_DEPTH = 1000
+LOSSLESS_SLICES = 8
 #: Longest wait for one slice's acknowledgments (a reader that stopped answering is given up
 #: on after it, with one warning).
 LOSSLESS_WAIT = 10.0
+#: A wait that only looks (acknowledged now or not).
+_NOW = Duration(seconds=0)
 
 
 def subscription_qos(offered: list[QoSProfile], reliable_depth: int = 100,
@@ -78,6 +84,13 @@ def streamed(qos: QoSProfile) -> bool:
             and qos.durability == DurabilityPolicy.VOLATILE)
 
 
+def _message(data: bytes, ch: _Channel) -> Any:
+    """The rclpy message of a channel's CDR bytes (for a sink that takes messages)."""
+    from rclpy.serialization import deserialize_message
+
+    return deserialize_message(data, ch.publisher.msg_type)
+
+
 @dataclass
 class _Channel:
     publisher: Publisher
@@ -106,7 +119,9 @@ class Outlet:
         reader has not taken: no message lost, at the pace of the slowest reader."""
         self.node = node
         self.lossless = lossless
-        self._unacknowledged: list[_Channel] = []  # the last slice's channels (lossless)
+        #: The channels with samples in flight, and how many samples (lossless).
+        self._unacknowledged: dict[str, _Channel] = {}
+        self._in_flight = 0
         self._gave_up: set[str] = set()
         self.sinks: list[Sink] = sinks if sinks is not None else []
         self.channels: dict[str, _Channel] = {}
@@ -117,6 +132,8 @@ class Outlet:
         #: Published samples not yet handed to the sinks: [stamps, topics, columns, first,
         #: end] of one chunk (``hand_over``).
         self._held: list[Any] | None = None
+        #: Batch messages published and not yet handed to the sinks: (topic, stamp, bytes).
+        self._held_batches: list[tuple[str, int, bytes]] = []
         #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
         self._live: list[tuple[_Channel, np.ndarray]] = []
         self._live_for: Any = None
@@ -127,8 +144,9 @@ class Outlet:
         resolved = self.node.resolve_topic_name(topic)
         if resolved not in self.channels:
             if self.lossless and streamed(qos):
-                qos = QoSProfile(depth=max(qos.depth, LOSSLESS_DEPTH), history=qos.history,
-                                 reliability=qos.reliability, durability=qos.durability)
+                qos = QoSProfile(depth=max(qos.depth, LOSSLESS_DEPTH * LOSSLESS_SLICES),
+                                 history=qos.history, reliability=qos.reliability,
+                                 durability=qos.durability)
             pub = self.node.create_publisher(msg_type, resolved, qos)
             self.channels[resolved] = _Channel(pub, type_name(msg_type), qos)
             self.counts[resolved] = 0
@@ -169,13 +187,16 @@ class Outlet:
     def publish_chunk(self, ns: np.ndarray,
                       topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]],
                       columns: Mapping[str, Any] | None = None,
-                      part: slice | None = None) -> None:
+                      part: slice | None = None,
+                      batch: tuple[str, Callable[[int, int], bytes]] | None = None) -> None:
         """The messages of a chunk of samples stamped ``ns``, already encoded: for each
         (topic, rows, message), row i holds the CDR bytes of sample i (rows None where
         ``needs_rows`` was false when the chunk was encoded). The bytes are
         published at once (only on topics with subscribers at the last ``refresh``); the
         sinks get them later, in one hand-off per chunk (``hand_over``). ``part``: only these
-        samples of the chunk."""
+        samples of the chunk. ``batch``: (topic, make) where ``make(i, j)`` is one message
+        holding samples i to j (exclusive), published for each ``batch.MAX_SAMPLES`` of them
+        where a subscriber or a sink takes the topic."""
         a = 0 if part is None else part.start
         b = len(ns) if part is None else part.stop
         n = b - a
@@ -184,18 +205,20 @@ class Outlet:
                           if rows is not None and self.subscribers.get(topic, 0) > 0]
             self._live_for = topics
         live = self._live
+        batches = self._batch_outlet(batch)
         step = LOSSLESS_DEPTH if self.lossless else max(n, 1)
         for start in range(a, b, step):
-            # The previous slice is acknowledged before this one goes out: the history then
-            # never holds more than one slice unacknowledged, and a subscriber takes a slice
-            # while the node computes the next.
-            self.settle()
+            end = min(start + step, b)
+            self._make_room(end - start)
             for ch, rows in live:
                 publish = ch.publisher.publish
-                for r in rows[start:min(start + step, b)]:
+                for r in rows[start:end]:
                     publish(r.tobytes())
+            if batches is not None:
+                batches(start, end, ns)
             if self.lossless:
-                self._unacknowledged = [ch for ch, _ in live]
+                self._in_flight += end - start
+                self._unacknowledged.update((ch.publisher.topic_name, ch) for ch, _ in live)
         for topic, _, _ in topics:
             self.counts[topic] += n
         if not self.sinks or not n:
@@ -204,10 +227,37 @@ class Outlet:
         if held is not None and held[1] is topics and held[4] == a:
             held[4] = b  # the next samples of the chunk held: handed over together
         else:
-            self.hand_over()
+            self._hand_over_chunk()
             self._held = [ns, topics, columns, a, b]
         if self._sinks().immediate:
             self.hand_over()
+
+    def _batch_outlet(self, batch: tuple[str, Callable[[int, int], bytes]] | None
+                      ) -> Callable[[int, int, np.ndarray], None] | None:
+        """What publishes the batch messages of samples i to j of a chunk, or None if
+        nothing takes them."""
+        if batch is None:
+            return None
+        from mechsim.outputs.batch import MAX_SAMPLES
+
+        topic, make = batch
+        ch = self.channels[topic]
+        live = self.subscribers.get(topic, 0) > 0
+        held = self._sinks().wants(topic)
+        if not (live or held):
+            return None
+
+        def publish(i: int, j: int, ns: np.ndarray) -> None:
+            for k in range(i, j, MAX_SAMPLES):
+                data = make(k, min(k + MAX_SAMPLES, j))
+                if live:
+                    ch.publisher.publish(data)
+                if held:
+                    self._held_batches.append((topic, int(ns[k]), data))
+                self.counts[topic] += 1
+            if live and self.lossless:
+                self._unacknowledged[topic] = ch
+        return publish
 
     def hand_over(self) -> None:
         """Hand the published samples held for the sinks over to them, in one call per sink
@@ -220,6 +270,16 @@ class Outlet:
         published. A sink declared ``immediate`` (a live view) gets every sample as it is
         published. The runner hands over what is held before it reports diagnostics and when
         it stops: nothing published is left out."""
+        self._hand_over_chunk()
+        if self._held_batches:
+            batches, self._held_batches = self._held_batches, []
+            for topic, ns, data in batches:
+                ch = self.channels[topic]
+                self._sinks().message(topic, ch.type_name, ch.qos, ns, data=data,
+                                      make=lambda d=data, c=ch: _message(d, c))
+
+    def _hand_over_chunk(self) -> None:
+        """The held samples of the per-sample topics to the sinks (``hand_over``)."""
         held, self._held = self._held, None
         if held is None:
             return
@@ -230,18 +290,37 @@ class Outlet:
                                             channels[topic].qos, rows, message)
                                  for topic, rows, message in topics], columns, part)
 
+    @property
+    def in_flight(self) -> int:
+        """Samples published (lossless) that a reliable subscriber may not have acknowledged
+        yet, as last looked at."""
+        return self._in_flight
+
+    def _make_room(self, samples: int) -> None:
+        """Before ``samples`` more samples go out (lossless): if they would not fit in the
+        publishers' history beside those in flight, wait until every reliable subscriber has
+        acknowledged everything; otherwise only look (without waiting) whether it has."""
+        if not self._in_flight:
+            return
+        if self._in_flight + samples > LOSSLESS_DEPTH * LOSSLESS_SLICES:
+            self.settle()
+        elif all(ch.publisher.wait_for_all_acked(_NOW)
+                 for ch in self._unacknowledged.values()):
+            self._unacknowledged.clear()
+            self._in_flight = 0
+
     def settle(self) -> None:
-        """Wait for the acknowledgment of the last slice published (``lossless``; the runner
+        """Wait for the acknowledgment of every sample in flight (``lossless``; the runner
         calls this when a run ends)."""
         if self._unacknowledged:
-            channels, self._unacknowledged = self._unacknowledged, []
+            channels = list(self._unacknowledged.values())
+            self._unacknowledged.clear()
             self._acknowledged(channels)
+        self._in_flight = 0
 
     def _acknowledged(self, channels: list[_Channel]) -> None:
         """Wait until every reliable subscriber of ``channels`` has acknowledged what was
         published (``lossless``), giving up on a topic whose reader stopped answering."""
-        from rclpy.duration import Duration
-
         for ch in channels:
             topic = ch.publisher.topic_name
             if not streamed(ch.qos) or topic in self._gave_up:

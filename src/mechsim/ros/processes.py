@@ -200,9 +200,13 @@ def _recording(run: SceneRun, rec: dict[str, Any] | None) -> list[str]:
     """What the recorder process wrote, and what of the published messages it received."""
     if rec is None:
         return ["the recorder process reported nothing (see its error above)"]
+    from mechsim.outputs.batch import recorded
+
     lines = list(rec["lines"])
     counts = rec["counts"]
-    lost = {t: n - counts.get(t, 0) for t, n in run.messages.items() if n > counts.get(t, 0)}
+    kept = recorded(run.scene.bag_topics)  # (others are published for other subscribers)
+    lost = {t: n - counts.get(t, 0) for t, n in run.messages.items()
+            if n > counts.get(t, 0) and kept(t)}
     dropped = {t: n for t, n in lost.items() if t in rec["best_effort"]}
     reliable = {t: n for t, n in lost.items() if t not in dropped}
     total = sum(run.messages.values())
@@ -370,8 +374,11 @@ class _Simulator:
     def _consumers_listen(self, n: Any) -> None:
         """Before the first message: every consumer reads system_info (the diagnostics node
         follows a system from it), the recorder every topic."""
+        from mechsim.outputs.batch import recorder_subscribed
+
+        bag_topics = self.scene.bag_topics
         if not _wait_for(lambda: _subscribers(n)[n.topics.t_info] >= self.readers and (
-                not self.recorder or min(_subscribers(n).values()) >= 1),
+                not self.recorder or recorder_subscribed(_subscribers(n), bag_topics)),
                          lambda: time.sleep(0.05)):
             self.late.append("system_info")
 

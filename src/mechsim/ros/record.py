@@ -181,7 +181,10 @@ def open_outputs(scene: Any, bag: str | None, rrd: str | None,
     if rrd is not None:
         check_text("--rrd", rrd)
     if path is not None:
-        out.bag = BagWriter(path, scene_custom_data(scene))
+        from mechsim.outputs.batch import recorded
+
+        out.bag = BagWriter(path, scene_custom_data(scene),
+                            topics=recorded(getattr(scene, "bag_topics", "samples")))
     if rrd is not None:
         try:
             out.rrd = rerun_sink(rrd, replace=bool(getattr(scene, "force", False)))

@@ -92,8 +92,11 @@ class RecorderNode(Node):
         self.create_timer(SCAN_PERIOD, self.scan)
 
     def wanted(self, topic: str) -> bool:
-        return topic in GLOBAL_TOPICS or any(topic.startswith(f"/{ns}/")
-                                             for ns in self.instances)
+        """A topic of the scene that a sink takes (a bag of ``bag_topics: samples`` no
+        sample batches: subscribing would make the simulators compute them)."""
+        return (topic in GLOBAL_TOPICS or any(topic.startswith(f"/{ns}/")
+                                              for ns in self.instances)) \
+            and self.sinks.wants(topic)
 
     def scan(self) -> None:
         """Subscribe to every wanted topic that has appeared since the last scan."""

@@ -72,15 +72,17 @@ def _refuse_unknown(node: Any) -> None:
 
 def _recorder_listens(node: Any) -> None:
     """Before the first sample: wait (at most ``CONSUMER_WAIT``) until a recorder subscribes
-    to every topic of ``node`` (a launch file starts both at once)."""
+    to every topic of ``node`` that it records (a launch file starts both at once)."""
     import time
 
+    from mechsim.outputs.batch import recorder_subscribed
     from mechsim.ros.processes import CONSUMER_WAIT
 
     end = time.monotonic() + CONSUMER_WAIT
-    channels = node.outlet.channels.values()
+    channels = node.outlet.channels
     while time.monotonic() < end:
-        if all(ch.publisher.get_subscription_count() > 0 for ch in channels):
+        if recorder_subscribed({t: ch.publisher.get_subscription_count()
+                                for t, ch in channels.items()}):
             return
         time.sleep(0.05)
     node.get_logger().warning(f"no recorder subscribed to every topic within "

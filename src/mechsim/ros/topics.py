@@ -24,7 +24,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
-from mechsim.outputs import messages
+from mechsim.outputs import batch, messages
 from mechsim.outputs.markers import MarkerEncoder
 from mechsim.outputs.messages import Chunk, ChunkEncoder, MessageFactory, Sample
 from mechsim.ros.outlet import (
@@ -38,7 +38,7 @@ from mechsim.ros.outlet import (
 from mechsim.runcore.run import Block, SystemRun
 from mechsim.scene import Instance
 from mechsim.systems.base import Model
-from mechsim_msgs.msg import Energy, NamedScalars, SystemInfo
+from mechsim_msgs.msg import Energy, NamedScalars, SampleBatch, SystemInfo
 from tf2_msgs.msg import TFMessage
 
 #: Wall seconds between two effort notices (WARN on /diagnostics and a log line) of a node.
@@ -49,11 +49,13 @@ Topic = tuple[str, np.ndarray | None, Callable[[int], Any]]
 
 
 class Encoded(NamedTuple):
-    """A block of samples ready for the Outlet (``Outlet.publish_chunk``)."""
+    """A block of samples ready for the Outlet (``Outlet.publish_chunk``); ``batch``: the
+    batch topic and what makes its message of samples i to j, if something takes it."""
 
     ns: np.ndarray
     topics: list[Topic]
     columns: dict[str, Any]
+    batch: tuple[str, Callable[[int, int], bytes]] | None = None
 
 
 def _builder(build: Callable[[Sample, int], Any], sample: Callable[[int], Sample],
@@ -88,6 +90,7 @@ class SystemTopics:
         self.t_energy = o.channel("energy", Energy, STATE_QOS)
         self.t_info = o.channel("system_info", SystemInfo, LATCHED_QOS)
         self.t_diag = o.channel("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS)
+        self.t_batch = o.channel(batch.TOPIC, SampleBatch, STATE_QOS)
         if publish_clock:
             self.t_clock = o.channel("/clock", ClockMsg, CLOCK_QOS)
         self.t_effort = node.resolve_topic_name("effort")
@@ -98,8 +101,8 @@ class SystemTopics:
         self.costs = {"encode": 0.0, "publish": 0.0}
         self._dynamic_frames = False
         self._effort_noticed = -math.inf
-        #: What the block being made carries: /tf (moving frames), markers.
-        self._moved = self._drawn = False
+        #: What the block being made carries: /tf (moving frames), markers, a batch.
+        self._moved = self._drawn = self._batched = False
         self.markers: MarkerEncoder | None = None
 
     def model_channels(self, model: Model) -> None:
@@ -135,6 +138,7 @@ class SystemTopics:
         else:
             self.factory.model = model
         self.encoder = ChunkEncoder(self.factory)
+        self.batches = batch.BatchEncoder(self.factory)
         self._dynamic_frames = any(not fr.static for fr in model.frames)
         previous, self.markers = self.markers, None
         if self.t_markers and model.frames and model.visuals():
@@ -165,11 +169,13 @@ class SystemTopics:
         o, shape = self.outlet, self.run.shape
         o.refresh()
         want = []
-        if o.wanted(self.t_energy):
+        # A batch carries every named value the model has.
+        self._batched = every = o.wanted(self.t_batch)
+        if every or o.wanted(self.t_energy):
             want.append("energy")
-        if shape.invariants and o.wanted(self.t_inv):
+        if shape.invariants and (every or o.wanted(self.t_inv)):
             want.append("invariants")
-        if shape.observables and o.wanted(self.t_obs):
+        if shape.observables and (every or o.wanted(self.t_obs)):
             want.append("observables")
         self._moved = self._dynamic_frames and o.wanted(self.t_tf)
         self._drawn = self.markers is not None and o.wanted(self.t_markers)
@@ -189,10 +195,14 @@ class SystemTopics:
                   out.get("frames"))
         columns: dict[str, Any] = {}
         topics: list[Topic] = []
+        batched = None
         if block.times.size:
             columns = self._columns(c)
             topics = self._topics(c, _sampler(block.times, c), block.times)
-        block.encoded = Encoded(ns, topics, columns)
+            if self._batched:
+                times, make = block.times, self.batches.encode
+                batched = (self.t_batch, lambda a, b: make(times, c, a, b))
+        block.encoded = Encoded(ns, topics, columns, batched)
         self.costs["encode"] += time.perf_counter() - t0
 
     def _columns(self, c: Chunk) -> dict[str, Any]:
@@ -252,10 +262,10 @@ class SystemTopics:
 
     def release(self, block: Block, a: int, b: int) -> None:
         t0 = time.perf_counter()
-        ns, topics, columns = block.encoded
+        ns, topics, columns, batched = block.encoded
         size = block.times.size
         self.outlet.publish_chunk(ns, topics, columns,
-                                  None if a == 0 and b == size else slice(a, b))
+                                  None if a == 0 and b == size else slice(a, b), batched)
         if b == size:
             self.outlet.hand_over()  # the block's samples to the sinks, at once
         self.costs["publish"] += time.perf_counter() - t0

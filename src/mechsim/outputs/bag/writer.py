@@ -29,6 +29,7 @@ import os
 import queue
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -130,7 +131,11 @@ class BagWriter:
     capabilities = Capabilities(Takes.BYTES)
 
     def __init__(self, path: str | Path, custom_data: dict[str, str] | None = None,
-                 chunk_size: int = CHUNK_SIZE) -> None:
+                 chunk_size: int = CHUNK_SIZE,
+                 topics: Callable[[str], bool] | None = None) -> None:
+        """``topics``: which topics the bag records, by name (None: every one)."""
+        if topics is not None:
+            self.capabilities = Capabilities(Takes.BYTES, wants=topics)
         self.path, self._lock, self._created = claim_bag_dir(path)
         self.file_name = storage_file_name(self.path)
         self.stats = BagStats(custom_data={k: str(v) for k, v in (custom_data or {}).items()})

@@ -218,10 +218,32 @@ class _Source:
         else:
             self.add(indent, f"if n{k} != {f.length}: _length({f.name!r}, n{k}, "
                              f"'{f.length}')")
-        if f.is_message or f.type == "string" or self.trace:
+        flat = flat_dtype(self.types, f.type) if f.is_message and _COPY else None
+        if flat is not None and not self.trace:
+            self.records(f, items, f"n{k}", flat, path, indent, depth)
+        elif f.is_message or f.type == "string" or self.trace:
             self.loop(f, items, path, indent, depth)
         else:
             self.numbers(f, items, f"n{k}", indent)
+
+    def records(self, f: Field, items: str, count: str, dtype: np.dtype[Any], path: str,
+                indent: str, depth: int) -> None:
+        """Elements of a flat message type (:func:`flat_dtype`): copied as they are from a
+        numpy array of that record type, else one by one (``loop``)."""
+        k = next(self.count)
+        self.names[f"_rec{k}"] = dtype
+        before = self.align
+        self.add(indent, f"if {items}.__class__ is _ndarray and {items}.dtype == _rec{k} "
+                         f"and {items}.ndim == 1:")
+        inner = indent + " "
+        if f.sequence:
+            self.add(inner, f"if {count}:")
+            inner += " "
+        self.pad(dtype[0].itemsize, inner)  # the first field's alignment
+        self.add(inner, f"buf += {items}.tobytes()")
+        self.align = before
+        self.add(indent, "else:")
+        self.loop(f, items, path, indent + " ", depth)
 
     def loop(self, f: Field, items: str, path: str, indent: str, depth: int) -> None:
         """The elements one by one. The body is made for the alignment both the first
@@ -312,6 +334,30 @@ class _Source:
                 " unit_of = _units.get", " unit = _unit"]
         exec(f"def encode({args}):\n" + "\n".join(head + self.lines), self.names)  # noqa: S102
         return self.names["encode"]  # type: ignore[no-any-return]
+
+
+def flat_dtype(types: dict[str, tuple[Field, ...]], type_name: str) -> np.dtype[Any] | None:
+    """The numpy record type whose array holds elements of ``type_name`` exactly as a CDR
+    sequence of them does (e.g. builtin_interfaces/Time: int32 sec, uint32 nanosec), or None
+    where there is none: a field that is not one primitive, padding inside an element, or an
+    element whose start could fall on different alignments."""
+    fields = types.get(type_name)
+    if not fields or any(f.is_message or f.type == "string" or f.sequence
+                         or f.length is not None for f in fields):
+        return None
+    sizes = [STRUCTS[f.type].size for f in fields]
+    offsets, at = [], 0
+    for size in sizes:
+        if at % size:
+            return None  # padding inside the element
+        offsets.append(at)
+        at += size
+    widest = max(sizes)
+    if at % widest or (sizes[0] != widest and widest > 4):
+        return None  # the next element, or the first after a count, would start unaligned
+    return np.dtype({"names": [f.name for f in fields],
+                     "formats": [DTYPES[f.type] for f in fields],
+                     "offsets": offsets, "itemsize": at})
 
 
 def _length(name: str, n: int, expected: str) -> None:
