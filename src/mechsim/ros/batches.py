@@ -20,6 +20,7 @@ message objects. The same arrays from a bag: ``mechsim.outputs.batch.read_batche
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 from collections import deque
@@ -88,8 +89,11 @@ class BatchSubscriber:
         self._arrived: deque[tuple[str, SampleBatch]] = deque()
         self.topics = [batch_topic(t) for t in topics]
         self.subscriptions = [
-            subscribe(self.node, t, lambda b, t=t: self._arrived.append((t, b)))
+            subscribe(self.node, t, functools.partial(self._arrive, t))
             for t in self.topics]
+
+    def _arrive(self, topic: str, batch: SampleBatch) -> None:
+        self._arrived.append((topic, batch))
 
     def matched(self) -> int:
         """How many publishers the subscriptions have matched, all topics together."""

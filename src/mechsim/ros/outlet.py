@@ -4,6 +4,7 @@ Rerun logger). In-process sinks see every message, so a recording cannot drop on
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -147,7 +148,7 @@ class Outlet:
                 qos = QoSProfile(depth=max(qos.depth, LOSSLESS_DEPTH * LOSSLESS_SLICES),
                                  history=qos.history, reliability=qos.reliability,
                                  durability=qos.durability)
-            pub = self.node.create_publisher(msg_type, resolved, qos)
+            pub: Any = self.node.create_publisher(msg_type, resolved, qos)
             self.channels[resolved] = _Channel(pub, type_name(msg_type), qos)
             self.counts[resolved] = 0
         return resolved
@@ -276,7 +277,7 @@ class Outlet:
             for topic, ns, data in batches:
                 ch = self.channels[topic]
                 self._sinks().message(topic, ch.type_name, ch.qos, ns, data=data,
-                                      make=lambda d=data, c=ch: _message(d, c))
+                                      make=functools.partial(_message, data, ch))
 
     def _hand_over_chunk(self) -> None:
         """The held samples of the per-sample topics to the sinks (``hand_over``)."""

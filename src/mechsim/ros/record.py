@@ -230,7 +230,7 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
             out = open_outputs(scene, bag, rrd, live)
         run = run_scene(scene, fast=fast, duration=duration, sinks=out.sinks, lossless=lossless,
                         progress=progress)
-        bag = out.bag
+        writer = out.bag
         if run.interrupted and out.live is not None:  # stopped: wait only briefly for a viewer
             out.live.close_timeout = INTERRUPTED_CLOSE_TIMEOUT
         with held_signals():
@@ -242,8 +242,8 @@ def run_with_outputs(scene: Any, *, fast: bool | None, duration: float | None,
                 # Stopped by Ctrl-C: the stop's exit status stands, the output's error is said.
                 print(f"mechsim: {one_line(str(e))}", file=sys.stderr)
                 lines = []
-        if bag is not None:
-            run.costs["write"] = bag.write_seconds
+        if writer is not None:
+            run.costs["write"] = writer.write_seconds
     except KeyboardInterrupt:
         if out is not None:
             if out.live is not None:  # a stopped run waits only briefly for a viewer

@@ -122,7 +122,7 @@ class RecorderNode(Node):
     def _receiver(self, topic: str, type_name: str, cls: type,
                   qos: QoSProfile) -> Callable[[bytes], None]:
         def receive(data: bytes) -> None:
-            msg = deserialize_message(data, cls)
+            msg: Any = deserialize_message(data, cls)
             ns = stamp_ns(msg)
             ns = self._last_ns if ns is None else ns
             self._last_ns = max(self._last_ns, ns)

@@ -256,8 +256,12 @@ class SystemTopics:
             drawn = self.markers.encode(times, ns, c.placed_frames(f),
                                         self.run.settings.publish_rate,
                                         c.time_rows() if ns.shape[0] > 1 else None)
-            topics.append((self.t_markers, drawn,
-                           lambda i, m=self.markers, d=drawn: m.message(d[i])))
+            markers = self.markers
+
+            def marker_message(i: int, d: np.ndarray = drawn) -> MarkerArray:
+                return markers.message(d[i])
+
+            topics.append((self.t_markers, drawn, marker_message))
         return topics
 
     def release(self, block: Block, a: int, b: int) -> None:

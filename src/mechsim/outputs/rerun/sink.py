@@ -85,6 +85,13 @@ class RerunSink:
     :meth:`discard` drops the recording. After a hard kill the recording so far stays in the
     hidden ``.<name>.*.partial`` directory (Rerun reads it)."""
 
+    #: The file written (None for a live stream); a live stream's viewer URL and the bound of
+    #: its close.
+    path: Path | None
+    _tmpdir: Path | None
+    url: str | None = None
+    close_timeout: float = 0.0
+
     def __init__(self, path: str | Path, *, application_id: str = "mechsim",
                  recording_id: str | None = None, replace: bool = True) -> None:
         import rerun as rr
@@ -226,6 +233,7 @@ class RerunSink:
                 os.fsync(fd)
             finally:
                 os.close(fd)
+            assert self.path is not None  # a file sink
             publish(self._tmp, self.path, replace=self.replace)
         except FileExistsError:
             raise MechsimError(f"rrd {self.path}: exists (not replaced)") from None
