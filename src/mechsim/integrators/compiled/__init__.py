@@ -77,6 +77,27 @@ def load() -> ModuleType:
     return codegen.load_module("loops", key, lambda: text)
 
 
+def _runs_source(loops_module: str) -> str:
+    """The text of the whole-run module (``runs``): its imports of the other fragments read
+    from the loaded loops module ``loops_module``."""
+    text = Path(__file__).with_name("runs.py").read_text()
+    lines = text.splitlines()
+    for node in ast.parse(text).body:
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith(__name__):
+            lines[node.lineno - 1] = lines[node.lineno - 1].replace(node.module or "",
+                                                                    loops_module, 1)
+    return "\n".join(lines) + "\n"
+
+
+@functools.cache
+def load_runs() -> ModuleType:
+    """The whole-run loops (``runs``: one run in one call, and ensembles in parallel),
+    a generated module of their own on top of the shared loops (which it imports), under a
+    name that hashes its text, which names the loops' module."""
+    text = _runs_source(load().__name__)
+    return codegen.load_module("runs", codegen.fingerprint(text), lambda: text)
+
+
 #: ``precompile``'s two halves, of about equal compile time (DOP853's loop, the largest, with
 #: the small ones; radau15's with DOPRI5's), for set-up to compile on two cores.
 PRECOMPILE_PARTS = (("dop853_advance", "erk_initial_step",
