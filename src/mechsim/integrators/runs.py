@@ -83,11 +83,12 @@ _PLANS: weakref.WeakKeyDictionary[Model, dict[tuple[Any, ...], RunPlan | None]] 
 
 def _make_plan(model: Model, method: str, tolerance: float, request: Request,
                which: tuple[str, ...]) -> RunPlan | None:
-    if model.events or request.step is not None:
-        return None
-    from mechsim.integrators import METHODS
+    from mechsim.integrators import method_class
 
-    cls = METHODS[method]
+    cls = method_class(method)
+    cls.check(model)
+    if model.events or request.step is not None or not 0.0 < tolerance < 1.0:
+        return None  # (the stepper says what is wrong with the tolerance)
     local, options = tolerance, {}
     if cls is Auto:
         cls, local, options = Auto.decide(model, model.initial_y(), 0.0, tolerance, request)
