@@ -82,28 +82,36 @@ def evaluate(model: Model, t: np.ndarray, Y: np.ndarray, p: np.ndarray,
     return assemble(shape, which, *evaluate_arrays(model, shape, t, Y, p, which))
 
 
-def output_buffers(shape: OutputShape, which: tuple[str, ...], m: int
+def output_buffers(shape: OutputShape, which: tuple[str, ...], m: int, members: int = 0
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The arrays the compiled output evaluation writes for ``m`` samples (``evaluate_arrays``),
-    empty stand-ins for the outputs not asked for."""
-    return (np.zeros((m, 3)) if "energy" in which else _NONE2,
-            np.zeros((m, max(len(shape.invariants), 1))) if "invariants" in which else _NONE2,
-            np.zeros((m, max(len(shape.observables), 1))) if "observables" in which else _NONE2,
-            np.zeros((m, max(shape.frames, 1), 7)) if "frames" in which else _NONE3)
+    empty stand-ins for the outputs not asked for; with ``members``, for each of that many
+    members of an ensemble (a leading axis)."""
+    if not members:
+        return (np.zeros((m, 3)) if "energy" in which else _NONE2,
+                np.zeros((m, max(len(shape.invariants), 1))) if "invariants" in which
+                else _NONE2,
+                np.zeros((m, max(len(shape.observables), 1))) if "observables" in which
+                else _NONE2,
+                np.zeros((m, max(shape.frames, 1), 7)) if "frames" in which else _NONE3)
+    E, inv, obs, fr = output_buffers(shape, which, m)
+    return (np.zeros((members, *E.shape)), np.zeros((members, *inv.shape)),
+            np.zeros((members, *obs.shape)), np.zeros((members, *fr.shape)))
 
 
 def assemble(shape: OutputShape, which: tuple[str, ...], E: np.ndarray, inv: np.ndarray,
              obs: np.ndarray, fr: np.ndarray) -> Outputs:
-    """``Outputs`` from the arrays of ``evaluate_arrays``."""
+    """``Outputs`` from the arrays of ``evaluate_arrays`` (or ``output_buffers``: with a
+    leading axis of members, each output has it too)."""
     out = Outputs()
     if "energy" in which:
-        out.kinetic, out.potential, out.energy_function = E[:, 0], E[:, 1], E[:, 2]
+        out.kinetic, out.potential, out.energy_function = E[..., 0], E[..., 1], E[..., 2]
     if "invariants" in which:
-        out.invariants = {name: inv[:, i] for i, name in enumerate(shape.invariants)}
+        out.invariants = {name: inv[..., i] for i, name in enumerate(shape.invariants)}
     if "observables" in which:
-        out.observables = {name: obs[:, i] for i, name in enumerate(shape.observables)}
+        out.observables = {name: obs[..., i] for i, name in enumerate(shape.observables)}
     if "frames" in which:
-        out.frames = fr[:, :shape.frames]
+        out.frames = fr[..., :shape.frames, :]
     return out
 
 
@@ -259,6 +267,30 @@ def output_times(t_end: float, output_dt: float, t0: float = 0.0) -> np.ndarray:
     return t
 
 
+def resolve_settings(model: Model, tolerance: float | None, method: str | None,
+                     outputs: tuple[str, ...], output_dt: float | None,
+                     publish_rate: float | None) -> tuple[float, str, float]:
+    """The tolerance, method and output interval of a run of ``simulate`` (or
+    ``simulate_many``): those given, else those :func:`load_system` was given, else the
+    defaults; the outputs checked."""
+    if outputs != OUTPUTS:
+        for o in outputs:
+            if o not in OUTPUTS:
+                raise ParameterError("outputs",
+                                     f"unknown output {o!r} (known: {', '.join(OUTPUTS)})")
+    given = _SETTINGS.get(model, {})
+    tolerance = float(given.get("tolerance", TOLERANCE.default) if tolerance is None
+                      else tolerance)
+    method = str(given.get("method", "auto") if method is None else method)
+    if output_dt is not None and publish_rate is not None:
+        raise ParameterError("publish_rate", "not with output_dt (the same sampling)")
+    if output_dt is None:
+        rate = given.get("publish_rate", PUBLISH_RATE.default) if publish_rate is None \
+            else _setting("publish_rate", publish_rate)
+        output_dt = 1.0 / float(rate)
+    return tolerance, method, output_dt
+
+
 def simulate(model: Model, t_end: float, output_dt: float | None = None,
              tolerance: float | None = None, method: str | None = None,
              outputs: tuple[str, ...] = OUTPUTS, step: float | None = None,
@@ -280,21 +312,8 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     leave them out of their arithmetic and step control. Wall time covers integration and
     output evaluation.
     """
-    if outputs != OUTPUTS:
-        for o in outputs:
-            if o not in OUTPUTS:
-                raise ParameterError("outputs",
-                                     f"unknown output {o!r} (known: {', '.join(OUTPUTS)})")
-    given = _SETTINGS.get(model, {})
-    tolerance = float(given.get("tolerance", TOLERANCE.default) if tolerance is None
-                      else tolerance)
-    method = str(given.get("method", "auto") if method is None else method)
-    if output_dt is not None and publish_rate is not None:
-        raise ParameterError("publish_rate", "not with output_dt (the same sampling)")
-    if output_dt is None:
-        rate = given.get("publish_rate", PUBLISH_RATE.default) if publish_rate is None \
-            else _setting("publish_rate", publish_rate)
-        output_dt = 1.0 / float(rate)
+    tolerance, method, output_dt = resolve_settings(model, tolerance, method, outputs,
+                                                    output_dt, publish_rate)
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
     plan = plan_run(model, method, tolerance,
