@@ -8,8 +8,8 @@ Pure-Python API (no ROS needed)::
     run.total, run.invariants, run.observables["tension"]
 """
 
-from mechsim.errors import IntegrationError, MechsimError, ParameterError, UnknownSystemError
 from mechsim.ensemble import EnsembleResult, simulate_many
+from mechsim.errors import IntegrationError, MechsimError, ParameterError, UnknownSystemError
 from mechsim.simulate import SimulationResult, load_system, simulate
 from mechsim.systems import system_ids
 
