@@ -68,3 +68,14 @@ def test_bad_settings_are_refused_as_before() -> None:
         simulate(model, 1.0, tolerance=2.0, method="dop853")
     with pytest.raises(mechsim.ParameterError, match="^method"):
         simulate(model, 1.0, method="rk4")
+
+
+def test_the_whole_run_loops_are_called_with_the_types_set_up_compiles() -> None:
+    from mechsim.integrators.compiled import run_signatures
+
+    model = mechsim.load_system("pendulum")
+    for method in ("dop853", "radau15"):
+        simulate(model, 1.0, 0.1, method=method)
+        mechsim.simulate_many(model, 1.0, 0.1, states=[[1.0, 0.0], [0.5, 0.0]], method=method)
+    for loop, types in run_signatures().items():
+        assert [tuple(s) for s in loop.overloads] == [types], loop.__name__
