@@ -158,3 +158,15 @@ def test_cache_warm(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as stop:  # argparse's usage error, as for every verb
         main(["cache", "info", "pendulum"])
     assert stop.value.code == 2
+
+
+def test_summaries_stay_bounded_when_a_sweep_remembers_many(
+        cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(codegen, "MAX_SUMMARIES", 3)
+    monkeypatch.setattr(codegen, "_PRUNE_EVERY", 4)
+    monkeypatch.setattr(codegen, "_remembered", [0])
+    for k in range(20):
+        codegen.remember(f"summary_{k}", {"k": k})
+        held = len(list((cache / "summaries").glob("*.json")))
+        assert held <= 3 + 4, (k, held)
+    assert codegen.recall("summary_19") == {"k": 19}

@@ -55,6 +55,8 @@ problem is set up as the mechsim system it names).
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -1044,6 +1046,24 @@ BUILDERS: dict[str, Callable[..., Problem]] = {
     "coupled_oscillators_12": coupled_oscillators_12,
 }
 
+#: The short problems: one period of these, sampled ``SHORT_SAMPLES`` times, where a call's
+#: fixed cost weighs most.
+SHORT_OF = ("pendulum", "kepler", "rigid_body_generic", "spring_pendulum",
+            "charged_particle_b", "charged_particle_exb")
+SHORT_SAMPLES = 50
+
+
+def short(name: str) -> Problem:
+    """Problem ``name`` over one of its periods, sampled ``SHORT_SAMPLES`` times."""
+    pb = BUILDERS[name]()
+    return dataclasses.replace(
+        pb, name=f"{name}_short", t_end=pb.period, n_samples=SHORT_SAMPLES,
+        description=f"{pb.description.split(';')[0]}; one period ({pb.period:.4g} s), "
+        f"{SHORT_SAMPLES} samples", _ref_cache=None)
+
+
+BUILDERS.update({f"{name}_short": functools.partial(short, name) for name in SHORT_OF})
+
 # The mechsim system each problem runs on (without building the problem).
 SYSTEM_OF: dict[str, str] = {
     "rigid_body_intermediate": "rigid_body", "rigid_body_generic": "rigid_body",
@@ -1051,6 +1071,7 @@ SYSTEM_OF: dict[str, str] = {
     "charged_particle_exb": "charged_particle", "coupled_oscillators_2": "coupled_oscillators",
     "coupled_oscillators_12": "coupled_oscillators",
 }
+SYSTEM_OF.update({f"{name}_short": SYSTEM_OF.get(name, name) for name in SHORT_OF})
 
 # Horizons of --quick (CI): a few periods.
 QUICK: dict[str, dict[str, Any]] = {
@@ -1069,6 +1090,7 @@ QUICK: dict[str, dict[str, Any]] = {
     "coupled_oscillators_2": {"t_end": 10.0, "n_samples": 20},
     "coupled_oscillators_12": {"t_end": 10.0, "n_samples": 20},
 }
+QUICK.update({f"{name}_short": {} for name in SHORT_OF})  # short already
 
 
 def system_of(name: str) -> str:
@@ -1076,4 +1098,4 @@ def system_of(name: str) -> str:
 
 
 def problem(name: str, quick: bool = False) -> Problem:
-    return BUILDERS[name](**(QUICK[name] if quick else {}))
+    return BUILDERS[name](**(QUICK.get(name, {}) if quick else {}))

@@ -30,6 +30,12 @@ def add_parser(sub: Any) -> None:
     b.add_argument("--streaming", action="store_true",
                    help="real-time factor of each system recording at 100 Hz, and the CPU "
                    "share of all systems streaming in real time")
+    b.add_argument("--throughput", action="store_true",
+                   help="what one simulate() call costs beyond its steps, and ensembles "
+                   "(simulate_many) against a loop of simulate, of scipy's solve_ivp and a "
+                   "hand-written numba prange loop (throughput.md, throughput.json)")
+    b.add_argument("--members", type=int, default=10_000,
+                   help="ensemble members for --throughput (default 10000)")
     b.add_argument("--brouwer", action="store_true",
                    help="Brouwer's law: radau15's energy error against the number of steps "
                    "on perturbed Kepler orbits (brouwer.png, brouwer.json)")
@@ -71,6 +77,16 @@ def cmd_bench(a: argparse.Namespace) -> int:
                                      f"{', '.join(system_ids())})")
         refuse_existing(a.out, ["derive.json", "derive.md"], a.force)
         run_derive(out, list(a.systems))
+        return 0
+    if a.throughput:
+        if a.systems:
+            raise ParameterError("--throughput", "takes no PROBLEM arguments")
+        if a.members < 100:
+            raise ParameterError("--members", f"must be at least 100 (got {a.members})")
+        from mechsim.bench.throughput import run_throughput
+
+        refuse_existing(a.out, ["throughput.json", "throughput.md"], a.force)
+        run_throughput(out, members=a.members)
         return 0
     if a.streaming:
         from mechsim.bench.streaming import run_streaming
