@@ -21,6 +21,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from mechsim.errors import IntegrationError
 from mechsim.integrators.auto import Auto
 from mechsim.integrators.base import Request, Stepper, event_directions
 from mechsim.integrators.compiled import load_runs
@@ -96,7 +97,6 @@ def integrate_many(cls: Any, members: Members, tolerance: float, t: np.ndarray,
     """Every member of ``members`` from t = 0 to the times ``t`` by method ``cls`` (a class
     of ``METHODS``, checked against the model), ``threads`` cores at most (all if None)."""
     n, m = members.y0.shape[0], t.size
-    model = members.models[0]
     choices = _choose(cls, members, tolerance, request)
     run = EnsembleRun(np.full((n, m, members.y0.shape[1]), np.nan),
                       [c.method.method for c in choices], np.zeros(n, np.int64),
@@ -104,7 +104,7 @@ def integrate_many(cls: Any, members: Members, tolerance: float, t: np.ndarray,
     groups: dict[_Choice, list[int]] = {}
     alone: list[int] = []
     for i, c in enumerate(choices):
-        if c.compiled and not model.events and request.step is None:
+        if c.compiled and request.step is None:
             groups.setdefault(c, []).append(i)
         else:
             alone.append(i)
@@ -121,47 +121,135 @@ def integrate_many(cls: Any, members: Members, tolerance: float, t: np.ndarray,
     return run
 
 
+class _Group:
+    """The stacked arrays of one compiled call (each with a leading axis of all N members; the
+    call touches its own members' slices), and the members' steppers for their events:
+    steppers of the member's method whose arrays are views of these (``_stepper``), so that
+    an event is handled by the stepper's own code and the compiled call goes on from it."""
+
+    def __init__(self, choice: _Choice, members: Members, n_outputs: int) -> None:
+        model = members.models[0]
+        n, n_y = members.y0.shape
+        self.choice, self.members = choice, members
+        self.radau = choice.method is Radau15
+        self.options = dict(choice.options)
+        self.y = np.ascontiguousarray(members.y0, dtype=np.float64).copy()
+        self.P = np.ascontiguousarray(members.P, dtype=np.float64)
+        self.ev_dir = event_directions(model)
+        self.g_old = np.zeros((n, self.ev_dir.size))
+        self.comp = np.zeros((n, n_y))
+        self.status = np.full(n, -1, dtype=np.int64)
+        self.done = np.zeros(n, dtype=np.int64)
+        self.restart = np.ones(n, dtype=np.int64)
+        self.local = np.full(n, choice.tolerance)
+        self.steppers: dict[int, Stepper] = {}
+        if self.radau:
+            self.state = np.zeros(n, RADAU_STATE)
+            size = model.kernels.n_q + 2
+            lo, hi = Radau15.EPS_RANGE
+            self.eps = np.full(n, self.options.get(
+                "eps", min(max(0.01 * math.sqrt(choice.tolerance), lo), hi)))
+            self.b, self.g, self.e = (np.zeros((n, 7, size)) for _ in range(3))
+            self.F0 = np.zeros((n, size))
+            self.dy = np.zeros((n, n_y))
+            self.floors = np.zeros((n, 2))
+            self.tau = np.ones(n)
+        else:
+            method: Any = choice.method
+            self.state = np.zeros(n, DOP853_STATE)
+            self.state["n_integrated"] = (n_y if self.options.get("work_terms", True)
+                                          else 2 * model.kernels.n_q)
+            self.tol = np.maximum(self.local * method.LOCAL_FACTOR, method.LOCAL_FLOOR)
+            self.y_old = self.y.copy()
+            self.K = np.zeros((n, method.N_STAGES, n_y))
+            self.F = np.zeros((n, 7, n_y))
+            self.stiff_steps = float(DOP853.__init__.__kwdefaults__["stiff_steps_per_output"])
+
+    def call(self, ks: Any, active: np.ndarray, t: np.ndarray, Y: np.ndarray) -> None:
+        """One compiled call for the members ``active``."""
+        loops = load_runs()
+        if self.radau:
+            loops.radau15_many(ks, active, self.state, self.y, self.P, t, self.done, Y,
+                               self.eps, MAX_STEPS, self.comp, self.b, self.g, self.e,
+                               self.F0, self.dy, self.g_old, self.ev_dir, self.floors,
+                               self.tau, self.tau**2, Radau15.FLOOR, self.local, self.local,
+                               self.restart, self.status)
+        else:
+            method: Any = self.choice.method
+            loops.erk_many(ks, int(method.PAIR), active, self.state, self.y, self.y_old,
+                           self.K, self.F, self.P, t, self.done, Y, self.tol, self.tol,
+                           math.inf, MAX_STEPS, self.g_old, self.ev_dir, self.comp,
+                           self.restart, self.status)
+
+    def _stepper(self, i: int) -> Any:
+        """Member ``i``'s stepper on views of the stacked arrays (made at its first event)."""
+        if i in self.steppers:
+            return self.steppers[i]
+        c = self.choice
+        st: Any = c.method(self.members.models[i], self.y[i], 0.0, c.tolerance, **self.options)
+        st.state, st.y, st.comp, st.g_old, st.p = (self.state[i:i + 1], self.y[i],
+                                                    self.comp[i], self.g_old[i], self.P[i])
+        if self.radau:
+            st.b, st.g, st.e, st.F0, st.dy = self.b[i], self.g[i], self.e[i], self.F0[i], self.dy[i]
+        else:
+            st.y_old, st.K, st.F, st._t = self.y_old[i], self.K[i], self.F[i], st.state["t"]
+            st._restart = 0
+        self.steppers[i] = st
+        return st
+
+    def resume(self, i: int, gap: float) -> bool:
+        """After member ``i`` stopped short: whether the compiled call goes on with it (its
+        stepper's ``advance`` would: an event handled, a stiff phase that does not crawl),
+        its restart set as the stepper's."""
+        status = Status(int(self.status[i]))
+        s = self.state[i:i + 1]
+        if status == Status.STIFF and not self.radau:
+            if float(s["h_old"][0]) * self.stiff_steps >= gap:
+                s["stiff_positive"] = 0
+                return True
+            return False
+        if status != Status.EVENT:
+            return False
+        st = self._stepper(i)
+        st.t = float(s["t"][0])
+        if self.radau:
+            st.a_floor, st.w_floor = self.floors[i]
+        try:
+            st._handle_event(int(s["last_event"][0]))
+        except IntegrationError:
+            return False
+        if self.radau:
+            self.floors[i] = st.a_floor, st.w_floor
+        else:
+            self.restart[i], st._restart = st._restart, 0
+        return True
+
+
 def _run_group(choice: _Choice, idx: np.ndarray, members: Members, t: np.ndarray,
                run: EnsembleRun) -> list[int]:
-    """The members ``idx`` in one compiled call of ``choice``'s method; the members that
-    stopped short (left to their steppers)."""
-    loops = load_runs()
+    """The members ``idx`` in compiled calls of ``choice``'s method, each resumed after its
+    events; the members that stopped otherwise (left to their steppers, from the start)."""
     model = members.models[0]
     ks = model.kernels.kernel_set("rhs", "project", "event", "energy")
-    n, n_y = members.y0.shape
-    y = np.ascontiguousarray(members.y0, dtype=np.float64).copy()
-    P = np.ascontiguousarray(members.P, dtype=np.float64)
-    ev_dir = event_directions(model)
-    g_old = np.zeros((n, ev_dir.size))
-    comp = np.zeros((n, n_y))
-    status = np.full(n, -1, dtype=np.int64)
-    local = np.full(n, choice.tolerance)
-    options = dict(choice.options)
-    if choice.method is Radau15:
-        state = np.zeros(n, RADAU_STATE)
-        size = model.kernels.n_q + 2
-        lo, hi = Radau15.EPS_RANGE
-        eps = options.get("eps", min(max(0.01 * math.sqrt(choice.tolerance), lo), hi))
-        tau = np.ones(n)
-        tau[idx] = [float(members.models[i].time_scale()) for i in idx]
-        loops.radau15_many(ks, idx, state, y, P, t, run.Y, np.full(n, eps), MAX_STEPS, comp,
-                           np.zeros((n, 7, size)), np.zeros((n, 7, size)),
-                           np.zeros((n, 7, size)), np.zeros((n, size)), np.zeros((n, n_y)),
-                           g_old, ev_dir, tau, tau**2, Radau15.FLOOR, local, local, status)
-    else:
-        method: Any = choice.method
-        state = np.zeros(n, DOP853_STATE)
-        state["n_integrated"] = n_y if options.get("work_terms", True) else 2 * model.kernels.n_q
-        tol = np.maximum(local * method.LOCAL_FACTOR, method.LOCAL_FLOOR)
-        loops.erk_many(ks, int(method.PAIR), idx, state, y, y.copy(),
-                       np.zeros((n, method.N_STAGES, n_y)), np.zeros((n, 7, n_y)), P, t,
-                       run.Y, tol, tol, math.inf, MAX_STEPS, g_old, ev_dir, comp, status)
-        if not options.get("work_terms", True):
-            n_q = model.kernels.n_q
-            run.Y[idx, :, 2 * n_q:2 * n_q + 2] = np.nan
+    group = _Group(choice, members, t.size)
+    if group.radau:
+        group.tau[idx] = [float(members.models[i].time_scale()) for i in idx]
+    gap = float(t[-1]) / t.size if t.size else 0.0  # a stepper's first advance, from t = 0
+    failed: list[int] = []
+    active = idx
+    while active.size:
+        group.call(ks, active, t, run.Y)
+        again = [int(i) for i in active if group.status[i] != Status.OK]
+        failed += [i for i in again if not group.resume(i, gap)]
+        active = np.array([i for i in again if i not in failed], dtype=np.int64)
     for name in ("n_steps", "n_evaluations", "n_rejected", "error_estimate"):
-        getattr(run, name)[idx] = state[name][idx]
-    return [int(i) for i in idx if status[i] != Status.OK]
+        getattr(run, name)[idx] = group.state[name][idx]
+    if not group.radau and not group.options.get("work_terms", True):
+        n_q = model.kernels.n_q
+        run.Y[idx, :, 2 * n_q:2 * n_q + 2] = np.nan
+    for i, st in group.steppers.items():
+        run.events[i] = [e for e in st.events if e[0] <= t[-1]]
+    return failed
 
 
 def _run_alone(i: int, choice: _Choice, members: Members, t: np.ndarray, request: Request,

@@ -156,10 +156,10 @@ def run_signatures() -> dict[Any, tuple[Any, ...]]:
         R.erk_run: (KERNEL_SET, 0, 0, 0, dop, v, v, v, m2, 0.0, 0.0, 0.0, 0, iv, *outputs),
         R.radau15_run: (KERNEL_SET, radau, v, v, v, m2, 0.0, 0, iv, 0.0, 0.0, 0.0, 0.0, 0.0,
                         *outputs),
-        R.erk_many: (KERNEL_SET, 0, iv, dop, m2, m2, m3, m3, m2, v, m3, v, v, 0.0, 0, m2, iv,
-                     m2, iv),
-        R.radau15_many: (KERNEL_SET, iv, radau, m2, m2, v, m3, v, 0, m2, m3, m3, m3, m2, m2,
-                         m2, iv, v, v, 0.0, v, v, iv),
+        R.erk_many: (KERNEL_SET, 0, iv, dop, m2, m2, m3, m3, m2, v, iv, m3, v, v, 0.0, 0, m2,
+                     iv, m2, iv, iv),
+        R.radau15_many: (KERNEL_SET, iv, radau, m2, m2, v, iv, m3, v, 0, m2, m3, m3, m3, m2, m2,
+                         m2, iv, m2, v, v, 0.0, v, v, iv, iv),
         R.outputs_many: (KERNEL_SET, v, m3, m2, True, True, True, True, m3, m3, m3, m4),
     }
     return {loop: tuple(a if a is KERNEL_SET else typeof(a) for a in args)

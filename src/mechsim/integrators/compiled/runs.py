@@ -8,8 +8,9 @@ that its rows equal theirs bit for bit: the explicit pairs start (``erk_restart`
 their loop as a stepper's first ``advance`` does; radau15 starts with ``radau15_restart``,
 the compiled form of ``Radau15._restart``. A member of an ensemble is a slice of each stacked
 array (its state record, state, stages, parameters, output times and rows), advanced by the
-same loop a stepper calls; a member that stops short (an event, the step budget, a stiff
-phase, a failure) is left to its stepper, run from Python.
+same loop a stepper calls; a member that stops at an event returns to Python (its stepper's
+event handling, on views of these arrays), which sets its ``restart`` flag, and the call goes
+on for those members alone.
 
 The ensembles' members are independent (``prange``): their rows do not depend on the number
 of threads or on numba's threading layer.
@@ -112,39 +113,49 @@ def radau15_run(ks, state, y, p, t_out, Y_out, eps, max_steps, ev_dir, tau, tau2
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def erk_many(ks, pair, active, state, y, y_old, K, F, P, t_out, Y_out, rtol, atol, h_max,
-             max_steps, g_old, ev_dir, comp, status):
-    """Members ``active`` of an ensemble, each run by DOP853 or DOPRI5 (``pair``) from its
-    own start (a record of ``state``, a row of ``y``) to the output times ``t_out`` (rows
-    into ``Y_out[i]``), as its stepper's first ``advance`` would; its status into
-    ``status``."""
+def erk_many(ks, pair, active, state, y, y_old, K, F, P, t_out, done, Y_out, rtol, atol, h_max,
+             max_steps, g_old, ev_dir, comp, restart, status):
+    """Members ``active`` of an ensemble advanced by DOP853 or DOPRI5 (``pair``), each from
+    its own state to the output times it has not written yet (``done[i]`` of ``t_out``; rows
+    into ``Y_out[i]``), each as its stepper's ``advance`` would (``restart[i]``: its pending
+    restart, then cleared); its status into ``status``, the rows written added to ``done``."""
     for j in prange(active.size):
         i = active[j]
+        d = done[i]
         if pair == 0:
-            st, _ = dop853_advance(ks, state[i:i + 1], y[i], y_old[i], K[i], F[i], P[i],
-                                   t_out, Y_out[i], rtol[i], atol[i], h_max, max_steps,
-                                   g_old[i], ev_dir, comp[i], 1)
+            st, k = dop853_advance(ks, state[i:i + 1], y[i], y_old[i], K[i], F[i], P[i],
+                                   t_out[d:], Y_out[i, d:], rtol[i], atol[i], h_max,
+                                   max_steps, g_old[i], ev_dir, comp[i], restart[i])
         else:
-            st, _ = dopri5_advance(ks, state[i:i + 1], y[i], y_old[i], K[i], F[i], P[i],
-                                   t_out, Y_out[i], rtol[i], atol[i], h_max, max_steps,
-                                   g_old[i], ev_dir, comp[i], 1)
+            st, k = dopri5_advance(ks, state[i:i + 1], y[i], y_old[i], K[i], F[i], P[i],
+                                   t_out[d:], Y_out[i, d:], rtol[i], atol[i], h_max,
+                                   max_steps, g_old[i], ev_dir, comp[i], restart[i])
+        restart[i] = 0
         status[i] = st
+        done[i] = d + k
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def radau15_many(ks, active, state, y, P, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
-                 g_old, ev_dir, tau, tau2, floor, tolerance, dense_tol, status):
-    """Members ``active`` run by radau15, as ``erk_many``: ``radau15_restart``, then the
-    steps."""
+def radau15_many(ks, active, state, y, P, t_out, done, Y_out, eps, max_steps, comp, b, g, e,
+                 F0, dy, g_old, ev_dir, floors, tau, tau2, floor, tolerance, dense_tol, restart,
+                 status):
+    """Members ``active`` advanced by radau15, as ``erk_many``; a pending restart is
+    ``radau15_restart`` (the floors it sets kept in ``floors[i]``)."""
     for j in prange(active.size):
         i = active[j]
-        a_floor, w_floor = radau15_restart(ks, state[i:i + 1], y[i], P[i], dy[i], b[i], g[i],
-                                           e[i], comp[i], g_old[i], tau[i], tau2[i], floor,
-                                           tolerance[i])
-        st, _ = radau15_advance(ks, state[i:i + 1], y[i], P[i], t_out, Y_out[i], eps[i],
-                                max_steps, comp[i], b[i], g[i], e[i], F0[i], dy[i], g_old[i],
-                                ev_dir, a_floor, w_floor, dense_tol[i])
+        d = done[i]
+        if restart[i] > 0:
+            a_floor, w_floor = radau15_restart(ks, state[i:i + 1], y[i], P[i], dy[i], b[i],
+                                               g[i], e[i], comp[i], g_old[i], tau[i], tau2[i],
+                                               floor, tolerance[i])
+            floors[i, 0] = a_floor
+            floors[i, 1] = w_floor
+            restart[i] = 0
+        st, k = radau15_advance(ks, state[i:i + 1], y[i], P[i], t_out[d:], Y_out[i, d:],
+                                eps[i], max_steps, comp[i], b[i], g[i], e[i], F0[i], dy[i],
+                                g_old[i], ev_dir, floors[i, 0], floors[i, 1], dense_tol[i])
         status[i] = st
+        done[i] = d + k
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
