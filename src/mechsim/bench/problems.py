@@ -583,10 +583,10 @@ BUILDERS: dict[str, Callable[..., Problem]] = {
 }
 
 #: The short problems: one period of these, sampled ``SHORT_SAMPLES`` times, where a call's
-#: fixed cost weighs most.
+#: fixed cost weighs most (a power of two: the sample times end exactly on the period).
 SHORT_OF = ("pendulum", "kepler", "rigid_body_generic", "spring_pendulum",
             "charged_particle_b", "charged_particle_exb")
-SHORT_SAMPLES = 50
+SHORT_SAMPLES = 64
 
 
 def short(name: str) -> Problem:
