@@ -85,8 +85,8 @@ def test_the_whole_run_loops_are_called_with_the_types_set_up_compiles() -> None
                                             ("double_pendulum", {}), ("pendulum", {})])
 def test_autos_choice_never_costs_more_at_a_looser_tolerance(system: str,
                                                              values: dict[str, Any]) -> None:
-    """``auto`` walks one ladder of tolerances for DOP853 from the one asked for down: a
-    looser tolerance never gets a run with more evaluations (no cliff; radau15 at its finest
+    """``auto``'s choice over the decades of tolerance: a looser tolerance never gets a run
+    with more evaluations (no cliff; radau15 at its finest
     ε for every tolerance within a percent), and each run meets
     its tolerance against a run at 1e-13 over the same horizon."""
     model = mechsim.load_system(system, **values)
