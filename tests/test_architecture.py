@@ -20,7 +20,8 @@ LAYERS: dict[str, int] = {
     "errors": 0, "params": 0, "codegen": 0, "environment": 0, "data": 0, "files": 0,
     "systems": 1,
     "integrators": 2,
-    "simulate": 3, "scene": 3, "mechsim": 3,  # "mechsim": the package's public API
+    "simulate": 3, "ensemble": 3, "scene": 3,
+    "mechsim": 3,  # "mechsim": the package's public API
     "runcore": 4,  # one system run sample by sample, without ROS
     "outputs": 5,
     "ros": 6,

@@ -242,3 +242,15 @@ def test_a_summary_that_does_not_match_its_key_is_not_recalled(cache: Path) -> N
     path.symlink_to(cache / "elsewhere.json")
     (cache / "elsewhere.json").write_text(json.dumps(record))
     assert codegen.recall("summary_key") is None  # never read through a link
+
+
+def test_summaries_stay_bounded_when_a_sweep_remembers_many(
+        cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(codegen, "MAX_SUMMARIES", 3)
+    monkeypatch.setattr(codegen, "_PRUNE_EVERY", 4)
+    monkeypatch.setattr(codegen, "_remembered", [0])
+    for k in range(20):
+        codegen.remember(f"summary_{k}", {"k": k})
+        held = len(list((cache / "summaries").glob("*.json")))
+        assert held <= 3 + 4, (k, held)
+    assert codegen.recall("summary_19") == {"k": 19}

@@ -8,10 +8,12 @@ Pure-Python API (no ROS needed)::
     run.total, run.invariants, run.observables["tension"]
 """
 
+from mechsim.ensemble import EnsembleResult, simulate_many
 from mechsim.errors import IntegrationError, MechsimError, ParameterError, UnknownSystemError
 from mechsim.simulate import SimulationResult, load_system, simulate
 from mechsim.systems import system_ids
 
 __version__ = "0.1.0"
-__all__ = ["IntegrationError", "MechsimError", "ParameterError", "SimulationResult",
-           "UnknownSystemError", "load_system", "simulate", "system_ids", "__version__"]
+__all__ = ["EnsembleResult", "IntegrationError", "MechsimError", "ParameterError",
+           "SimulationResult", "UnknownSystemError", "load_system", "simulate",
+           "simulate_many", "system_ids", "__version__"]

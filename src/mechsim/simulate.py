@@ -10,7 +10,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mechsim.errors import ParameterError
-from mechsim.integrators import METHODS, Stepper, loops, make_stepper
+from mechsim.integrators import METHODS, Request, Stepper, loops, make_stepper
+from mechsim.integrators.runs import RunPlan, plan_run
+from mechsim.integrators.state import Status
 from mechsim.params import PUBLISH_RATE, TOLERANCE, shown
 from mechsim.systems import load_system as _load_model
 from mechsim.systems.base import Law, Model
@@ -62,11 +64,7 @@ def evaluate_arrays(model: Model, shape: OutputShape, t: np.ndarray, Y: np.ndarr
     """The requested outputs at the given states as arrays, in one compiled call: energy
     terms (m, 3: kinetic, potential, energy_function), invariants (m, k), observables
     (m, k), frames (m, frames, 7); outputs not asked for are empty stand-ins."""
-    m = t.size
-    E = np.zeros((m, 3)) if "energy" in which else _NONE2
-    inv = np.zeros((m, max(len(shape.invariants), 1))) if "invariants" in which else _NONE2
-    obs = np.zeros((m, max(len(shape.observables), 1))) if "observables" in which else _NONE2
-    fr = np.zeros((m, max(shape.frames, 1), 7)) if "frames" in which else _NONE3
+    E, inv, obs, fr = output_buffers(shape, which, t.size)
     loops().evaluate_outputs(model.kernels.kernel_set(*which), np.ascontiguousarray(t),
                              np.ascontiguousarray(Y), p, "energy" in which,
                              "invariants" in which, "observables" in which, "frames" in which,
@@ -81,16 +79,39 @@ def evaluate(model: Model, t: np.ndarray, Y: np.ndarray, p: np.ndarray,
     if not which:
         return Outputs()
     shape = OutputShape.of(model)
-    E, inv, obs, fr = evaluate_arrays(model, shape, t, Y, p, which)
+    return assemble(shape, which, *evaluate_arrays(model, shape, t, Y, p, which))
+
+
+def output_buffers(shape: OutputShape, which: tuple[str, ...], m: int, members: int = 0
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The arrays the compiled output evaluation writes for ``m`` samples (``evaluate_arrays``),
+    empty stand-ins for the outputs not asked for; with ``members``, for each of that many
+    members of an ensemble (a leading axis)."""
+    if not members:
+        return (np.zeros((m, 3)) if "energy" in which else _NONE2,
+                np.zeros((m, max(len(shape.invariants), 1))) if "invariants" in which
+                else _NONE2,
+                np.zeros((m, max(len(shape.observables), 1))) if "observables" in which
+                else _NONE2,
+                np.zeros((m, max(shape.frames, 1), 7)) if "frames" in which else _NONE3)
+    E, inv, obs, fr = output_buffers(shape, which, m)
+    return (np.zeros((members, *E.shape)), np.zeros((members, *inv.shape)),
+            np.zeros((members, *obs.shape)), np.zeros((members, *fr.shape)))
+
+
+def assemble(shape: OutputShape, which: tuple[str, ...], E: np.ndarray, inv: np.ndarray,
+             obs: np.ndarray, fr: np.ndarray) -> Outputs:
+    """``Outputs`` from the arrays of ``evaluate_arrays`` (or ``output_buffers``: with a
+    leading axis of members, each output has it too)."""
     out = Outputs()
     if "energy" in which:
-        out.kinetic, out.potential, out.energy_function = E[:, 0], E[:, 1], E[:, 2]
+        out.kinetic, out.potential, out.energy_function = E[..., 0], E[..., 1], E[..., 2]
     if "invariants" in which:
-        out.invariants = {name: inv[:, i] for i, name in enumerate(shape.invariants)}
+        out.invariants = {name: inv[..., i] for i, name in enumerate(shape.invariants)}
     if "observables" in which:
-        out.observables = {name: obs[:, i] for i, name in enumerate(shape.observables)}
+        out.observables = {name: obs[..., i] for i, name in enumerate(shape.observables)}
     if "frames" in which:
-        out.frames = fr
+        out.frames = fr[..., :shape.frames, :]
     return out
 
 
@@ -246,6 +267,30 @@ def output_times(t_end: float, output_dt: float, t0: float = 0.0) -> np.ndarray:
     return t
 
 
+def resolve_settings(model: Model, tolerance: float | None, method: str | None,
+                     outputs: tuple[str, ...], output_dt: float | None,
+                     publish_rate: float | None) -> tuple[float, str, float]:
+    """The tolerance, method and output interval of a run of ``simulate`` (or
+    ``simulate_many``): those given, else those :func:`load_system` was given, else the
+    defaults; the outputs checked."""
+    if outputs != OUTPUTS:
+        for o in outputs:
+            if o not in OUTPUTS:
+                raise ParameterError("outputs",
+                                     f"unknown output {o!r} (known: {', '.join(OUTPUTS)})")
+    given = _SETTINGS.get(model, {})
+    tolerance = float(given.get("tolerance", TOLERANCE.default) if tolerance is None
+                      else tolerance)
+    method = str(given.get("method", "auto") if method is None else method)
+    if output_dt is not None and publish_rate is not None:
+        raise ParameterError("publish_rate", "not with output_dt (the same sampling)")
+    if output_dt is None:
+        rate = given.get("publish_rate", PUBLISH_RATE.default) if publish_rate is None \
+            else _setting("publish_rate", publish_rate)
+        output_dt = 1.0 / float(rate)
+    return tolerance, method, output_dt
+
+
 def simulate(model: Model, t_end: float, output_dt: float | None = None,
              tolerance: float | None = None, method: str | None = None,
              outputs: tuple[str, ...] = OUTPUTS, step: float | None = None,
@@ -267,23 +312,17 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     leave them out of their arithmetic and step control. Wall time covers integration and
     output evaluation.
     """
-    if outputs != OUTPUTS:
-        for o in outputs:
-            if o not in OUTPUTS:
-                raise ParameterError("outputs",
-                                     f"unknown output {o!r} (known: {', '.join(OUTPUTS)})")
-    given = _SETTINGS.get(model, {})
-    tolerance = float(given.get("tolerance", TOLERANCE.default) if tolerance is None
-                      else tolerance)
-    method = str(given.get("method", "auto") if method is None else method)
-    if output_dt is not None and publish_rate is not None:
-        raise ParameterError("publish_rate", "not with output_dt (the same sampling)")
-    if output_dt is None:
-        rate = given.get("publish_rate", PUBLISH_RATE.default) if publish_rate is None \
-            else _setting("publish_rate", publish_rate)
-        output_dt = 1.0 / float(rate)
+    tolerance, method, output_dt = resolve_settings(model, tolerance, method, outputs,
+                                                    output_dt, publish_rate)
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
+    plan = plan_run(model, method, tolerance,
+                    Request(step=step, horizon=t_end, closed_form=closed_form,
+                            work_terms=work_terms), outputs)
+    if plan is not None:
+        done = _run_planned(model, plan, tolerance, t, outputs, work_terms, start)
+        if done is not None:
+            return done
     stepper: Stepper = make_stepper(model, method, tolerance, step=step,
                                     closed_form=closed_form, horizon=t_end,
                                     work_terms=work_terms)
@@ -302,3 +341,31 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
                             modes=Y[:, at.modes], n_evaluations=stepper.n_evaluations,
                             n_rejected=stepper.n_rejected,
                             error_estimate=stepper.error_estimate)
+
+
+def _run_planned(model: Model, plan: RunPlan, tolerance: float, t: np.ndarray,
+                 outputs: tuple[str, ...], work_terms: bool, start: float
+                 ) -> SimulationResult | None:
+    """The run of ``simulate`` in one compiled call (``integrators.runs``), its rows and
+    counters those of the stepper bit for bit; None where the loop stopped short (an event,
+    the step budget, a stiff phase, a failure), which the stepper then runs from the start
+    to go on or raise as the solver contract says."""
+    y = model.initial_y()
+    p = model.parameter_vector()
+    Y = np.empty((t.size, y.size))
+    shape = OutputShape.of(model)
+    arrays = output_buffers(shape, outputs, t.size)
+    status, _, n_steps, n_evaluations, n_rejected, error_estimate, _ = plan.run(
+        y, p, t, Y, *arrays)
+    if status != Status.OK:
+        return None
+    at = model.layout
+    if not work_terms:
+        Y[:, at.work_external] = Y[:, at.work_dissipated] = np.nan
+    out = assemble(shape, outputs, *arrays) if outputs else Outputs()
+    return SimulationResult(model=model, method=plan.method, tolerance=tolerance, t=t,
+                            q=Y[:, at.q], v=Y[:, at.v], work_external=Y[:, at.work_external],
+                            work_dissipated=Y[:, at.work_dissipated], outputs=out,
+                            wall_time=time.perf_counter() - start, n_steps=n_steps,
+                            modes=Y[:, at.modes], n_evaluations=n_evaluations,
+                            n_rejected=n_rejected, error_estimate=error_estimate)

@@ -302,6 +302,11 @@ def _drake(scheme: str) -> Callable[[Problem, float], Runner]:
 @functools.cache
 def _loops() -> SimpleNamespace:
     """The hand-written loops, compiled lazily (numba is imported on first use)."""
+    return SimpleNamespace(rk4=_rk4_loop(), yoshida4=_yoshida4_loop(), boris=_boris_loop())
+
+
+def _rk4_loop() -> Any:
+    """Classic RK4 with n_sub steps per output interval, through the kernel ``f``."""
     from numba import njit
 
     @njit(cache=False)
@@ -331,6 +336,12 @@ def _loops() -> SimpleNamespace:
                 t += h
             Y[i] = y
         return Y
+    return rk4
+
+
+def _yoshida4_loop() -> Any:
+    """Yoshida's 4th-order composition of velocity Verlet on the acceleration ``acc``."""
+    from numba import njit
 
     @njit(cache=False)
     def yoshida4(acc, p, y0, t_out, n_sub):  # type: ignore[no-untyped-def]
@@ -358,6 +369,12 @@ def _loops() -> SimpleNamespace:
             Y[i, :n] = q
             Y[i, n:] = v
         return Y
+    return yoshida4
+
+
+def _boris_loop() -> Any:
+    """Boris's push for uniform E and B fields."""
+    from numba import njit
 
     @njit(cache=False)
     def boris(qm, E, B, y0, t_out, n_sub):  # type: ignore[no-untyped-def]
@@ -387,8 +404,7 @@ def _loops() -> SimpleNamespace:
             Y[i, :3] = x
             Y[i, 3:] = v
         return Y
-
-    return SimpleNamespace(rk4=rk4, yoshida4=yoshida4, boris=boris)
+    return boris
 
 
 _JIT: dict[Any, Any] = {}

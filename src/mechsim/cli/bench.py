@@ -32,6 +32,12 @@ def add_parser(sub: Any) -> None:
                    "consumers of the per-sample and batch topics in another process beside "
                    "rclpy's ceiling, start-up of scenes of many instances, and the CPU share "
                    "of all systems streaming in real time (streaming.md, streaming.json)")
+    b.add_argument("--throughput", action="store_true",
+                   help="what one simulate() call costs beyond its steps, and ensembles "
+                   "(simulate_many) against a loop of simulate, of scipy's solve_ivp and a "
+                   "hand-written numba prange loop (throughput.md, throughput.json)")
+    b.add_argument("--members", type=int, default=10_000,
+                   help="ensemble members for --throughput (default 10000)")
     b.add_argument("--brouwer", action="store_true",
                    help="Brouwer's law: radau15's energy error against the number of steps "
                    "on perturbed Kepler orbits (brouwer.png, brouwer.json)")
@@ -52,17 +58,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
 
     out = Path(a.out)
     if a.brouwer:
-        if a.systems:
-            raise ParameterError("--brouwer", "takes no PROBLEM arguments")
-        if a.steps < 10_000:
-            raise ParameterError("--steps", f"must be at least 10000 (got {a.steps})")
-        if a.runs < 2:
-            raise ParameterError("--runs", f"must be at least 2 (got {a.runs})")
-        from mechsim.bench.brouwer import run_brouwer
-
-        refuse_existing(a.out, ["brouwer.json", "brouwer.png"], a.force)
-        run_brouwer(out, n_steps=a.steps, runs=a.runs)
-        return 0
+        return _brouwer(a, out)
     if a.derive:
         from mechsim.bench.derive import run_derive
         from mechsim.systems import system_ids
@@ -74,6 +70,8 @@ def cmd_bench(a: argparse.Namespace) -> int:
         refuse_existing(a.out, ["derive.json", "derive.md"], a.force)
         run_derive(out, list(a.systems))
         return 0
+    if a.throughput:
+        return _throughput(a, out)
     if a.streaming:
         from mechsim.bench.streaming import run_streaming
 
@@ -105,3 +103,31 @@ def cmd_bench(a: argparse.Namespace) -> int:
               families=families, cold=False if a.no_cold else None, plots=not a.no_plots)
     return 0
 
+
+
+def _brouwer(a: argparse.Namespace, out: Path) -> int:
+    from mechsim.bench.brouwer import run_brouwer
+    from mechsim.errors import ParameterError
+
+    if a.systems:
+        raise ParameterError("--brouwer", "takes no PROBLEM arguments")
+    if a.steps < 10_000:
+        raise ParameterError("--steps", f"must be at least 10000 (got {a.steps})")
+    if a.runs < 2:
+        raise ParameterError("--runs", f"must be at least 2 (got {a.runs})")
+    refuse_existing(a.out, ["brouwer.json", "brouwer.png"], a.force)
+    run_brouwer(out, n_steps=a.steps, runs=a.runs)
+    return 0
+
+
+def _throughput(a: argparse.Namespace, out: Path) -> int:
+    from mechsim.bench.throughput import run_throughput
+    from mechsim.errors import ParameterError
+
+    if a.systems:
+        raise ParameterError("--throughput", "takes no PROBLEM arguments")
+    if a.members < 100:
+        raise ParameterError("--members", f"must be at least 100 (got {a.members})")
+    refuse_existing(a.out, ["throughput.json", "throughput.md"], a.force)
+    run_throughput(out, members=a.members)
+    return 0

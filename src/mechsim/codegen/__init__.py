@@ -445,13 +445,24 @@ def _summary_check(key: str, value: dict[str, Any]) -> str:
                           ).hexdigest()
 
 
+#: ``remember`` looks at the size of the summaries' folder on its first call in a process and
+#: then on every ``_PRUNE_EVERY``-th (a sweep over parameter values remembers a summary per
+#: value: listing and sorting the whole folder each time would cost more than the run).
+_PRUNE_EVERY = 64
+_remembered = [0]
+
+
 def remember(key: str, value: dict[str, Any]) -> None:
     """Store ``value`` (JSON) under ``key`` for ``recall``; a cache that cannot be written is
-    left as it is. At most ``MAX_SUMMARIES`` are kept, the least recently used go first."""
+    left as it is. At most ``MAX_SUMMARIES`` are kept (beyond by fewer than ``_PRUNE_EVERY``
+    per process between looks), the least recently used go first."""
     folder = _summary_dir()
     with contextlib.suppress(OSError):
         write_atomic(folder / f"{key}.json", json.dumps(
             {"check": _summary_check(key, value), "value": value}, sort_keys=True))
+        _remembered[0] += 1
+        if (_remembered[0] - 1) % _PRUNE_EVERY:
+            return
         entries = sorted(folder.glob("*.json"))
         if len(entries) > MAX_SUMMARIES:
             for path in sorted(entries, key=_last_use)[: len(entries) - MAX_SUMMARIES]:

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import quad
 
+from mechsim.ensemble import simulate_many
 from mechsim.errors import ParameterError
-from mechsim.integrators import make_stepper
 from mechsim.systems._scattering import lab_cross_section
 from mechsim.systems.scattering import Scattering
 
@@ -69,7 +69,8 @@ def beam(model: Scattering, count: int = 2000, bins: int = 20,
          tolerance: float = 1e-10) -> Beam:
     """Run a beam of ``count`` rings of impact parameter in ``b_range`` (default: [0, a] for the
     hard sphere; the b of θ = 170° … 10° for the Coulomb centre), one trajectory per ring edge,
-    each through the model's compiled DOP853 loop from |r| = ``initial.distance`` until the
+    all through DOP853 in one ensemble (``simulate_many``, over the cores) from
+    |r| = ``initial.distance`` until the
     projectile is beyond 1.2 × that distance again, and histogram dσ = 2πb db over the
     measured CM angle θ (direction of the final ṙ) and LAB angle ψ (of the final v₁ = V +
     (m₂/M)ṙ, with |ṙ| brought to its value at infinity by energy conservation for the Coulomb
@@ -98,13 +99,14 @@ def beam(model: Scattering, count: int = 2000, bins: int = 20,
     k, mu = model.force_constant(), model.reduced_mass()
     scale = model.force_constant() / model.cm_energy() if coulomb \
         else model.value("sphere_radius")
-    t_end = np.array([(2.2 * D + 20.0 * scale) / u])
+    t_end = (2.2 * D + 20.0 * scale) / u
     theta, psi = np.empty(bs.size), np.empty(bs.size)
-    modes = model.initial_modes()
+    starts = np.array([np.concatenate(model.state_for(float(b))) for b in bs])
+    run = simulate_many(model, t_end, t_end, states=starts, tolerance=tolerance,
+                        method="dop853", outputs=(), work_terms=False)
+    ends = np.concatenate([run.q[:, -1], run.v[:, -1]], axis=1)
     for i, b in enumerate(bs):
-        q, v = model.state_for(float(b))
-        y0 = np.concatenate([q, v, [0.0, 0.0], modes])
-        y = make_stepper(model, "dop853", tolerance, y0=y0).advance(t_end)[-1]
+        y = ends[i]
         if float(np.hypot(y[2], y[3])) < 1.2 * D:
             raise RuntimeError(f"scattering beam: trajectory b = {b:g} did not get away")
         V, w = y[4:6], y[6:8]

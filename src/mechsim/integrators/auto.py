@@ -19,7 +19,7 @@ The fixed-step symplectic methods are for whoever asks for their energy behaviou
 from __future__ import annotations
 
 import weakref
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -59,9 +59,10 @@ class Auto:
         return Radau15 if tolerance < cls.RADAU_TOLERANCE or long else DOP853
 
     @classmethod
-    def create(cls, model: Model, y0: np.ndarray, t0: float, tolerance: float,
-               request: Request) -> Stepper:
-        """The stepper of the chosen method, with the options ``auto`` decided."""
+    def decide(cls, model: Model, y0: np.ndarray, t0: float, tolerance: float,
+               request: Request) -> tuple[type[Stepper], float, dict[str, Any]]:
+        """The method, the tolerance its stepper is made with and its options: what
+        ``create`` makes."""
         chosen = cls.choose(model, request.closed_form, tolerance, request.horizon)
         if (chosen is DOP853 and not model.structure.dissipative
                 and not _dop853_meets(model, y0, t0, tolerance, request.horizon,
@@ -69,9 +70,16 @@ class Auto:
             # Errors amplified by the motion: radau15 at its finest (round-off) setting; for
             # a state of momenta, which radau15 does not take, DOP853 at the finest tolerance.
             if not model.structure.second_order:
-                return DOP853(model, y0, t0, cls.FINEST_TOLERANCE)
-            return Radau15(model, y0, t0, tolerance, eps=Radau15.EPS_RANGE[0])
-        return chosen.create(model, y0, t0, tolerance, request)
+                return DOP853, cls.FINEST_TOLERANCE, {}
+            return Radau15, tolerance, {"eps": Radau15.EPS_RANGE[0]}
+        return chosen, tolerance, chosen.options(request)
+
+    @classmethod
+    def create(cls, model: Model, y0: np.ndarray, t0: float, tolerance: float,
+               request: Request) -> Stepper:
+        """The stepper of the chosen method, with the options ``auto`` decided."""
+        method, local, options = cls.decide(model, y0, t0, tolerance, request)
+        return method(model, y0, t0, local, **options)
 
 
 #: Decisions of ``_dop853_meets`` for each model (by tolerance and horizon, from its initial

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -19,106 +19,20 @@ import numpy as np
 from mechsim.errors import IntegrationError, MechsimError
 from mechsim.integrators import StiffnessError, choose_method
 from mechsim.simulate import SimulationResult, simulate
+from mechsim.stress.common import (
+    ERROR_DRIFT,
+    ROUND_OFF,
+    WARN_DRIFT,
+    Result,
+    _down,
+    _variant,
+    attempt,
+    drifts,
+    worst,
+)
+from mechsim.stress.singular import SINGULAR, singular
 from mechsim.systems import load_system, system_ids
-from mechsim.systems.base import LEVEL_NAMES, Law, Model
-
-WARN_DRIFT = Law.WARN_DRIFT  # the diagnostics node's defaults
-ERROR_DRIFT = Law.ERROR_DRIFT
-ROUND_OFF = 1e-11  # drifts below this are round-off: no growth law to fit
-
-
-@dataclass
-class Result:
-    case: str
-    system: str
-    variant: str
-    passed: bool
-    outcome: str  # one line: what happened and why it passes or fails
-    criterion: str
-    metrics: dict[str, Any] = field(default_factory=dict)
-    series: dict[str, Any] = field(default_factory=dict)  # plots (downsampled)
-    wall: float = 0.0
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"case": self.case, "system": self.system, "variant": self.variant,
-                "passed": self.passed, "outcome": self.outcome, "criterion": self.criterion,
-                "metrics": _jsonable(self.metrics), "wall_s": round(self.wall, 3)}
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return repr(x)
-    return x
-
-
-def _down(t: np.ndarray, y: np.ndarray, n: int = 400) -> tuple[list[float], list[float]]:
-    idx = np.unique(np.linspace(0, t.size - 1, min(n, t.size)).astype(int))
-    return [float(v) for v in t[idx]], [float(v) for v in y[idx]]
-
-
-# --- drift, as the diagnostics node measures it ---------------------------------------------
-def law_values(model: Model, run: SimulationResult) -> dict[str, np.ndarray]:
-    """Time series of the quantity each law of ``model`` keeps (``Law.value``)."""
-    return {law.key: run.law_value(law) for law in model.laws()}
-
-
-def drifts(model: Model, run: SimulationResult, growing: bool = False
-           ) -> dict[str, np.ndarray]:
-    """Relative drift of each law (``Law.drift``). ``growing``: the scale at each sample is
-    also at least the running magnitude of the terms involved (energy, work terms, the value
-    itself), so unbounded motions (a falling Atwood machine, a projectile) are judged against
-    the numbers the integrator actually carries, not the initial energy alone."""
-    scales = model.law_scales()
-    out = {}
-    terms = np.maximum.accumulate(np.maximum.reduce(
-        [np.abs(run.kinetic), np.abs(run.potential), np.abs(run.work_external),
-         np.abs(run.work_dissipated)])) if growing else 0.0
-    for law in model.laws():
-        v = run.law_value(law)
-        s = scales[law.key] if scales[law.key] > 0 else 1.0
-        if growing:
-            own = np.maximum.accumulate(np.abs(v))
-            s = np.maximum(s, np.maximum(own, terms) if law.kind != "invariant" else own)
-        d = law.drift(v, v[0], s)
-        out[law.key] = np.where(np.isfinite(d), d, np.inf)
-    return out
-
-
-def worst(d: dict[str, np.ndarray], skip_constraints: bool = False) -> tuple[str, float]:
-    items = [(k, float(np.max(v))) for k, v in d.items()
-             if not (skip_constraints and Law.from_key(k).is_constraint)]
-    if not items:
-        return "", 0.0
-    return max(items, key=lambda kv: kv[1])
-
-
-def level_of(drift: float, key: str) -> str:
-    """The level the diagnostics node gives law ``key`` at ``drift`` (default thresholds)."""
-    return LEVEL_NAMES[Law.from_key(key).level(drift)] if key else LEVEL_NAMES[0]
-
-
-def attempt(model: Model, t_end: float, output_dt: float, *, method: str = "auto",
-            tolerance: float = 1e-10, step: float | None = None,
-            outputs: tuple[str, ...] = ("energy", "invariants")
-            ) -> tuple[SimulationResult | None, str | None, float]:
-    """Run, turning a MechsimError into an explanation; anything else propagates (a bug)."""
-    start = time.perf_counter()
-    try:
-        run = simulate(model, t_end=t_end, output_dt=output_dt, tolerance=tolerance,
-                       method=method, outputs=outputs, step=step)
-    except MechsimError as e:
-        return None, f"{type(e).__name__}: {e}", time.perf_counter() - start
-    return run, None, time.perf_counter() - start
-
-
-def _variant(kw: dict[str, Any]) -> str:
-    return ", ".join(f"{k}={v}" for k, v in kw.items()) or "defaults"
+from mechsim.systems.base import LEVEL_NAMES, Model
 
 
 # --- 1. long horizons -----------------------------------------------------------------------
@@ -278,183 +192,6 @@ def stiffness(system: str, quick: bool) -> list[Result]:
                        "output interval, or an oscillatory fast mode resolved)")
         out.append(Result("stiffness", system, _variant(kw), ok, outcome, crit, m, wall=wall))
     return out
-
-
-# --- 4. singular and near-singular configurations -------------------------------------------
-def _generic(system: str, kw: dict[str, Any], t_end: float, dt: float, crit: str,
-             check: Callable[[Model, SimulationResult], tuple[bool, str, dict[str, Any]]],
-             method: str = "auto", tolerance: float = 1e-10,
-             error_ok: bool = False) -> Result:
-    try:
-        model = load_system(system, **kw)
-    except MechsimError as e:
-        return Result("singular", system, _variant(kw), error_ok,
-                      f"rejected at load: {e}", crit, {"error": str(e)})
-    run, err, wall = attempt(model, t_end, dt, method=method, tolerance=tolerance,
-                             outputs=("energy", "invariants", "frames"))
-    if run is None:
-        return Result("singular", system, f"{_variant(kw)}; {method}", error_ok,
-                      f"stopped with an explanation: {err}", crit, {"error": err}, wall=wall)
-    ok, why, m = check(model, run)
-    m.setdefault("steps", run.n_steps)
-    return Result("singular", system, f"{_variant(kw)}; {run.method}", ok, why, crit, m,
-                  wall=wall)
-
-
-def _laws_kept(limit: float) -> Callable[[Model, SimulationResult],
-                                         tuple[bool, str, dict[str, Any]]]:
-    def check(model: Model, run: SimulationResult) -> tuple[bool, str, dict[str, Any]]:
-        key, w = worst(drifts(model, run))
-        return w < limit, f"laws kept: worst drift {w:.1e} [{key}] ({run.n_steps:,} steps)", \
-            {"worst_law": key, "worst_drift": w}
-    return check
-
-
-def singular(system: str, quick: bool) -> list[Result]:
-    out: list[Result] = []
-    if system == "pendulum":
-        crit = ("inverted (angle = π): stays up until round-off tips it, falls, laws kept "
-                "(worst drift < 1e-8); the tipping time is reported")
-        for form in ("reduced", "multiplier"):
-            def check(model: Model, run: SimulationResult) -> tuple[bool, str, dict[str, Any]]:
-                ang = run.coordinate("angle") if "angle" in [c.name for c in
-                                                              model.coordinates] else None
-                if ang is None:  # Cartesian (y, z): the bob's height
-                    z = run.coordinate("z")
-                    off = np.abs(z - z[0]) / model.value("length")
-                else:
-                    off = np.abs(np.abs(ang) - math.pi)
-                t_tip = float(run.t[np.argmax(off > 1e-3)]) if np.any(off > 1e-3) else math.inf
-                key, w = worst(drifts(model, run))
-                how = (f"balanced until t = {t_tip:.2f} s (round-off grows as e^(t√(g/l))), "
-                       "then swings" if math.isfinite(t_tip) else
-                       "balanced for the whole run (sin π = 1.2e-16 is the only push, and a "
-                       "symmetric step keeps it from growing within 20 s)")
-                return w < 1e-8, f"{how}; worst drift {w:.1e} [{key}]", \
-                    {"t_tip": t_tip, "worst_drift": w, "worst_law": key}
-            out.append(_generic("pendulum", {"formulation": form, "initial.angle": math.pi},
-                                 20.0, 0.01, crit, check))
-    elif system == "kepler":
-        crit = ("pericentre passages r_p = a(1 − e): DOP853 keeps E, L, A (worst drift < 1e-6); "
-                "auto's fixed step is either accurate or flagged (drift ≥ warn): a silent wrong "
-                "orbit (position off the DOP853 reference by > 1 % with drift < warn) fails")
-        es = (0.99, 0.999) if quick else (0.99, 0.999, 0.9999)
-        auto_es = (0.99,) if quick else (0.99, 0.999)  # auto's fixed step: 57 M steps at 0.999
-        for e in es:
-            model = load_system("kepler", eccentricity=e)
-            t_end = 5 * 2 * math.pi
-            ref, err, wall = attempt(model, t_end, 0.01, method="dop853", tolerance=1e-12)
-            if ref is None:
-                out.append(Result("singular", system, f"e={e}; dop853", False, f"{err}", crit))
-                continue
-            key, w = worst(drifts(model, ref))
-            out.append(Result("singular", system, f"e={e}; dop853", w < 1e-6,
-                              f"5 orbits, {ref.n_steps:,} steps: worst drift {w:.1e} [{key}]",
-                              crit, {"worst_drift": w, "worst_law": key, "steps": ref.n_steps},
-                              wall=wall))
-            if e not in auto_es:
-                continue
-            run, err, wall = attempt(model, t_end, 0.01, method="auto")
-            if run is None:
-                out.append(Result("singular", system, f"e={e}; auto", True,
-                                  f"stopped with an explanation: {err}", crit))
-                continue
-            key, w = worst(drifts(model, run))
-            pos = float(np.max(np.linalg.norm(run.q - ref.q, axis=1)))
-            silent = pos > 1e-2 and w < WARN_DRIFT
-            out.append(Result("singular", system, f"e={e}; {run.method}", not silent,
-                              f"{run.n_steps:,} fixed steps: worst drift {w:.1e} [{key}] → "
-                              f"{level_of(w, key)}; position error {pos:.1e} vs DOP853"
-                              + (" (silent garbage)" if silent else ""), crit,
-                              {"worst_drift": w, "level": level_of(w, key), "position_error": pos,
-                               "steps": run.n_steps}, wall=wall))
-        crit2 = ("fall to the centre (−μ/r² with e → 1, r_p = 1e-10 a): a graceful stop with "
-                 "a reason, or laws kept")
-        model = load_system("kepler", eccentricity=1 - 1e-10)
-        run, err, wall = attempt(model, 2 * math.pi, 0.01, method="dop853")
-        if run is None:
-            out.append(Result("singular", system, "e=1-1e-10; dop853", True,
-                              f"stopped with an explanation: {err}", crit2, {"error": err},
-                              wall=wall))
-        else:
-            key, w = worst(drifts(model, run))
-            out.append(Result("singular", system, "e=1-1e-10; dop853", bool(np.isfinite(w)),
-                              f"survived the near-collision ({run.n_steps:,} steps): worst "
-                              f"drift {w:.1e} [{key}] → {level_of(w, key)}", crit2,
-                              {"worst_drift": w, "level": level_of(w, key), "steps": run.n_steps},
-                              wall=wall))
-    elif system == "symmetric_top":
-        crit = ("heavy top near θ = 0: the quaternion form has no singularity (laws kept, "
-                "drift < 1e-6); the Euler-angle form may stop, but only with an explanation, "
-                "or keep its laws")
-        for theta in (1e-6, 0.0):
-            out.append(_generic("symmetric_top", {"formulation": "quaternion",
-                                                  "initial.theta": theta}, 2.0, 0.01, crit,
-                                _laws_kept(1e-6)))
-
-            def check_e(model: Model, run: SimulationResult) -> tuple[bool, str, dict[str, Any]]:
-                key, w = worst(drifts(model, run))
-                return bool(np.isfinite(w)), (f"integrated through θ ≈ 0: worst drift {w:.1e} "
-                                              f"[{key}] → {level_of(w, key)}"), \
-                    {"worst_drift": w, "level": level_of(w, key)}
-            out.append(_generic("symmetric_top", {"formulation": "euler_angles",
-                                                  "initial.theta": theta}, 2.0, 0.01, crit,
-                                check_e, error_ok=True))
-    elif system == "moving_frames":
-        crit = ("twisted cubic through the origin (u = 0, r = 0: RIC radial axis undefined): "
-                "frames stay finite unit quaternions, or the model explains")
-
-        def check_f(model: Model, run: SimulationResult) -> tuple[bool, str, dict[str, Any]]:
-            fr = run.outputs.frames
-            assert fr is not None
-            finite = bool(np.all(np.isfinite(fr)))
-            norms = np.linalg.norm(fr[..., 3:], axis=-1) if fr.size else np.ones(1)
-            unit = bool(np.all(np.abs(norms - 1) < 1e-9)) if finite else False
-            key, w = worst(drifts(model, run))
-            return finite and unit, (f"frames at u = 0 finite: {finite}, unit quaternions: "
-                                     f"{unit}; worst drift {w:.1e} [{key}]"), \
-                {"frames_finite": finite, "unit_quaternions": unit, "worst_drift": w}
-        for u0 in (0.0, -1e-9):
-            out.append(_generic("moving_frames", {"initial.curve_parameter": u0}, 1.0, 0.01,
-                                crit, check_f))
-    elif system == "bead_on_wire":
-        crit = ("steep wire (slope 10³ line, 100-curvature parabola from a 200:1 wall): laws "
-                "kept (worst drift < 1e-6), constraint at round-off in the multiplier form")
-        for kw in ({"shape": "line", "slope": -1e3},
-                   {"shape": "parabola", "curvature": 100.0},
-                   {"formulation": "multiplier", "shape": "parabola", "curvature": 100.0}):
-            out.append(_generic("bead_on_wire", kw, 2.0, 0.005, crit, _laws_kept(1e-6)))
-    elif system == "central_force":
-        crit = ("−a/r³ fall to the centre (a > L²/μ): a graceful end (capture event, or a stop "
-                "with a reason), never non-finite numbers published")
-
-        def check_c(model: Model, run: SimulationResult) -> tuple[bool, str, dict[str, Any]]:
-            finite = bool(np.all(np.isfinite(np.hstack([run.q, run.v]))))
-            key, w = worst(drifts(model, run))
-            return finite, (f"events {[n for _, n in run.events]}; worst drift {w:.1e} "
-                            f"[{key}] → {level_of(w, key)}"), {"events": len(run.events),
-                                                         "worst_drift": w, "finite": finite}
-        for form in ("cartesian", "polar"):
-            out.append(_generic("central_force", {"formulation": form,
-                                                  "potential": "inverse_cube",
-                                                  "inverse_cube_strength": 2.0}, 10.0, 0.01,
-                                crit, check_c, error_ok=True))
-    elif system == "spring_pendulum":
-        crit = "spring through zero length (l + x → 0, polar r = 0 singular): explained or kept"
-
-        def check_s(model: Model, run: SimulationResult) -> tuple[bool, str, dict[str, Any]]:
-            key, w = worst(drifts(model, run))
-            return bool(np.isfinite(w)), (f"passed r ≈ 0: worst drift {w:.1e} [{key}] → "
-                                          f"{level_of(w, key)}"), {"worst_drift": w,
-                                                              "level": level_of(w, key)}
-        out.append(_generic("spring_pendulum", {"initial.extension": -1.0, "initial.angle": 0.0,
-                                                "initial_rate.extension": 0.5}, 1.0, 0.01,
-                            crit, check_s, error_ok=True))
-    return out
-
-
-SINGULAR = ("pendulum", "kepler", "symmetric_top", "moving_frames", "bead_on_wire",
-            "spring_pendulum", "central_force")
 
 
 # --- 5. step-size and tolerance sweeps, with the diagnostics node's logic -----------------------

@@ -77,6 +77,27 @@ def load() -> ModuleType:
     return codegen.load_module("loops", key, lambda: text)
 
 
+def _runs_source(loops_module: str) -> str:
+    """The text of the whole-run module (``runs``): its imports of the other fragments read
+    from the loaded loops module ``loops_module``."""
+    text = Path(__file__).with_name("runs.py").read_text()
+    lines = text.splitlines()
+    for node in ast.parse(text).body:
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith(__name__):
+            lines[node.lineno - 1] = lines[node.lineno - 1].replace(node.module or "",
+                                                                    loops_module, 1)
+    return "\n".join(lines) + "\n"
+
+
+@functools.cache
+def load_runs() -> ModuleType:
+    """The whole-run loops (``runs``: one run in one call, and ensembles in parallel),
+    a generated module of their own on top of the shared loops (which it imports), under a
+    name that hashes its text, which names the loops' module."""
+    text = _runs_source(load().__name__)
+    return codegen.load_module("runs", codegen.fingerprint(text), lambda: text)
+
+
 #: ``precompile``'s two halves, of about equal compile time (DOP853's loop, the largest, with
 #: the small ones; radau15's with DOPRI5's), for set-up to compile on two cores.
 PRECOMPILE_PARTS = (("dop853_advance", "erk_initial_step",
@@ -114,11 +135,47 @@ def loop_signatures() -> dict[Any, tuple[Any, ...]]:
             for loop, args in signatures.items()}
 
 
+#: The whole-run loops (``runs``) each half of ``precompile`` compiles after its shared loops.
+PRECOMPILE_RUNS = (("erk_run", "erk_many"), ("radau15_run", "radau15_many", "outputs_many"))
+
+
+def run_signatures() -> dict[Any, tuple[Any, ...]]:
+    """The whole-run loops (``load_runs``) and the numba types of the arguments
+    ``integrators.runs`` and ``integrators.ensemble`` pass them (see ``loop_signatures``)."""
+    from numba import typeof
+
+    from mechsim.codegen.contract import KERNEL_SET
+
+    R = load_runs()
+    v, m2, m3 = np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2, 2))
+    m4 = np.zeros((2, 2, 2, 2))
+    iv = np.zeros(1, dtype=np.int64)
+    dop, radau = np.zeros(1, DOP853_STATE), np.zeros(1, RADAU_STATE)
+    outputs = (True, True, True, True, m2, m2, m2, m3)
+    signatures = {
+        R.erk_run: (KERNEL_SET, 0, 0, 0, dop, v, v, v, m2, 0.0, 0.0, 0.0, 0, iv, *outputs),
+        R.radau15_run: (KERNEL_SET, radau, v, v, v, m2, 0.0, 0, iv, 0.0, 0.0, 0.0, 0.0, 0.0,
+                        *outputs),
+        R.erk_many: (KERNEL_SET, 0, iv, dop, m2, m2, m3, m3, m2, v, iv, m3, v, v, 0.0, 0, m2,
+                     iv, m2, iv, iv),
+        R.radau15_many: (KERNEL_SET, iv, radau, m2, m2, v, iv, m3, v, 0, m2, m3, m3, m3, m2, m2,
+                         m2, iv, m2, v, v, 0.0, v, v, iv, iv),
+        R.outputs_many: (KERNEL_SET, v, m3, m2, True, True, True, True, m3, m3, m3, m4),
+    }
+    return {loop: tuple(a if a is KERNEL_SET else typeof(a) for a in args)
+            for loop, args in signatures.items()}
+
+
 def precompile(part: int | None = None) -> None:
     """Compile the shared loops for the argument types the steppers pass (once per machine;
     ``tools/bootstrap.py`` calls this so that the first run of any system only compiles that
-    system's small kernels): all of them, or ``PRECOMPILE_PARTS[part]``."""
+    system's small kernels), then the whole-run loops: all of them, or
+    ``PRECOMPILE_PARTS[part]`` and ``PRECOMPILE_RUNS[part]``."""
     wanted = None if part is None else set(PRECOMPILE_PARTS[part])
     for loop, types in loop_signatures().items():
+        if wanted is None or loop.__name__ in wanted:
+            loop.compile(types)
+    wanted = None if part is None else set(PRECOMPILE_RUNS[part])
+    for loop, types in run_signatures().items():
         if wanted is None or loop.__name__ in wanted:
             loop.compile(types)

@@ -1,0 +1,166 @@
+"""Whole runs in one compiled call: a run of one model (``erk_run``, ``radau15_run``: the
+start, the steps and the outputs of ``mechsim.simulate`` without a Python stepper in between)
+and runs of many members at once, in parallel over the cores (``erk_many``, ``radau15_many``,
+``outputs_many``: ``mechsim.simulate_many``).
+
+Each does exactly what the steppers do, in the same order and with the same arithmetic, so
+that its rows equal theirs bit for bit: the explicit pairs start (``erk_restart``) inside
+their loop as a stepper's first ``advance`` does; radau15 starts with ``radau15_restart``,
+the compiled form of ``Radau15._restart``. A member of an ensemble is a slice of each stacked
+array (its state record, state, stages, parameters, output times and rows), advanced by the
+same loop a stepper calls; a member that stops at an event returns to Python (its stepper's
+event handling, on views of these arrays), which sets its ``restart`` flag, and the call goes
+on for those members alone.
+
+The ensembles' members are independent (``prange``): their rows do not depend on the number
+of threads or on numba's threading layer.
+"""
+
+import numpy as np
+from numba import njit, prange
+
+from mechsim.integrators.compiled.erk import dop853_advance, dopri5_advance, erk_initial_step
+from mechsim.integrators.compiled.outputs import evaluate_outputs
+from mechsim.integrators.compiled.radau import radau15_advance
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def radau15_restart(ks, state, y, p, dy, b, g, e, comp, g_old, tau, tau2, floor, tolerance):
+    """``Radau15._restart`` compiled, operation for operation: project, the floors of the
+    acceleration and work scales (returned), f at the state, the first step, a fresh
+    expansion and the event functions. ``tau2``: τ² as Python computes it."""
+    s = state[0]
+    t = s.t
+    ks.project(t, y, p)
+    n = ks.n_q
+    top = 0.0  # np.max(|q|/τ² + |q̇|/τ, initial=0)
+    for i in range(n):
+        v = abs(y[i]) / tau2 + abs(y[n + i]) / tau
+        if v > top:
+            top = v
+    energy = np.zeros(3)
+    ks.energy(t, y, p, energy)
+    w_floor = max(abs(energy[0]), abs(energy[1]), abs(energy[2]))
+    ks.rhs(t, y.ctypes, p.ctypes, dy.ctypes)
+    h0 = erk_initial_step(ks, t, y, p, dy.copy(), tolerance, tolerance, 8.0, y.size)
+    s.h = h0
+    s.h_old = 0.0
+    s.n_evaluations += 2
+    b[:] = 0.0
+    g[:] = 0.0
+    e[:] = 0.0
+    comp[:] = 0.0
+    s.last_event = -1
+    s.f0_ready = 0
+    if ks.n_ev > 0:
+        ks.event(t, y, p, g_old)
+    return floor * top, w_floor
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def _counters(state, status, k):
+    s = state[0]
+    return status, k, s.n_steps, s.n_evaluations, s.n_rejected, s.error_estimate, s.t
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def erk_run(ks, pair, n_stages, n_integrated, state, y, p, t_out, Y_out, rtol, atol, h_max,
+            max_steps, ev_dir, want_e, want_i, want_o, want_f, E, I, O, F):
+    """A DOP853 (``pair`` 0) or DOPRI5 (1) run from (state.t, y) to every time of ``t_out``,
+    as ``DOP853(model, y, t, tolerance).advance(t_out)``, then the outputs wanted at the rows
+    written (``evaluate_outputs``). Returns (status, rows written, steps, evaluations,
+    rejections, error estimate, t reached)."""
+    n = y.size
+    K = np.zeros((n_stages, n))
+    dense = np.zeros((7, n))
+    y_old = y.copy()
+    comp = np.zeros(n)
+    g_old = np.zeros(ev_dir.size)
+    state[0].n_integrated = n_integrated
+    if pair == 0:
+        status, k = dop853_advance(ks, state, y, y_old, K, dense, p, t_out, Y_out, rtol, atol,
+                                   h_max, max_steps, g_old, ev_dir, comp, 1)
+    else:
+        status, k = dopri5_advance(ks, state, y, y_old, K, dense, p, t_out, Y_out, rtol, atol,
+                                   h_max, max_steps, g_old, ev_dir, comp, 1)
+    if k > 0 and (want_e or want_i or want_o or want_f):
+        evaluate_outputs(ks, t_out[:k], Y_out[:k], p, want_e, want_i, want_o, want_f, E, I,
+                         O, F)
+    return _counters(state, status, k)
+
+
+@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def radau15_run(ks, state, y, p, t_out, Y_out, eps, max_steps, ev_dir, tau, tau2, floor,
+                tolerance, dense_tol, want_e, want_i, want_o, want_f, E, I, O, F):
+    """A radau15 run, as ``Radau15(model, y, t, tolerance, eps=eps).advance(t_out)``, then the
+    outputs wanted; returns as ``erk_run``."""
+    m = ks.n_q + 2
+    b = np.zeros((7, m))
+    g = np.zeros((7, m))
+    e = np.zeros((7, m))
+    F0 = np.zeros(m)
+    dy = np.zeros(y.size)
+    comp = np.zeros(y.size)
+    g_old = np.zeros(ev_dir.size)
+    a_floor, w_floor = radau15_restart(ks, state, y, p, dy, b, g, e, comp, g_old, tau, tau2,
+                                       floor, tolerance)
+    status, k = radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e,
+                                F0, dy, g_old, ev_dir, a_floor, w_floor, dense_tol)
+    if k > 0 and (want_e or want_i or want_o or want_f):
+        evaluate_outputs(ks, t_out[:k], Y_out[:k], p, want_e, want_i, want_o, want_f, E, I,
+                         O, F)
+    return _counters(state, status, k)
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def erk_many(ks, pair, active, state, y, y_old, K, F, P, t_out, done, Y_out, rtol, atol, h_max,
+             max_steps, g_old, ev_dir, comp, restart, status):
+    """Members ``active`` of an ensemble advanced by DOP853 or DOPRI5 (``pair``), each from
+    its own state to the output times it has not written yet (``done[i]`` of ``t_out``; rows
+    into ``Y_out[i]``), each as its stepper's ``advance`` would (``restart[i]``: its pending
+    restart, then cleared); its status into ``status``, the rows written added to ``done``."""
+    for j in prange(active.size):
+        i = active[j]
+        d = done[i]
+        if pair == 0:
+            st, k = dop853_advance(ks, state[i:i + 1], y[i], y_old[i], K[i], F[i], P[i],
+                                   t_out[d:], Y_out[i, d:], rtol[i], atol[i], h_max,
+                                   max_steps, g_old[i], ev_dir, comp[i], restart[i])
+        else:
+            st, k = dopri5_advance(ks, state[i:i + 1], y[i], y_old[i], K[i], F[i], P[i],
+                                   t_out[d:], Y_out[i, d:], rtol[i], atol[i], h_max,
+                                   max_steps, g_old[i], ev_dir, comp[i], restart[i])
+        restart[i] = 0
+        status[i] = st
+        done[i] = d + k
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def radau15_many(ks, active, state, y, P, t_out, done, Y_out, eps, max_steps, comp, b, g, e,
+                 F0, dy, g_old, ev_dir, floors, tau, tau2, floor, tolerance, dense_tol, restart,
+                 status):
+    """Members ``active`` advanced by radau15, as ``erk_many``; a pending restart is
+    ``radau15_restart`` (the floors it sets kept in ``floors[i]``)."""
+    for j in prange(active.size):
+        i = active[j]
+        d = done[i]
+        if restart[i] > 0:
+            a_floor, w_floor = radau15_restart(ks, state[i:i + 1], y[i], P[i], dy[i], b[i],
+                                               g[i], e[i], comp[i], g_old[i], tau[i], tau2[i],
+                                               floor, tolerance[i])
+            floors[i, 0] = a_floor
+            floors[i, 1] = w_floor
+            restart[i] = 0
+        st, k = radau15_advance(ks, state[i:i + 1], y[i], P[i], t_out[d:], Y_out[i, d:],
+                                eps[i], max_steps, comp[i], b[i], g[i], e[i], F0[i], dy[i],
+                                g_old[i], ev_dir, floors[i, 0], floors[i, 1], dense_tol[i])
+        status[i] = st
+        done[i] = d + k
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def outputs_many(ks, t, Y, P, want_e, want_i, want_o, want_f, E, I, O, F):
+    """``evaluate_outputs`` of every member's samples, members in parallel."""
+    for i in prange(Y.shape[0]):
+        evaluate_outputs(ks, t, Y[i], P[i], want_e, want_i, want_o, want_f, E[i], I[i], O[i],
+                         F[i])

@@ -1,0 +1,119 @@
+"""A whole run in one compiled call: what ``mechsim.simulate`` does for the explicit pairs and
+radau15 on a model without events, without a Python stepper in between.
+
+``plan_run`` decides once per model and set of inputs what ``make_stepper`` would make (the
+method, ``auto``'s choice included, its tolerance and options) and keeps it as a
+``RunPlan``: the compiled loop (``compiled.runs``), the kernel set with the outputs asked
+for, and every argument that does not change from call to call. ``RunPlan.run`` then costs
+one call into compiled code, which starts the method as its stepper does, steps, and
+evaluates the outputs; its rows equal the stepper's bit for bit (``tests/test_fast_path.py``).
+A run the loop cannot finish (an event, a step limit, a stiff phase: any status but OK) is
+left to the stepper, which goes on or raises as the solver contract says.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mechsim.integrators.auto import Auto
+from mechsim.integrators.base import Request, Stepper, event_directions
+from mechsim.integrators.compiled import load_runs
+from mechsim.integrators.dop853 import DOP853
+from mechsim.integrators.dopri5 import DOPRI5
+from mechsim.integrators.model import SteppableModel as Model
+from mechsim.integrators.radau15 import Radau15
+from mechsim.integrators.state import DOP853_STATE, RADAU_STATE, Status
+
+#: The kernel functions each output needs (``OUTPUTS`` of ``mechsim.simulate``).
+_OUTPUT_KERNELS = {"energy": "energy", "invariants": "invariants",
+                   "observables": "observables", "frames": "frames"}
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What one ``RunPlan.run`` passes to the compiled loop (see the module docstring)."""
+
+    method: str
+    radau: bool
+    ks: Any
+    dtype: np.dtype
+    fixed: tuple[Any, ...]  # the loop's arguments before y (the erk loop's)
+    tail: tuple[Any, ...]  # its arguments between Y and the output flags
+    want: tuple[bool, bool, bool, bool]
+    loop: Any
+
+    def run(self, y: np.ndarray, p: np.ndarray, t: np.ndarray, Y: np.ndarray, E: np.ndarray,
+            I: np.ndarray, O: np.ndarray, F: np.ndarray  # noqa: E741
+            ) -> tuple[Status, int, int, int, int, float, float]:
+        """Integrate from (0, y) to the times ``t`` into ``Y`` and evaluate the outputs wanted
+        into E, I, O, F: (status, rows written, steps, evaluations, rejections, error
+        estimate, time reached)."""
+        state = np.zeros(1, self.dtype)
+        we, wi, wo, wf = self.want
+        if self.radau:
+            return self.loop(self.ks, state, y, p, t, Y, *self.tail,  # type: ignore[no-any-return]
+                             we, wi, wo, wf, E, I, O, F)
+        return self.loop(self.ks, *self.fixed, state, y, p, t, Y,  # type: ignore[no-any-return]
+                         *self.tail, we, wi, wo, wf, E, I, O, F)
+
+
+def plan_run(model: Model, method: str, tolerance: float, request: Request,
+             which: tuple[str, ...]) -> RunPlan | None:
+    """The plan of a run of ``model`` from its initial state at t = 0 as ``make_stepper(model,
+    method, tolerance, ...)`` would make it (``method`` already checked against the model),
+    with the outputs ``which``; None where the stepper must run it (events, the other
+    methods). Kept per model and inputs (``_PLANS``): a model's parameters never change."""
+    key = (method, tolerance, request, which)
+    plans = _PLANS.get(model)
+    if plans is not None and key in plans:
+        return plans[key]
+    plan = _make_plan(model, method, tolerance, request, which)
+    _PLANS.setdefault(model, {})[key] = plan
+    return plan
+
+
+_PLANS: weakref.WeakKeyDictionary[Model, dict[tuple[Any, ...], RunPlan | None]] = (
+    weakref.WeakKeyDictionary())
+
+
+def _make_plan(model: Model, method: str, tolerance: float, request: Request,
+               which: tuple[str, ...]) -> RunPlan | None:
+    from mechsim.integrators import method_class
+
+    cls = method_class(method)
+    cls.check(model)
+    if model.events or request.step is not None or not 0.0 < tolerance < 1.0:
+        return None  # (the stepper says what is wrong with the tolerance)
+    local, options = tolerance, {}
+    if cls is Auto:
+        cls, local, options = Auto.decide(model, model.initial_y(), 0.0, tolerance, request)
+    elif issubclass(cls, Stepper):
+        options = cls.options(request)
+    want = tuple(name in which for name in _OUTPUT_KERNELS)
+    needed = ("rhs", "project", "event", "energy", *which)
+    loops = load_runs()
+    ks = model.kernels.kernel_set(*needed)
+    max_steps = 10_000_000
+    if cls in (DOP853, DOPRI5) and set(options) <= {"work_terms"}:
+        assert issubclass(cls, DOP853)
+        work = options.get("work_terms", True)
+        n_y = model.initial_y().size
+        tol = max(local * cls.LOCAL_FACTOR, cls.LOCAL_FLOOR)
+        return RunPlan(cls.method, False, ks, DOP853_STATE,
+                       (int(cls.PAIR), cls.N_STAGES, n_y if work else 2 * model.kernels.n_q),
+                       (tol, tol, math.inf, max_steps, event_directions(model)),
+                       want, loops.erk_run)  # type: ignore[arg-type]
+    if cls is Radau15 and set(options) <= {"eps"}:
+        lo, hi = Radau15.EPS_RANGE
+        eps = options.get("eps", min(max(0.01 * math.sqrt(local), lo), hi))
+        tau = float(model.time_scale())
+        return RunPlan(Radau15.method, True, ks, RADAU_STATE, (),
+                       (eps, max_steps, event_directions(model), tau, tau**2, Radau15.FLOOR,
+                        float(local), float(local)),
+                       want, loops.radau15_run)  # type: ignore[arg-type]
+    return None
