@@ -44,6 +44,7 @@ run: bootstrap
 # 102..214 are unusable), unless the caller set one. Exit 5 (no tests collected) is a pass.
 test: test-tools
 	@$(VENV)/bin/ruff check src tests tools
+	@$(VENV)/bin/mypy
 	@export FASTDDS_DEFAULT_PROFILES_FILE="$(PROFILE)"; \
 	export ROS_DOMAIN_ID="$${ROS_DOMAIN_ID:-$$(( $$$$ % 101 + 1 ))}"; \
 	echo "make test: ROS_DOMAIN_ID=$$ROS_DOMAIN_ID"; \
@@ -52,4 +53,5 @@ test: test-tools
 	exit $$rc
 
 lint: bootstrap
-	$(VENV)/bin/ruff check src tests
+	$(VENV)/bin/ruff check src tests tools
+	$(VENV)/bin/mypy

@@ -14,13 +14,14 @@ import os
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.integrators import Request, method_class
 from mechsim.integrators.ensemble import Members, evaluate_many, integrate_many
+from mechsim.integrators.model import SteppableModel
 from mechsim.simulate import (
     OUTPUTS,
     Outputs,
@@ -134,7 +135,8 @@ def simulate_many(model: Model, t_end: float, output_dt: float | None = None, *,
     at = model.layout
     Y = run.Y
     return EnsembleResult(
-        models=members.models, tolerance=tolerance, t=t, q=Y[..., at.q], v=Y[..., at.v],
+        models=cast(list[Model], members.models), tolerance=tolerance, t=t, q=Y[..., at.q],
+        v=Y[..., at.v],
         work_external=Y[..., at.work_external], work_dissipated=Y[..., at.work_dissipated],
         modes=Y[..., at.modes],
         outputs=assemble(shape, outputs, *buffers) if outputs else Outputs(),
@@ -161,13 +163,15 @@ def _members(model: Model, parameters: Sequence[Mapping[str, Any]] | None,
                                  "(one set of equations)")
     y0 = _states(model, states, None if parameters is None else len(parameters))
     if parameters is None:
+        assert y0 is not None  # states were given
         models = [model] * y0.shape[0]
     if y0 is None:
         y0 = np.array([m.initial_y() for m in models]).reshape(len(models), -1)
     if not models:
         raise ParameterError("parameters", "an ensemble needs at least one member")
     P = np.array([m.parameter_vector() for m in models]).reshape(len(models), -1)
-    return Members(models, np.ascontiguousarray(y0), P, given_state=states is not None)
+    return Members(cast(list[SteppableModel], models), np.ascontiguousarray(y0), P,
+                   given_state=states is not None)
 
 
 def _states(model: Model, states: Any, n: int | None) -> np.ndarray | None:

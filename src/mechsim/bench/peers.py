@@ -44,7 +44,7 @@ from __future__ import annotations
 import functools
 import importlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any
@@ -63,7 +63,7 @@ class Contestant:
     name: str  # "family:method"
     family: str
     knob: str  # what the setting means: tolerance, epsilon, accuracy, steps_per_orbit, ...
-    settings: list[float]
+    settings: Sequence[float]
     prepare: Callable[[Problem, float], Runner]
     # Maps the runner's states to the problem's compared states (not timed); None: the runner
     # returns problem states.

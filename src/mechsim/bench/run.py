@@ -126,6 +126,7 @@ def _mechsim(method: str) -> Any:
             # integrates): no outputs, no work terms.
             r = simulate(model, pb.t_end, dt, tolerance=tol, method=method, outputs=(),
                          work_terms=False)
+            assert r.modes is not None  # every run has its (maybe empty) modes
             Y = np.column_stack([r.q, r.v, r.work_external, r.work_dissipated, r.modes])
             return Y, {"n_steps": r.n_steps,
                        "n_rhs": 0 if r.method == "exact" else r.n_evaluations,

@@ -16,6 +16,7 @@ ensembles (``simulate_many``) against what a user would write instead, in one ru
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -194,7 +195,7 @@ def ensembles(n: int = ENSEMBLE, repeats: int = 3) -> dict[str, Any]:
         for threads in (None, 1):
             r = many(method, threads)  # warm-up (compiled on first use)
             name = f"simulate_many ({method}, {_cores(threads or cores)})"
-            runs[name] = {"time_s": _best_of(lambda m=method, th=threads: many(m, th), repeats),
+            runs[name] = {"time_s": _best_of(functools.partial(many, method, threads), repeats),
                           "end_error": _end_error(np.c_[r.q[:, -1, 0], r.v[:, -1, 0]], ref,
                                                   amplitudes, g),
                           "measured_members": n, "methods": sorted(set(r.methods))}

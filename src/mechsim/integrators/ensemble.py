@@ -163,7 +163,8 @@ class _Group:
             self.y_old = self.y.copy()
             self.K = np.zeros((n, method.N_STAGES, n_y))
             self.F = np.zeros((n, 7, n_y))
-            self.stiff_steps = float(DOP853.__init__.__kwdefaults__["stiff_steps_per_output"])
+            defaults = DOP853.__init__.__kwdefaults__ or {}
+            self.stiff_steps = float(defaults["stiff_steps_per_output"])
 
     def call(self, ks: Any, active: np.ndarray, t: np.ndarray, Y: np.ndarray) -> None:
         """One compiled call for the members ``active``."""

@@ -89,7 +89,7 @@ def _make_plan(model: Model, method: str, tolerance: float, request: Request,
     cls.check(model)
     if model.events or request.step is not None or not 0.0 < tolerance < 1.0:
         return None  # (the stepper says what is wrong with the tolerance)
-    local, options = tolerance, {}
+    local, options = tolerance, dict[str, Any]()
     if cls is Auto:
         cls, local, options = Auto.decide(model, model.initial_y(), 0.0, tolerance, request)
     elif issubclass(cls, Stepper):

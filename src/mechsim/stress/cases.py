@@ -158,7 +158,7 @@ def chaos(system: str, quick: bool) -> list[Result]:
 
 
 # --- 3. stiffness ---------------------------------------------------------------------------
-STIFF = {
+STIFF: dict[str, list[tuple[dict[str, Any], float]]] = {
     "damped_oscillator": [({"damping": 1e6}, 10.0), ({"spring_constant": 1e8, "damping": 1e5},
                                                       10.0), ({"damping": 1e3}, 10.0)],
     "spring_pendulum": [({"spring_constant": 1e9, "initial.extension": 9.81e-9}, 1.0),

@@ -73,7 +73,7 @@ def drifts(model: Model, run: SimulationResult, growing: bool = False
          np.abs(run.work_dissipated)])) if growing else 0.0
     for law in model.laws():
         v = run.law_value(law)
-        s = scales[law.key] if scales[law.key] > 0 else 1.0
+        s: float | np.ndarray = scales[law.key] if scales[law.key] > 0 else 1.0
         if growing:
             own = np.maximum.accumulate(np.abs(v))
             s = np.maximum(s, np.maximum(own, terms) if law.kind != "invariant" else own)

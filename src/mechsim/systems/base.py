@@ -102,10 +102,14 @@ class EnergyTerms(Protocol):
     """What an energy-type law reads: an ``Energy`` message, a ``SimulationResult`` (arrays),
     or anything else with these attributes."""
 
-    total: Any
-    energy_function: Any
-    work_external: Any
-    work_dissipated: Any
+    @property
+    def total(self) -> Any: ...
+    @property
+    def energy_function(self) -> Any: ...
+    @property
+    def work_external(self) -> Any: ...
+    @property
+    def work_dissipated(self) -> Any: ...
 
 
 @dataclass(frozen=True)
