@@ -99,6 +99,18 @@ def test_the_readme_lists_every_system() -> None:
     assert f"{BEGIN}\n{table()}\n{END}" in text, "run tools/readme_systems.py"
 
 
+def test_the_readme_performance_is_the_benchmark_outputs() -> None:
+    """The performance table is what docs/bench/'s JSON and pages say (no figure typed in)."""
+    sys.path.insert(0, str(ROOT / "tools"))
+    try:
+        from readme_performance import BEGIN, END, block
+    finally:
+        sys.path.pop(0)
+    text = (ROOT / "README.md").read_text()
+    assert f"{BEGIN}\n{block()}\n{END}" in text, "run tools/readme_performance.py"
+    assert "| met |" in text and "recording" in block()  # the pages were found and read
+
+
 def _project_text() -> list[Path]:
     """The project's own text: README, changelog, docs, sources, tests, tools."""
     found = [ROOT / "README.md"]
