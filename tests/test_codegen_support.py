@@ -13,7 +13,7 @@ import sympy as sp
 from numba import njit
 
 from mechsim.codegen import support
-from mechsim.systems.lagrangian_kernels import POWER_PRODUCT_MAX, _binary_power, _printer
+from mechsim.systems.kernel_printer import POWER_PRODUCT_MAX, _binary_power, _printer
 
 EXPONENTS = [n for n in range(-POWER_PRODUCT_MAX, POWER_PRODUCT_MAX + 1) if abs(n) >= 2]
 

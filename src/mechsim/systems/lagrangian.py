@@ -61,7 +61,8 @@ from mechsim.systems.layout import ParameterLayout
 GENERATOR_VERSION = 8
 _HERE = Path(__file__).resolve().parent
 GENERATOR_SOURCE = codegen.source_fingerprint([_HERE / "lagrangian.py", _HERE / "declaration.py",
-                                                _HERE / "lagrangian_kernels.py"])
+                                                _HERE / "lagrangian_kernels.py",
+                                                _HERE / "kernel_printer.py"])
 
 
 #: What a model's summary holds (``LagrangianModel._summary``).
