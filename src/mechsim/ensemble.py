@@ -26,6 +26,7 @@ from mechsim.simulate import (
     OUTPUTS,
     Outputs,
     OutputShape,
+    OutputViews,
     SimulationResult,
     assemble,
     load_system,
@@ -37,7 +38,7 @@ from mechsim.systems.base import Model
 
 
 @dataclass
-class EnsembleResult:
+class EnsembleResult(OutputViews):
     """The members' arrays, each with a leading axis of members: ``q``, ``v`` (N, samples,
     coordinates), the work terms (N, samples), ``outputs`` (energy terms and each invariant and
     observable (N, samples), frames (N, samples, frames, 7)); per member the method that ran
@@ -62,20 +63,6 @@ class EnsembleResult:
 
     def __len__(self) -> int:
         return len(self.methods)
-
-    @property
-    def kinetic(self) -> np.ndarray:
-        assert self.outputs.kinetic is not None
-        return self.outputs.kinetic
-
-    @property
-    def potential(self) -> np.ndarray:
-        assert self.outputs.potential is not None
-        return self.outputs.potential
-
-    @property
-    def total(self) -> np.ndarray:
-        return self.kinetic + self.potential
 
     def member(self, i: int) -> SimulationResult:
         """Member ``i`` as the ``SimulationResult`` of a single run (its wall time: the

@@ -115,35 +115,11 @@ def assemble(shape: OutputShape, which: tuple[str, ...], E: np.ndarray, inv: np.
     return out
 
 
-@dataclass
-class SimulationResult:
-    """Arrays at the output times. ``total = kinetic + potential``; the work terms close
-    ``total - total[0] = work_external - work_dissipated``."""
+class OutputViews:
+    """The evaluated outputs of a run (``self.outputs``) by name: energy terms, invariants and
+    observables; shared by a single run's and an ensemble's results."""
 
-    model: Model
-    method: str
-    tolerance: float
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    work_external: np.ndarray
-    work_dissipated: np.ndarray
     outputs: Outputs
-    wall_time: float
-    n_steps: int
-    # Events met on the way, as (time, event name); the discrete mode entries at each sample.
-    events: list[tuple[float, str]] = field(default_factory=list)
-    modes: np.ndarray | None = None
-    # What the run cost: right-hand-side (or force) evaluations and rejected steps.
-    n_evaluations: int = 0
-    n_rejected: int = 0
-    #: The integrator's own estimate of the error it committed: the sum over its steps of
-    #: the local error estimates, relative to the state's scale (1e-9: about a billionth of a
-    #: typical coordinate or rate). It assumes the errors add up: a chaotic system can
-    #: amplify them beyond it, and a symplectic method's energy error stays far below it;
-    #: the closed forms report 0. A diagnostic, not a bound: the contract is ``tolerance``
-    #: (see ``mechsim.integrators``; tests/test_tolerance.py checks it against references).
-    error_estimate: float = 0.0
 
     @property
     def kinetic(self) -> np.ndarray:
@@ -171,6 +147,37 @@ class SimulationResult:
     @property
     def observables(self) -> dict[str, np.ndarray]:
         return self.outputs.observables
+
+
+@dataclass
+class SimulationResult(OutputViews):
+    """Arrays at the output times. ``total = kinetic + potential``; the work terms close
+    ``total - total[0] = work_external - work_dissipated``."""
+
+    model: Model
+    method: str
+    tolerance: float
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    work_external: np.ndarray
+    work_dissipated: np.ndarray
+    outputs: Outputs
+    wall_time: float
+    n_steps: int
+    # Events met on the way, as (time, event name); the discrete mode entries at each sample.
+    events: list[tuple[float, str]] = field(default_factory=list)
+    modes: np.ndarray | None = None
+    # What the run cost: right-hand-side (or force) evaluations and rejected steps.
+    n_evaluations: int = 0
+    n_rejected: int = 0
+    #: The integrator's own estimate of the error it committed: the sum over its steps of
+    #: the local error estimates, relative to the state's scale (1e-9: about a billionth of a
+    #: typical coordinate or rate). It assumes the errors add up: a chaotic system can
+    #: amplify them beyond it, and a symplectic method's energy error stays far below it;
+    #: the closed forms report 0. A diagnostic, not a bound: the contract is ``tolerance``
+    #: (see ``mechsim.integrators``; tests/test_tolerance.py checks it against references).
+    error_estimate: float = 0.0
 
     @property
     def balance_residual(self) -> np.ndarray:
