@@ -65,6 +65,15 @@ def _central_first_integrals(model: Any) -> tuple[Callable[[float], float], floa
             model.relative_energy())
 
 
+def orbit_curves(model: Any) -> tuple[Curve, ...]:
+    """A central-force orbit's published curves: U_eff(r) with its energy and turning points
+    (none where the orbit's radial range cannot be found: a fall to the centre)."""
+    try:
+        return (effective_potential(model),)
+    except (ValueError, ArithmeticError):
+        return ()
+
+
 def effective_potential(model: Any, r: np.ndarray | None = None) -> Curve:
     """U_eff(r) of the model's orbit with its energy E as a level, crossed at the turning
     points; r defaults to 200 points from a fifth of r_min (or of r₀) to twice r_max."""

@@ -299,12 +299,9 @@ class PowerLawOrbit(LagrangianModel):
     def curves(self) -> tuple[Curve, ...]:
         """U_eff(r) with the orbit's energy and its turning points (none where the orbit's
         radial range cannot be found: a fall to the centre)."""
-        from mechsim.systems.curves import effective_potential
+        from mechsim.systems.curves import orbit_curves
 
-        try:
-            return (effective_potential(self),)
-        except (ValueError, ArithmeticError):
-            return ()
+        return orbit_curves(self)
 
 
 MODEL = PowerLawOrbit
