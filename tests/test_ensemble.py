@@ -43,6 +43,22 @@ def test_members_by_parameters_equal_single_runs(method: str) -> None:
                                                tolerance=1e-9, method=method))
 
 
+def test_hamiltonian_members_publish_rates_not_momenta() -> None:
+    """A formulation whose state holds momenta (p = m R² θ̇ for the pendulum): the members'
+    ``v`` are the rates q̇, as the Lagrangian form of the same pendulums computes them."""
+    values = [{"initial.angle": a, "length": ell, "mass": m}
+              for a, ell, m in ((0.3, 1.0, 1.0), (2.5, 0.5, 3.0), (1.0, 2.0, 0.5))]
+    hamiltonian = mechsim.load_system("pendulum", formulation="hamiltonian")
+    T = 4.0 * hamiltonian.time_scale()
+    res = mechsim.simulate_many(hamiltonian, T, T / 20, parameters=values, tolerance=1e-11,
+                                method="dop853")
+    for i, v in enumerate(values):
+        lagrangian = mechsim.simulate(mechsim.load_system("pendulum", **v), T, T / 20,
+                                      tolerance=1e-11, method="dop853")
+        assert np.max(np.abs(res.q[i] - lagrangian.q)) < 1e-7
+        assert np.max(np.abs(res.v[i] - lagrangian.v)) < 1e-7, v
+
+
 def test_members_by_state_equal_steppers_from_that_state() -> None:
     model = mechsim.load_system("pendulum", formulation="multiplier")
     n_q = len(model.coordinates)

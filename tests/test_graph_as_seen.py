@@ -40,7 +40,8 @@ def _expected(systems: list[str]) -> set[str]:
     for s in systems:
         m = mechsim.load_system(s)
         joints = len(m.coordinates) - (4 if m.attitude is not None else 0)
-        for leaf, has in (("energy", True), ("system_info", True), ("state", joints > 0),
+        for leaf, has in (("energy", True), ("system_info", True), ("sample_batch", True),
+                          ("state", joints > 0),
                           ("pose", m.attitude is not None), ("twist", m.attitude is not None),
                           ("invariants", bool(m.invariants)),
                           ("observables", bool(m.observables)),

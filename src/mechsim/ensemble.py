@@ -123,13 +123,22 @@ def simulate_many(model: Model, t_end: float, output_dt: float | None = None, *,
     Y = run.Y
     return EnsembleResult(
         models=cast(list[Model], members.models), tolerance=tolerance, t=t, q=Y[..., at.q],
-        v=Y[..., at.v],
+        v=_rates(members, t, Y),
         work_external=Y[..., at.work_external], work_dissipated=Y[..., at.work_dissipated],
         modes=Y[..., at.modes],
         outputs=assemble(shape, outputs, *buffers) if outputs else Outputs(),
         methods=run.methods, n_steps=run.n_steps, n_evaluations=run.n_evaluations,
         n_rejected=run.n_rejected, error_estimate=run.error_estimate,
         wall_time=time.perf_counter() - start, events=run.events)
+
+
+def _rates(members: Members, t: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """The members' rates q̇ (N, samples, coordinates): the states' ``v`` entries, or, for a
+    formulation whose state holds momenta, each member's rates from its own parameters."""
+    models = cast(list[Model], members.models)
+    if models[0].structure.second_order:
+        return Y[..., models[0].layout.v]
+    return np.stack([m.rates(t, Y[i], members.P[i]) for i, m in enumerate(models)])
 
 
 def _members(model: Model, parameters: Sequence[Mapping[str, Any]] | None,

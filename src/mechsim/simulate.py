@@ -371,7 +371,8 @@ def _run_planned(model: Model, plan: RunPlan, tolerance: float, t: np.ndarray,
         Y[:, at.work_external] = Y[:, at.work_dissipated] = np.nan
     out = assemble(shape, outputs, *arrays) if outputs else Outputs()
     return SimulationResult(model=model, method=plan.method, tolerance=tolerance, t=t,
-                            q=Y[:, at.q], v=Y[:, at.v], work_external=Y[:, at.work_external],
+                            q=Y[:, at.q], v=model.rates(t, Y, p),
+                            work_external=Y[:, at.work_external],
                             work_dissipated=Y[:, at.work_dissipated], outputs=out,
                             wall_time=time.perf_counter() - start, n_steps=n_steps,
                             modes=Y[:, at.modes], n_evaluations=n_evaluations,
