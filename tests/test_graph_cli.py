@@ -80,8 +80,15 @@ def running_pendulum(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[
 
 
 def test_node_list_shows_the_simulator(running_pendulum: dict[str, str]) -> None:
-    r = mechsim(["node", "list"], running_pendulum)
-    assert r.returncode == 0 and NODE in r.stdout.split()
+    """Listed within a discovery wait a loaded machine allows (asked again until a generous
+    deadline: discovery of a node already running can take longer than one wait)."""
+    deadline = time.monotonic() + 120.0
+    while True:
+        r = mechsim(["node", "list", "--wait", "3"], running_pendulum)
+        assert r.returncode == 0, r.stderr
+        if NODE in r.stdout.split() or time.monotonic() > deadline:
+            break
+    assert NODE in r.stdout.split(), r.stdout
 
 
 def test_param_list_get_set(running_pendulum: dict[str, str]) -> None:

@@ -281,6 +281,9 @@ def diagnostics_process(scene: Scene | None, report: str | None = None) -> int:
         try:
             if node is not None and report is not None:
                 drain(executor, lambda: node.received, report)
+                # The last report, on what was drained: a run shorter than the period (or
+                # stopped before the timer fired) still has its /diagnostics recorded.
+                node.publish_now()
                 wait_acked(_pubs(node))
         except KeyboardInterrupt:
             pass
