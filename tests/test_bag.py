@@ -271,6 +271,32 @@ def _wait_for_size(f: Path, size: int, proc: subprocess.Popen[str], timeout: flo
     raise AssertionError(f"{f} did not reach {size} bytes")
 
 
+def _complete_chunks(f: Path) -> int:
+    """How many MCAP Chunk records (opcode 0x06) the file holds whole so far: records are
+    opcode (1 byte), length (8 bytes little-endian) and content, after the 8-byte magic."""
+    data = f.read_bytes() if f.exists() else b""
+    at, chunks = 8, 0
+    while at + 9 <= len(data):
+        opcode, length = data[at], int.from_bytes(data[at + 1:at + 9], "little")
+        if at + 9 + length > len(data):
+            break
+        chunks += opcode == 0x06
+        at += 9 + length
+    return chunks
+
+
+def _wait_for_chunks(f: Path, count: int, proc: subprocess.Popen[str], timeout: float) -> None:
+    """Until ``f`` holds ``count`` whole chunks (a size alone can land inside the first
+    chunk's write, which repair rightly drops)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if _complete_chunks(f) >= count:
+            return
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    raise AssertionError(f"{f} did not reach {count} whole chunks")
+
+
 def _counts_from_file(path: Path) -> Counter[str]:
     return Counter(m[0] for m in _rosbags_messages(path))
 
@@ -309,7 +335,7 @@ def test_sigkill_then_repair(tmp_path: Path, ros_env: dict[str, str]) -> None:
                              "10", "--bag", str(bag)], env=ros_env, cwd=REPO, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        _wait_for_size(f, 20_000, proc, 60)
+        _wait_for_chunks(f, 2, proc, 120)
         proc.send_signal(signal.SIGKILL)
         proc.communicate(timeout=30)
     finally:
