@@ -91,8 +91,11 @@ def _run(argv: list[str] | None) -> int:
 def report(error: Exception) -> int:
     """Say what ``error`` means to the user, in one line on stderr; its exit status."""
     from mechsim.environment import RosEnvironmentError
-    from mechsim.runcore.stops import is_stop
+    from mechsim.runcore.stops import is_stop, stopping
 
+    if isinstance(error, RosEnvironmentError) and stopping.is_set():
+        # SIGTERM while rclpy loaded its libraries: the import failed because of the stop.
+        return EXIT_INTERRUPTED
     if isinstance(error, MechsimError | RosEnvironmentError):
         print(f"mechsim: error: {one_line(_first_line(error))}", file=sys.stderr)
         return EXIT_USAGE
