@@ -15,7 +15,7 @@ PYTEST_ARGS ?= -n 3
 # inherited from another environment it would stop this venv's python from doing so.
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
-.PHONY: bootstrap test-tools run test lint
+.PHONY: bootstrap test-tools run test lint bench
 
 # The venv and mechsim in it: everything inside the checkout (no system package, no npm).
 bootstrap:
@@ -55,3 +55,12 @@ test: test-tools
 lint: bootstrap
 	$(VENV)/bin/ruff check src tests tools
 	$(VENV)/bin/mypy
+
+# Every benchmark report in one run (docs/bench, about half an hour on a quiet 2-core machine;
+# the peers of `.[bench]` are measured where installed), then README.md's performance table
+# from those pages.
+bench: bootstrap
+	@export FASTDDS_DEFAULT_PROFILES_FILE="$(PROFILE)"; \
+	export ROS_DOMAIN_ID="$${ROS_DOMAIN_ID:-$$(( $$$$ % 101 + 1 ))}"; \
+	$(VENV)/bin/mechsim bench --all --out docs/bench --force && \
+	$(VENV)/bin/python tools/readme_performance.py

@@ -10,6 +10,7 @@ import math
 import warnings
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -339,3 +340,40 @@ def test_double_pendulum_reference_vs_double_precision() -> None:
             sol = solve_ivp(pb.rhs, (0, pb.t_end), pb.y0, method=method, t_eval=pb.times(),
                             rtol=1e-14, atol=1e-14)
         assert pb.errors(sol.y.T)["max_error"] < 1e-11, method
+
+
+def test_all_runs_every_report_once_in_order(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """`bench --all` (what `make bench` runs): each report once, long and short problems
+    apart, nothing run when a file it writes exists without --force."""
+    import mechsim.bench.brouwer as brouwer
+    import mechsim.bench.derive as derive
+    import mechsim.bench.run as run
+    import mechsim.bench.scene_cost as scene_cost
+    import mechsim.bench.streaming as streaming
+    import mechsim.bench.throughput as throughput
+    from mechsim.bench.problems import SHORT_OF
+
+    calls: list[tuple[str, Any]] = []
+    monkeypatch.setattr(run, "run_bench", lambda systems, out, **kw: calls.append(
+        ("problems", (list(systems), out, kw["budget_s"]))))
+    monkeypatch.setattr(streaming, "run_streaming", lambda out, s: calls.append(("streaming", out)))
+    monkeypatch.setattr(throughput, "run_throughput",
+                        lambda out, members: calls.append(("throughput", members)))
+    monkeypatch.setattr(derive, "run_derive", lambda out, s: calls.append(("derive", s)))
+    monkeypatch.setattr(scene_cost, "run_scene_cost",
+                        lambda scene, out: calls.append(("scene", scene)))
+    monkeypatch.setattr(brouwer, "run_brouwer",
+                        lambda out, n_steps, runs: calls.append(("brouwer", (n_steps, runs))))
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])
+    (tmp_path / "streaming.md").write_text("kept")
+    assert main(["bench", "--all", "--out", str(tmp_path)]) != 0
+    assert "streaming.md exists" in capsys.readouterr().err and not calls
+    assert main(["bench", "--all", "--out", str(tmp_path), "--force"]) == 0
+    assert [c[0] for c in calls] == ["problems", "problems", "streaming", "throughput",
+                                     "derive", "scene", "brouwer"]
+    (long, long_out, budget), (short, short_out, _) = calls[0][1], calls[1][1]
+    assert sorted(short) == sorted(f"{n}_short" for n in SHORT_OF)
+    assert "pendulum" in long and not set(long) & set(short) and budget == 2.0
+    assert (long_out, short_out) == (tmp_path, tmp_path / "short")
+    assert calls[3][1] == 10_000 and calls[5][1] == "scenes/pendulum.yaml"

@@ -20,6 +20,7 @@ slope is ½ for a random walk and 1 for a drift.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import time
@@ -30,6 +31,7 @@ from typing import Any
 import mpmath as mp
 import numpy as np
 
+from mechsim.files import write_atomic
 from mechsim.systems import load_system
 
 #: Kepler's problem of the experiment (a = GM = μ = 1).
@@ -190,11 +192,13 @@ def run_brouwer(out: Path, n_steps: int = 10_000_000, runs: int = 16) -> dict[st
            "slope_last_decade": last, "mean_over_rms_at_end": bias,
            "mean_steps": n.tolist(), "rms": rms.tolist(), "cpu_per_step_s": per_step,
            **asdict(w)}
-    (out / "brouwer.json").write_text(json.dumps(res, indent=1))
+    write_atomic(out / "brouwer.json", json.dumps(res, indent=1))
     note = (f"CPU {w.cpu_s:.0f} s, {per_step * 1e6:.2f} µs a step "
             "(shared 2-core machine: times noisy)")
     fig = figure(w, note)
-    fig.savefig(out / "brouwer.png")
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    write_atomic(out / "brouwer.png", buf.getvalue())
     plt.close(fig)
     print(f"Brouwer: {runs} runs × {int(n[-1]):,} steps of {w.method}: RMS relative energy "
           f"error {rms[np.argmax(n >= FIT_FROM_STEPS)]:.2e} at N = "

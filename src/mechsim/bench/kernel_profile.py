@@ -20,11 +20,12 @@ import math
 import statistics
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numba import njit
+
+from mechsim.files import write_atomic
 
 
 @njit(cache=False)
@@ -164,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     text = markdown([profile_system(s) for s in a.problems])
     if a.out:
-        Path(a.out).write_text(text)
+        write_atomic(a.out, text)
     print(text)
     return 0
 

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import Any
+
+from mechsim.files import write_atomic
 
 
 def _e(x: float | None) -> str:
@@ -156,8 +159,10 @@ def plot(res: dict[str, Any], sid: str, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig = figure(res, sid)
-    fig.savefig(path)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
     plt.close(fig)
+    write_atomic(path, buf.getvalue())
 
 
 def figure(res: dict[str, Any], sid: str) -> Any:

@@ -74,6 +74,7 @@ import numpy as np
 from mechsim.bench import peers as peers_mod
 from mechsim.bench.peers import Contestant, Runner
 from mechsim.bench.problems import BUILDERS, Problem, problem, system_of
+from mechsim.files import write_atomic
 
 ERROR_LEVELS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
 # mechsim's loosest tolerance: the error levels start at 1e-4, and DOP853's error at a
@@ -553,11 +554,11 @@ def run_bench(systems: list[str], out: Path, quick: bool = False, repeats: int =
     res["targets"] = targets(res["systems"], quick)
     res["host"]["loadavg_end"] = list(os.getloadavg())
     out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(_finite(res), indent=1,
+    write_atomic(out / "results.json", json.dumps(_finite(res), indent=1,
                                                  default=_json_default))
     from mechsim.bench import report as report_mod
 
-    (out / "results.md").write_text(report_mod.markdown(res))
+    write_atomic(out / "results.md", report_mod.markdown(res))
     if plots:
         for sid in systems:
             report_mod.plot(res, sid, out / f"{sid}.png")

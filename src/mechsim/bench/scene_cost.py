@@ -30,6 +30,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from mechsim.files import write_atomic
 from mechsim.outputs.sink import Capabilities, Takes
 
 VARIANTS = ("run_scene + sink", "run_scene", "nodes + sink", "nodes only")
@@ -153,9 +154,9 @@ def run_scene_cost(target: str, out: Path, duration: float | None = None,
     res["laziness_saving"] = {"wall_s": full["wall_s"] - lazy["wall_s"],
                               "fraction": 1 - lazy["wall_s"] / full["wall_s"]}
     out.mkdir(parents=True, exist_ok=True)
-    (out / "scene_cost.json").write_text(json.dumps(res, indent=1))
+    write_atomic(out / "scene_cost.json", json.dumps(res, indent=1))
     text = markdown(res)
-    (out / "scene_cost.md").write_text(text)
+    write_atomic(out / "scene_cost.md", text)
     print(text)
     return res
 

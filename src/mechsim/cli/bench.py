@@ -48,6 +48,11 @@ def add_parser(sub: Any) -> None:
     b.add_argument("--steps", type=int, default=10_000_000,
                    help="steps per run for --brouwer (default 10^7)")
     b.add_argument("--runs", type=int, default=16, help="perturbed runs for --brouwer")
+    b.add_argument("--all", action="store_true",
+                   help="every report in one run, in the order of docs/results.md: the long "
+                   "problems (--budget 2, no cold start) and the short ones (DIR/short), "
+                   "--streaming, --throughput, --derive, --scene scenes/pendulum.yaml and "
+                   "--brouwer; each page records its own date, machine and load")
     add_force(b, "replace the files this command writes in --out (other files there are "
               "kept); without it an existing one is refused before anything runs")
     b.set_defaults(func=cmd_bench)
@@ -57,6 +62,8 @@ def cmd_bench(a: argparse.Namespace) -> int:
     from mechsim.errors import ParameterError
 
     out = Path(a.out)
+    if a.all:
+        return _all(a, out)
     if a.brouwer:
         return _brouwer(a, out)
     if a.derive:
@@ -130,4 +137,51 @@ def _throughput(a: argparse.Namespace, out: Path) -> int:
         raise ParameterError("--members", f"must be at least 100 (got {a.members})")
     refuse_existing(a.out, ["throughput.json", "throughput.md"], a.force)
     run_throughput(out, members=a.members)
+    return 0
+
+
+#: What ``--all`` writes into DIR (and DIR/short), checked before anything runs.
+_ALL_FILES = ["results.json", "results.md", "short/results.json", "short/results.md",
+              "streaming.json", "streaming.md", "throughput.json", "throughput.md",
+              "derive.json", "derive.md", "scene_cost.json", "scene_cost.md",
+              "brouwer.json", "brouwer.png"]
+#: The scene ``--all`` measures with every output consumed against state only.
+ALL_SCENE = "scenes/pendulum.yaml"
+
+
+def _all(a: argparse.Namespace, out: Path) -> int:
+    """Every report, one after the other in this process (a quiet machine: nothing else)."""
+    import time
+
+    from mechsim.bench.brouwer import run_brouwer
+    from mechsim.bench.derive import run_derive
+    from mechsim.bench.problems import SHORT_OF
+    from mechsim.bench.run import known_systems, run_bench
+    from mechsim.bench.scene_cost import run_scene_cost
+    from mechsim.bench.streaming import run_streaming
+    from mechsim.bench.throughput import run_throughput
+    from mechsim.errors import ParameterError
+
+    if a.systems:
+        raise ParameterError("--all", "takes no PROBLEM arguments")
+    if not Path(ALL_SCENE).is_file():
+        raise ParameterError("--all", f"run it from the checkout ({ALL_SCENE} not found)")
+    short = [f"{name}_short" for name in SHORT_OF]
+    long = [name for name in known_systems() if name not in short]
+    refuse_existing(a.out, _ALL_FILES, a.force)
+    steps = [
+        ("long problems", lambda: run_bench(long, out, budget_s=2.0, cold=False)),
+        ("short problems", lambda: run_bench(short, out / "short", budget_s=2.0, cold=False)),
+        ("streaming", lambda: run_streaming(out, [])),
+        ("throughput", lambda: run_throughput(out, members=a.members)),
+        ("derive", lambda: run_derive(out, [])),
+        ("scene cost", lambda: run_scene_cost(ALL_SCENE, out)),
+        ("brouwer", lambda: run_brouwer(out, n_steps=a.steps, runs=a.runs)),
+    ]
+    start = time.monotonic()
+    for k, (name, step) in enumerate(steps, 1):
+        print(f"mechsim bench --all: [{k}/{len(steps)}] {name} "
+              f"({time.monotonic() - start:.0f} s so far)", flush=True)
+        step()
+    print(f"mechsim bench --all: done in {time.monotonic() - start:.0f} s", flush=True)
     return 0
