@@ -377,3 +377,20 @@ def test_all_runs_every_report_once_in_order(tmp_path: Path, monkeypatch: pytest
     assert "pendulum" in long and not set(long) & set(short) and budget == 2.0
     assert (long_out, short_out) == (tmp_path, tmp_path / "short")
     assert calls[3][1] == 10_000 and calls[5][1] == "scenes/pendulum.yaml"
+
+
+def test_the_compiled_call_floor_does_a_whole_run() -> None:
+    """The per-call floor `bench --throughput` prints beside simulate (the compiled loop with
+    its arguments made once) does the run simulate does on every call, from a fresh start:
+    the same steps and evaluations each time, not a continuation of the previous call."""
+    import mechsim
+    from mechsim.bench.throughput import TOLERANCE, _compiled_loop
+    from mechsim.integrators.state import Status
+
+    model = mechsim.load_system("pendulum")
+    res = mechsim.simulate(model, 0.01, 0.01, tolerance=TOLERANCE, method="dop853")
+    for call in _compiled_loop(model, 0.01):
+        for _ in range(3):
+            status, rows, n_steps, n_evaluations, *_ = call()
+            assert (Status(status), rows, n_steps, n_evaluations) == (
+                Status.OK, 2, res.n_steps, res.n_evaluations)

@@ -3,8 +3,10 @@ ensembles (``simulate_many``) against what a user would write instead, in one ru
 
 - Per call: ``simulate`` of a pendulum for one output interval (two samples), with every
   output and with the state only; ``make_stepper`` and its ``advance``; ``advance`` of a
-  running stepper by one sample; scipy's ``solve_ivp`` and a hand-written numba RK4 loop
-  for the same interval. Median of many calls, in µs.
+  running stepper by one sample; the compiled loop ``simulate`` calls (its arguments
+  prepared once), through numba's dispatcher and through its compiled entry point: the floor
+  of a call that passes the loop's arguments one by one; scipy's ``solve_ivp`` and a
+  hand-written numba RK4 loop for the same interval. Median of many calls, in µs.
 - Ensembles: ``ENSEMBLE`` pendulums released from rest at random amplitudes, ten
   small-oscillation periods, ``SAMPLES`` samples, tolerance 1e-10: ``simulate_many`` (all
   cores and one), a loop of ``simulate``, a loop of scipy's ``solve_ivp`` (DOP853) and a
@@ -66,6 +68,7 @@ def per_call(n: int = 4000) -> dict[str, float]:
         clock[0] += dt
         return st.advance(np.array([clock[0]]))
 
+    dispatched, entry = _compiled_loop(model, dt)
     g = 9.81
     loop = _rk4_one()
     y0 = model.initial_y()[:2].copy()
@@ -82,6 +85,10 @@ def per_call(n: int = 4000) -> dict[str, float]:
         "make_stepper + advance (dop853)": _median_us(
             lambda: make_stepper(model, "dop853", TOLERANCE).advance(t1), n),
         "advance of a running stepper by one sample": _median_us(advance, n),
+        "the compiled loop alone (dop853, every output), numba's dispatcher": _median_us(
+            dispatched, n),
+        "the same loop through its compiled entry point (no type dispatch)": _median_us(
+            entry, n),
         "hand-written numba RK4 loop (one call, 4 steps)": _median_us(
             lambda: loop(g, y0, dt, 4), n),
         "scipy solve_ivp (DOP853)": _median_us(
@@ -89,6 +96,35 @@ def per_call(n: int = 4000) -> dict[str, float]:
                               method="DOP853", rtol=1e-13, atol=1e-13, t_eval=t1),
             max(100, n // 20)),
     }
+
+
+def _compiled_loop(model: Any, dt: float) -> tuple[Callable[[], Any], Callable[[], Any]]:
+    """The one compiled call of ``simulate(model, dt, dt, tolerance=TOLERANCE,
+    method="dop853")`` with its arguments made once: through the dispatcher, and through the
+    entry point of the overload it picks (what is left of a call: unboxing the arguments)."""
+    from mechsim.integrators.base import Request
+    from mechsim.integrators.runs import plan_run
+    from mechsim.simulate import OUTPUTS, OutputShape, output_buffers, output_times
+
+    plan = plan_run(model, "dop853", TOLERANCE, Request(horizon=dt), OUTPUTS)
+    assert plan is not None and not plan.radau
+    t = output_times(dt, dt)
+    y, p = model.initial_y(), model.parameter_vector()
+    state, start = np.zeros(1, plan.dtype), np.zeros(1, plan.dtype)
+    args = (plan.ks, *plan.fixed, state, y, p, t, np.empty((t.size, y.size)),
+            *plan.tail, *plan.want, *output_buffers(OutputShape.of(model), OUTPUTS, t.size))
+    plan.loop(*args)
+    entry = next(iter(plan.loop.overloads.values())).entry_point
+
+    def dispatched() -> Any:
+        state[:] = start  # every call starts the method afresh, as simulate's does
+        return plan.loop(*args)
+
+    def direct() -> Any:
+        state[:] = start
+        return entry(*args)
+
+    return dispatched, direct
 
 
 def _rk4_one() -> Any:
