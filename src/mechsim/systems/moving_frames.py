@@ -16,10 +16,11 @@ Frames (rows e₁, e₂, e₃ are the axes; all published right-handed, parent `
 
 The conventions are those of every VBN/RIC frame mechsim publishes (``_moving_frame``, shared
 with ``orbit_frames``). Angular velocities: ω is the angular velocity of the frame relative to
-``world`` in the usual sense ė_i = ω × e_i, published as its components along the frame's
-own axes. The document's moving-frame matrix
-(ė₁; ė₂; ė₃) = [[0, α, β], [−α, 0, γ], [−β, −γ, 0]] (e₁; e₂; e₃) then has α = ω₃, β = −ω₂, γ = ω₁. The document's mapping "α → −ω_z, β → ω_y, γ → −ω_x" (L963) is this
-with all signs flipped, i.e. it describes −ω; magnitudes and minimality are the same.
+``world`` in the usual sense ė_i = ω × e_i, published as its components along the frame's own
+axes. The document's moving-frame matrix
+(ė₁; ė₂; ė₃) = [[0, α, β], [−α, 0, γ], [−β, −γ, 0]] (e₁; e₂; e₃) then has α = ω₃, β = −ω₂,
+γ = ω₁. The document's mapping "α → −ω_z, β → ω_y, γ → −ω_x" (L963) is this with all signs
+flipped, i.e. it describes −ω; magnitudes and minimality are the same.
 RIC is minimal: ω along Î is identically zero (published as the invariant ``ric_omega_y``);
 so is Frenet–Serret (Darboux vector ω = |v|(τ T̂ + κ B̂), invariant ``frenet_omega_y``).
 
