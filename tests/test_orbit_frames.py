@@ -100,6 +100,45 @@ def test_tf_quaternions_are_the_documents_frames(case: str,
         assert np.allclose(got[name], ref[name], atol=1e-12), name
 
 
+@pytest.mark.parametrize("perturbation", ["none", "oblateness"])
+@pytest.mark.parametrize("velocity", [(0.0, 1.1, 0.0), (0.0, -1.1, 0.0), (0.0, 0.0, 1.1),
+                                      (0.0, 1e-9, 1.1), (0.0, -1.1, 1e-12), (0.3, -0.2, -1.0)],
+                         ids=["equatorial", "retrograde", "polar", "near_polar",
+                              "near_retrograde", "generic"])
+def test_quaternions_on_every_orbit_orientation(perturbation: str,
+                                                velocity: tuple[float, ...]) -> None:
+    """Equatorial, retrograde and polar planes (where an angle from the ascending node is
+    undefined): the published rotations are the axes to round-off."""
+    rates = {f"initial_rate.{c}": w for c, w in zip("xyz", velocity, strict=True)}
+    m = mechsim.load_system("orbit_frames", perturbation=perturbation, **rates)
+    run = mechsim.simulate(m, 6.0, 0.05, tolerance=1e-12)
+    ref = document_axes(run.q, run.v)
+    for i, name in ((1, "vbn"), (2, "ric")):
+        q = run.outputs.frames[:, i, 3:]
+        assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-14)
+        got = Rotation.from_quat(q).as_matrix().transpose(0, 2, 1)
+        assert np.allclose(got, ref[name], atol=1e-14), name
+
+
+def test_an_applied_effort_turns_the_frames() -> None:
+    """A force F ẑ (the effort on z) on the equatorial orbit at r = x̂, v = 1.1 ŷ: a·N̂ = F/m,
+    VBN turns about B̂ at a·N̂/|v|, RIC about R̂ at |r| a·Ĉ/|r × v|; both F/(m |v|) here."""
+    m = mechsim.load_system("orbit_frames", mass=2.0, **{"initial_rate.z": 0.0,
+                                                       "initial_rate.y": 1.1})
+    p, y = m.parameter_vector().copy(), m.initial_y()
+    names = [q.name for q in m.observables]
+    out = np.zeros(len(names))
+    m.kernels.observables(0.0, y, p, out)
+    assert dict(zip(names, out, strict=True))["normal_acceleration"] == 0.0
+    p[m.effort_slice()] = [0.0, 0.0, 0.5]
+    m.kernels.observables(0.0, y, p, out)
+    got = dict(zip(names, out, strict=True))
+    assert got["normal_acceleration"] == pytest.approx(0.25, rel=1e-14)
+    assert got["vbn_omega_z"] == pytest.approx(0.25 / 1.1, rel=1e-14)
+    assert got["ric_omega_x"] == pytest.approx(0.25 / 1.1, rel=1e-14)
+    assert got["vbn_omega_y"] == pytest.approx(0.5 / 1.1, rel=1e-14)  # μ/(r²v), μ = k/m
+
+
 @pytest.mark.parametrize("case", ["kepler", "oblate"])
 def test_angular_velocity_against_central_differences(case: str,
                                                       request: pytest.FixtureRequest) -> None:

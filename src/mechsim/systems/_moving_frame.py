@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Quantity
 
 #: Colours of the frames' axes visuals, one per frame.
@@ -76,3 +77,39 @@ def frame_rates(r: Any, v: Any, a: Any, sqrt: Any) -> dict[str, tuple[Any, Any, 
         "ric": (-_dot(Lxr, Ldot) / (l2 * radius), -_dot(v, L) / (radius * l),
                 _dot(v, Lxr) / (l * radius * radius)),
     }
+
+
+def frame_axes(r: Any, v: Any) -> dict[str, tuple[Any, Any, Any]]:
+    """The axes (rows: x, y, z, each a 3-tuple) of VBN and RIC from r and v (expressions)."""
+    L = _cross(r, v)
+    l, speed, radius = (sp.sqrt(_dot(w, w)) for w in (L, v, r))
+    V = tuple(c / speed for c in v)
+    N = tuple(c / l for c in L)
+    R = tuple(c / radius for c in r)
+    return {"vbn": (V, N, _cross(V, N)), "ric": (R, _cross(N, R), N)}
+
+
+def quaternion_from_axes(e: tuple[Any, Any, Any]) -> tuple[Any, Any, Any, Any]:
+    """Quaternion (x, y, z, w) of the frame whose unit axes (parent components) are the rows
+    e[0..2], as sympy expressions: Shepperd's method (the pivot is the largest of w², x², y²,
+    z², so no branch divides by a small number), the symbolic twin of
+    ``_rotation.quat_from_rows``. R = eᵀ: R[i][j] = e[j][i]."""
+    R = [[e[j][i] for j in range(3)] for i in range(3)]
+    tr = R[0][0] + R[1][1] + R[2][2]
+    branches = []
+    s = 2 * sp.sqrt(1 + tr)
+    branches.append(((R[2][1] - R[1][2]) / s, (R[0][2] - R[2][0]) / s, (R[1][0] - R[0][1]) / s,
+                     s / 4))
+    s = 2 * sp.sqrt(1 + R[0][0] - R[1][1] - R[2][2])
+    branches.append((s / 4, (R[0][1] + R[1][0]) / s, (R[0][2] + R[2][0]) / s,
+                     (R[2][1] - R[1][2]) / s))
+    s = 2 * sp.sqrt(1 + R[1][1] - R[0][0] - R[2][2])
+    branches.append(((R[0][1] + R[1][0]) / s, s / 4, (R[1][2] + R[2][1]) / s,
+                     (R[0][2] - R[2][0]) / s))
+    s = 2 * sp.sqrt(1 + R[2][2] - R[0][0] - R[1][1])
+    branches.append(((R[0][2] + R[2][0]) / s, (R[1][2] + R[2][1]) / s, s / 4,
+                     (R[1][0] - R[0][1]) / s))
+    conditions = (sp.And(tr >= R[0][0], tr >= R[1][1], tr >= R[2][2]),
+                  sp.And(R[0][0] >= R[1][1], R[0][0] >= R[2][2]), R[1][1] >= R[2][2], True)
+    return tuple(sp.Piecewise(*((b[k], c) for b, c in zip(branches, conditions, strict=True)))
+                 for k in range(4))  # type: ignore[return-value]

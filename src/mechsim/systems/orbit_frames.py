@@ -24,10 +24,9 @@ Frames (the conventions of ``_moving_frame``; ω along the frame's own axes, ė 
 computed from the state and the accelerations the equations of motion give, so an applied
 effort counts): ``centre`` (static, the force centre at the origin of ``world``), ``vbn`` and
 ``ric`` (children of ``centre`` at the body's position; REP-103 axes, SI units). Their
-quaternions are the z-x-z rotations of ``_central.orbit_quaternion`` (node longitude,
-inclination, and the angle in the orbit plane from the ascending node to r for RIC, to v for VBN,
-the latter turned by +90° about x so that y = N̂ and z = B̂); they are undefined where
-r × v = 0 (a radial fall, refused at the start).
+quaternions come from the axes by Shepperd's method (``_moving_frame.quaternion_from_axes``:
+no angle of the orbit plane is formed, so equatorial, retrograde and polar orbits are as
+accurate as any); they are undefined where r × v = 0 (a radial fall, refused at the start).
 
 Observables: the six ω components and the two |ω| (``_moving_frame.omega_quantities``), the
 radius, and ``normal_acceleration`` a·N̂: VBN is minimal exactly where it is zero.
@@ -41,13 +40,14 @@ import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.params import Parameter, number, positive
-from mechsim.systems._central import (
-    declare_orbit_vectors,
-    orbit_quaternion,
-    pericentre_time,
-    vector_law_scales,
+from mechsim.systems._central import declare_orbit_vectors, pericentre_time, vector_law_scales
+from mechsim.systems._moving_frame import (
+    FRAME_COLORS,
+    frame_axes,
+    frame_rates,
+    omega_quantities,
+    quaternion_from_axes,
 )
-from mechsim.systems._moving_frame import FRAME_COLORS, frame_rates, omega_quantities
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Visual
 from mechsim.systems.declaration import LagrangianBuilder
@@ -126,11 +126,9 @@ class OrbitFrames(LagrangianModel):
         b.observable("normal_acceleration", "m/s^2",
                      sum(a * c for a, c in zip(acc, L, strict=True)) / l_norm)
         b.frame("centre", "world", (0, 0, 0))
-        qx, qy, qz, qw = orbit_quaternion(L, vel)
-        half = sp.sqrt(2) / 2  # q_orbit(v) ⊗ q_x(90°): y = N̂, z = B̂ = V̂ × N̂
-        b.frame("vbn", "centre", pos,
-                (half * (qx + qw), half * (qy + qz), half * (qz - qy), half * (qw - qx)))
-        b.frame("ric", "centre", pos, orbit_quaternion(L, pos))
+        axes = frame_axes(pos, vel)
+        for name in FRAME_NAMES:
+            b.frame(name, "centre", pos, quaternion_from_axes(axes[name]))
 
     # --- state ----------------------------------------------------------------------------
     def cartesian_state(self) -> tuple[np.ndarray, np.ndarray]:
