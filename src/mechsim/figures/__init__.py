@@ -50,6 +50,7 @@ FIGURES: tuple[Spec, ...] = (
     Spec("jacobi_drift", "Action and Reaction, Case 2", blog.jacobi_drift),
     Spec("twisted_cubic_frames", "Moving Frames and the Twisted Cubic", blog.twisted_cubic,
          quick=True),
+    Spec("orbit_frames", "Minimal Frames", blog.orbit_frames),
     Spec("effective_potentials", "Introduction to analytical mechanics; PHYS0500 §4.5",
          orbits.effective_potentials, quick=True),
     Spec("kepler_orbits", "PHYS0500 §4.6", orbits.kepler_orbits),

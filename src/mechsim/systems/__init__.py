@@ -41,6 +41,7 @@ SYSTEMS: dict[str, str] = {
     "moving_coordinates": "mechsim.systems.moving_coordinates",
     "moving_frames": "mechsim.systems.moving_frames",
     "noninertial_frame": "mechsim.systems.noninertial_frame",
+    "orbit_frames": "mechsim.systems.orbit_frames",
     "oscillator_chain": "mechsim.systems.oscillator_chain",
     "paraboloid_bead": "mechsim.systems.paraboloid_bead",
     "pendulum": "mechsim.systems.pendulum",

@@ -14,11 +14,13 @@ Frames (rows e₁, e₂, e₃ are the axes; all published right-handed, parent `
 - ``ric``: (R̂, Î, Ĉ) with R̂ = r/|r|, Ĉ = r×v/|r×v|, Î = Ĉ×R̂ (right-handed as given).
 - ``frenet``: (T̂, N̂_F, B̂_F), T̂ = v/|v|, B̂_F = v×a/|v×a|, N̂_F = B̂_F×T̂ (principal normal).
 
-Angular velocities: ω is the angular velocity of the frame relative to ``world`` in the usual
-sense ė_i = ω × e_i, published as its components along the frame's own axes. The document's
-moving-frame matrix (ė₁; ė₂; ė₃) = [[0, α, β], [−α, 0, γ], [−β, −γ, 0]] (e₁; e₂; e₃) then has
-α = ω₃, β = −ω₂, γ = ω₁. The document's mapping "α → −ω_z, β → ω_y, γ → −ω_x" (L963) is this
-with all signs flipped, i.e. it describes −ω; magnitudes and minimality are the same.
+The conventions are those of every VBN/RIC frame mechsim publishes (``_moving_frame``, shared
+with ``orbit_frames``). Angular velocities: ω is the angular velocity of the frame relative to
+``world`` in the usual sense ė_i = ω × e_i, published as its components along the frame's own
+axes. The document's moving-frame matrix
+(ė₁; ė₂; ė₃) = [[0, α, β], [−α, 0, γ], [−β, −γ, 0]] (e₁; e₂; e₃) then has α = ω₃, β = −ω₂,
+γ = ω₁. The document's mapping "α → −ω_z, β → ω_y, γ → −ω_x" (L963) is this with all signs
+flipped, i.e. it describes −ω; magnitudes and minimality are the same.
 RIC is minimal: ω along Î is identically zero (published as the invariant ``ric_omega_y``);
 so is Frenet–Serret (Darboux vector ω = |v|(τ T̂ + κ B̂), invariant ``frenet_omega_y``).
 
@@ -42,6 +44,7 @@ from mechsim.codegen.support import tensor as _tensor
 from mechsim.codegen.support import vector as _vector
 from mechsim.codegen.support import zero_vector as _zero_vector
 from mechsim.params import Parameter, positive
+from mechsim.systems._moving_frame import FRAME_COLORS, omega_quantities
 from mechsim.systems._rotation import quat_from_rows
 from mechsim.systems.base import FrameSpec, Quantity, Structure, Visual
 from mechsim.systems.direct import DirectModel
@@ -221,10 +224,7 @@ class MovingFrames(DirectModel):
 
     @property
     def observables(self) -> tuple[Quantity, ...]:
-        out = [Quantity(f"{f}_omega_{a}", "rad/s", f"{f.upper()} angular velocity along its "
-                        f"{a} axis") for f in FRAME_NAMES for a in "xyz"]
-        out += [Quantity(f"{f}_angular_speed", "rad/s", f"|ω| of the {f.upper()} frame")
-                for f in FRAME_NAMES]
+        out = list(omega_quantities(FRAME_NAMES))
         out += [Quantity("curvature", "1/m", "κ = |v × a| / |v|³"),
                 Quantity("torsion", "1/m", "τ = (v × a)·ȧ / |v × a|²"),
                 Quantity("speed", "m/s", "|v|")]
@@ -237,10 +237,9 @@ class MovingFrames(DirectModel):
     def visuals(self) -> tuple[Visual, ...]:
         u = np.linspace(-2.0, 2.0, 161)
         curve = tuple((float(a), float(a * a), float(a ** 3)) for a in u)
-        colors = {"vbn": (255, 170, 60), "ric": (120, 200, 120), "frenet": (120, 170, 255)}
         out = [Visual("polyline", "world", points=curve, radius=0.01, color=(180, 180, 180)),
                Visual("sphere", "vbn", radius=0.08)]
-        out += [Visual("axes", f, radius=0.6, color=colors[f]) for f in FRAME_NAMES]
+        out += [Visual("axes", f, radius=0.6, color=FRAME_COLORS[f]) for f in FRAME_NAMES]
         return tuple(out)
 
     @property
