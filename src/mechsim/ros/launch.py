@@ -168,28 +168,36 @@ class _SceneLoop:
 
     def start(self, graph_wait: float, joined_at: float | None,
               before_first_message: Callable[[Any], None] | None) -> None:
-        """The graph checked (the kernels loaded meanwhile), then the simulator nodes, each
-        stepped by this loop (real_time_factor 0: the node never paces itself) and never past
-        the duration."""
+        """The simulator nodes made while the graph check's discovery window runs (kernels
+        loaded first), each stepped by this loop (real_time_factor 0: the node never paces
+        itself) and never past the duration. Until the check has passed, the nodes publish
+        no sample and nothing serves their services or parameters (nothing spins them: a
+        refused start destroys them unanswered); our own nodes are not in the way."""
         from mechsim.ros.simulator import SimulatorNode
 
         scene = self.scene
+        names = [i.name for i in scene.systems]
         graph = GraphCheck(self.context, joined_at) if graph_wait > 0 else None
         try:
             _warm(scene)
+            for i, inst in enumerate(scene.systems):
+                if graph is not None:
+                    graph.look(names, True, self.nodes)  # a conflict seen refuses at once
+                self.nodes.append(SimulatorNode(
+                    inst, context=self.context, publish_rate=scene.publish_rate,
+                    real_time_factor=0.0 if self.fast else scene.real_time_factor,
+                    stepped=True, publish_clock=(i == 0),
+                    sinks=[*self.sinks, self.feed], end_time=self.duration,
+                    lossless=self.lossless, before_first_message=before_first_message,
+                    deferred=True))
+            check_given(self.nodes, self.diag)
             if graph is not None:
-                graph.check([i.name for i in scene.systems], True, graph_wait)
+                graph.check(names, True, graph_wait, own=self.nodes)
         finally:
             if graph is not None:
                 graph.close()
-        for i, inst in enumerate(scene.systems):
-            self.nodes.append(SimulatorNode(
-                inst, context=self.context, publish_rate=scene.publish_rate,
-                real_time_factor=0.0 if self.fast else scene.real_time_factor,
-                stepped=True, publish_clock=(i == 0),
-                sinks=[*self.sinks, self.feed], end_time=self.duration,
-                lossless=self.lossless, before_first_message=before_first_message))
-        check_given(self.nodes, self.diag)
+        for n in self.nodes:
+            n.begin()
         self.executor.add_node(self.diag)
         for n in self.nodes:
             self.executor.add_node(n)
