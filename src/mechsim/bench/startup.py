@@ -45,7 +45,7 @@ VARIANTS = {"overlapped": "as `mechsim run` starts it: the nodes made during the
 #: rclpy's calls whose time the profile reports (function name -> label).
 PROFILED = {"create_service": "create_service", "create_publisher": "create_publisher",
             "create_subscription": "create_subscription", "declare_parameters":
-            "declare_parameters", "check": "graph check (discovery window)"}
+            "declare_parameters", "check": "graph check (its window left once the nodes are made)"}
 
 
 def pendulums(n: int, prefix: str = "p") -> Any:

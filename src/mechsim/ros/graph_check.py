@@ -209,6 +209,11 @@ class GraphCheck:
                              "one clock per graph (stop that scene, run the systems in one "
                              "scene, or use another ROS_DOMAIN_ID)")
 
+    @property
+    def asked(self) -> set[str]:
+        """The full names of the nodes found in the way, asked whether they answer."""
+        return set(self._liveness)
+
     def close(self) -> None:
         for liveness in self._liveness.values():
             self.probe.destroy_client(liveness.client)
