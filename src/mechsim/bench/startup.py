@@ -16,7 +16,9 @@
    process's endpoints grows with their square).
 3. The scene itself split the same way: several processes, each running its share of the
    instances with ``run_scene``, started together; seconds from their launch to the last
-   one's first sample (Python and rclpy start-up included).
+   one's first sample (Python and rclpy start-up included). And ``mechsim run --processes``
+   (one process per node, graph check included) of a scene of ``PROCESSES_MODE`` pendulums:
+   seconds from the call to the last process ended, and the slowest process's own start-up.
 """
 
 from __future__ import annotations
@@ -35,6 +37,9 @@ from typing import Any
 SIZES = (1, 10, 25, 50, 100)
 #: Processes the largest scene is split over.
 SPLIT = 4
+#: Instances of the scene run with one process per node (each process imports Python, rclpy
+#: and the models, and joins the graph on its own).
+PROCESSES_MODE = 25
 #: Starts of each design variant of the largest scene (the median is reported).
 REPEAT = 3
 #: The design variants of the largest scene (name -> what differs from ``mechsim run``).
@@ -194,6 +199,23 @@ def split_scene(n: int, processes: int = SPLIT) -> dict[str, Any]:
             max(firsts) - t0}
 
 
+def processes_mode(n: int = PROCESSES_MODE) -> dict[str, Any]:
+    """``run_processes`` (``mechsim run --processes``) of ``n`` pendulums, graph check
+    included: seconds from the call to the last process ended (a run of one sample period),
+    and the largest start-up a simulator process reported (from its context to its first
+    sample: its imports not counted)."""
+    from dataclasses import replace
+
+    from mechsim.ros.processes import run_processes
+
+    t0 = time.monotonic()
+    run, _, status = run_processes(replace(pendulums(n, prefix="m"), duration=0.02))
+    if status != 0:
+        raise RuntimeError(f"the scene of one process per node failed (exit {status})")
+    return {"instances": n, "call_to_end_s": time.monotonic() - t0,
+            "slowest_process_startup_s": run.startup_time}
+
+
 def publishers_per_node() -> int:
     """The publishers a pendulum's simulator node makes."""
     from mechsim.ros.launch import run_scene
@@ -229,5 +251,8 @@ def startup(sizes: tuple[int, ...] = SIZES) -> dict[str, Any]:
     split = split_scene(largest)
     print(f"  {largest} pendulums as {SPLIT} processes: "
           f"{split['launch_to_first_sample_s']:.2f} s from launch", file=sys.stderr)
+    per_node = processes_mode()
+    print(f"  {per_node['instances']} pendulums, one process per node: "
+          f"{per_node['call_to_end_s']:.2f} s from the call to the end", file=sys.stderr)
     return {"one_process": rows, "profile": profiled, "bare": bare, "split": split,
-            "publishers_per_node": publishers}
+            "processes_mode": per_node, "publishers_per_node": publishers}

@@ -157,8 +157,14 @@ def _startup_lines(r: dict[str, Any]) -> list[str]:
               f"processes of `run_scene` started together (no graph check: every share "
               f"publishes /clock, which the check refuses as a second clock), launch to the "
               f"last one's first sample, Python, rclpy and the models' start included: "
-              f"{sp['launch_to_first_sample_s']:.2f} s.", ""]
-    return lines
+              f"{sp['launch_to_first_sample_s']:.2f} s."]
+    pm = st.get("processes_mode")
+    if pm is not None:
+        lines += ["", f"One process per node (`mechsim run --processes`, graph check included), "
+                  f"{pm['instances']} pendulums: {pm['call_to_end_s']:.2f} s from the call to "
+                  f"the last process ended; the slowest process's own start-up (its imports "
+                  f"not counted) {pm['slowest_process_startup_s']:.2f} s."]
+    return [*lines, ""]
 
 
 def _latency_lines(r: dict[str, Any]) -> list[str]:
