@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -73,6 +74,45 @@ def test_second_node_with_the_same_name_refused(ros_context: Any, tmp_path: Path
         with pytest.raises(MechsimError, match="/twin/simulator is already running"):
             run_with_outputs(_scene("twin"), fast=True, duration=0.2, bag=str(tmp_path / "b"))
         assert not (tmp_path / "b").exists()
+
+
+def _several(*names: str) -> Any:
+    return parse_scene({"name": "several", "pacing": "fast", "duration": 0.2,
+                        "publish_rate": 20.0,
+                        "systems": [{"system": "pendulum", "name": n} for n in names]})
+
+
+def test_a_conflict_refuses_a_start_whose_nodes_are_made_during_the_window(
+        ros_context: Any, patient: None) -> None:
+    """The nodes of a scene are made while the discovery window runs: a live node of one of
+    its names still refuses the start, before any of its nodes released a sample, and the
+    refused start leaves none of its nodes in the graph."""
+    probe = rclpy.create_node("hygiene_probe", context=ros_context)
+    started: list[str] = []
+    try:
+        with running(ros_context, "overlap_twin"):
+            with pytest.raises(MechsimError, match="^instance 'overlap_twin': "
+                               "/overlap_twin/simulator is already running"):
+                run_scene(_several("overlap_a", "overlap_b", "overlap_twin"),
+                          before_first_message=lambda node: started.append(node.get_name()))
+        assert started == []  # no node of the refused start published anything
+        gone = time.monotonic() + 60
+        while any(ns in ("/overlap_a", "/overlap_b", "/overlap_twin")
+                  for _, ns in probe.get_node_names_and_namespaces()):
+            assert time.monotonic() < gone, "the refused start's nodes stayed in the graph"
+            time.sleep(0.05)
+    finally:
+        probe.destroy_node()
+
+
+def test_the_starts_own_nodes_are_not_in_the_way() -> None:
+    """A scene of several instances, one publishing /clock, made during its own window:
+    none of its nodes counts as a conflict, and each starts once the check passed."""
+    started: list[str] = []
+    run = run_scene(_several("own_a", "own_b", "own_c"), graph_wait=1.0,
+                    before_first_message=lambda node: started.append(node.get_namespace()))
+    assert run.samples == {"own_a": 5, "own_b": 5, "own_c": 5} and not run.failures
+    assert started == ["/own_a", "/own_b", "/own_c"]
 
 
 def test_second_clock_refused(ros_context: Any, patient: None) -> None:

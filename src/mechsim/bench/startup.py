@@ -2,9 +2,11 @@
 
 1. A scene of N pendulums (N = 1 ... 100) run in one process: seconds from the call to the first
    sample (``SceneRun.startup_time``: the graph check's discovery window, the nodes with
-   their parameters, services, publishers and subscriptions, the models), warm kernels; for
-   the largest N also without the graph check, and where the time goes (a profile of the
-   start: the seconds inside rclpy's calls that make endpoints and nodes).
+   their parameters, services, publishers and subscriptions made meanwhile, the models), warm
+   kernels; for the largest N the design variants beside it, each started ``REPEAT`` times in
+   turn and the median kept: the window elapsing before the first node is made, no graph
+   check, and the nodes without rclpy's type-description service; and where the time goes (a
+   profile of the start: the seconds inside rclpy's calls that make endpoints and nodes).
 2. The same endpoints made by bare rclpy, to tell the design's share from the middleware's:
    N nodes as a simulator node makes them (its services, the parameter and type-description
    services rclpy adds, its publishers and subscription) in one process; the same without
@@ -14,7 +16,9 @@
    process's endpoints grows with their square).
 3. The scene itself split the same way: several processes, each running its share of the
    instances with ``run_scene``, started together; seconds from their launch to the last
-   one's first sample (Python and rclpy start-up included).
+   one's first sample (Python and rclpy start-up included). And ``mechsim run --processes``
+   (one process per node, graph check included) of a scene of ``PROCESSES_MODE`` pendulums:
+   seconds from the call to the last process ended, and the slowest process's own start-up.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import cProfile
 import json
 import os
 import pstats
+import statistics
 import subprocess
 import sys
 import time
@@ -32,10 +37,20 @@ from typing import Any
 SIZES = (1, 10, 25, 50, 100)
 #: Processes the largest scene is split over.
 SPLIT = 4
+#: Instances of the scene run with one process per node (each process imports Python, rclpy
+#: and the models, and joins the graph on its own).
+PROCESSES_MODE = 25
+#: Starts of each design variant of the largest scene (the median is reported).
+REPEAT = 3
+#: The design variants of the largest scene (name -> what differs from ``mechsim run``).
+VARIANTS = {"overlapped": "as `mechsim run` starts it: the nodes made during the window",
+            "window_first": "the window elapsing before the first node is made",
+            "no_graph_check": "no graph check",
+            "no_type_description": "the nodes without rclpy's type-description service"}
 #: rclpy's calls whose time the profile reports (function name -> label).
 PROFILED = {"create_service": "create_service", "create_publisher": "create_publisher",
             "create_subscription": "create_subscription", "declare_parameters":
-            "declare_parameters", "check": "graph check (discovery window)"}
+            "declare_parameters", "check": "graph check (its window left once the nodes are made)"}
 
 
 def pendulums(n: int, prefix: str = "p") -> Any:
@@ -46,18 +61,31 @@ def pendulums(n: int, prefix: str = "p") -> Any:
                                      "origin": [float(i), 0.0, 0.0]} for i in range(n)]})
 
 
-def scene_startup(n: int, graph_wait: float | None = None, profile: bool = False
-                  ) -> dict[str, Any]:
+def scene_startup(n: int, graph_wait: float | None = None, profile: bool = False,
+                  variant: str = "overlapped") -> dict[str, Any]:
     """Start-up of a scene of ``n`` pendulums in this process (own context: the command's
-    path, graph check included unless ``graph_wait`` is 0)."""
-    from mechsim.ros.launch import run_scene
+    path, graph check included unless ``graph_wait`` is 0; ``variant``: one of
+    ``VARIANTS``)."""
+    from mechsim.ros.graph_check import ros_arguments, use_ros_arguments
+    from mechsim.ros.launch import _SceneLoop, run_scene
 
     prof = cProfile.Profile() if profile else None
+    given = ros_arguments()
+    if variant == "no_graph_check":
+        graph_wait = 0
+    elif variant == "window_first":
+        _SceneLoop.overlap_window = False
+    elif variant == "no_type_description":
+        use_ros_arguments(["--ros-args", "-p", "start_type_description_service:=false"])
     if prof:
         prof.enable()
-    run = run_scene(pendulums(n), fast=True, duration=0.02, graph_wait=graph_wait)
+    try:
+        run = run_scene(pendulums(n), fast=True, duration=0.02, graph_wait=graph_wait)
+    finally:
+        _SceneLoop.overlap_window = True
+        use_ros_arguments(given)
     row: dict[str, Any] = {"instances": n, "startup_s": run.startup_time,
-                           "graph_check": graph_wait != 0}
+                           "graph_check": graph_wait != 0, "variant": variant}
     if prof:
         prof.disable()
         stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
@@ -74,8 +102,9 @@ def scene_startup(n: int, graph_wait: float | None = None, profile: bool = False
 
 
 #: Bare rclpy: N nodes with the endpoints of a simulator node (``variant``: "node" as
-#: mechsim makes them; "no_rclpy_services": without the parameter and type-description
-#: services; "one_node": one node carrying them all). Prints the seconds taken as JSON.
+#: mechsim makes them; "no_type_description": without rclpy's type-description service;
+#: "no_rclpy_services": without the parameter and type-description services; "one_node": one
+#: node carrying them all). Prints the seconds taken as JSON.
 _BARE = """
 import json, sys, time
 from mechsim.environment import import_rclpy
@@ -91,6 +120,9 @@ nodes = []
 def node(i):
     if variant == "no_rclpy_services":
         return rclpy.create_node(f"simulator", namespace=f"/b{i}", start_parameter_services=False,
+            parameter_overrides=[Parameter("start_type_description_service", value=False)])
+    if variant == "no_type_description":
+        return rclpy.create_node(f"simulator", namespace=f"/b{i}",
             parameter_overrides=[Parameter("start_type_description_service", value=False)])
     return rclpy.create_node("simulator", namespace=f"/b{i}")
 one = node(0) if variant == "one_node" else None
@@ -123,7 +155,7 @@ def bare_endpoints(n: int, publishers: int) -> list[dict[str, Any]]:
     """Seconds to make ``n`` nodes' endpoints with bare rclpy, per variant (see ``_BARE``),
     and split over ``SPLIT`` processes started together (launch to the last one ready)."""
     rows = []
-    for variant in ("node", "no_rclpy_services", "one_node"):
+    for variant in ("node", "no_type_description", "no_rclpy_services", "one_node"):
         rows.append({"variant": variant, "processes": 1,
                      "seconds": _answer(_bare(n, variant, publishers))["seconds"]})
     t0 = time.monotonic()
@@ -167,6 +199,23 @@ def split_scene(n: int, processes: int = SPLIT) -> dict[str, Any]:
             max(firsts) - t0}
 
 
+def processes_mode(n: int = PROCESSES_MODE) -> dict[str, Any]:
+    """``run_processes`` (``mechsim run --processes``) of ``n`` pendulums, graph check
+    included: seconds from the call to the last process ended (a run of one sample period),
+    and the largest start-up a simulator process reported (from its context to its first
+    sample: its imports not counted)."""
+    from dataclasses import replace
+
+    from mechsim.ros.processes import run_processes
+
+    t0 = time.monotonic()
+    run, _, status = run_processes(replace(pendulums(n, prefix="m"), duration=0.02))
+    if status != 0:
+        raise RuntimeError(f"the scene of one process per node failed (exit {status})")
+    return {"instances": n, "call_to_end_s": time.monotonic() - t0,
+            "slowest_process_startup_s": run.startup_time}
+
+
 def publishers_per_node() -> int:
     """The publishers a pendulum's simulator node makes."""
     from mechsim.ros.launch import run_scene
@@ -177,20 +226,33 @@ def publishers_per_node() -> int:
     return count[0]
 
 
+def variants(n: int, repeat: int = REPEAT) -> list[dict[str, Any]]:
+    """Each of ``VARIANTS`` started ``repeat`` times in turn (a loaded machine's drift shared
+    among them): the median start-up of each, with every start's seconds."""
+    starts: dict[str, list[float]] = {v: [] for v in VARIANTS}
+    for _ in range(repeat):
+        for v in VARIANTS:
+            starts[v].append(scene_startup(n, variant=v)["startup_s"])
+    return [{"instances": n, "variant": v, "graph_check": v != "no_graph_check",
+             "startup_s": statistics.median(s), "starts_s": s} for v, s in starts.items()]
+
+
 def startup(sizes: tuple[int, ...] = SIZES) -> dict[str, Any]:
     scene_startup(1, graph_wait=0)  # warm: kernels loaded, modules imported
-    rows = [scene_startup(n) for n in sizes]
     largest = max(sizes)
-    rows.append(scene_startup(largest, graph_wait=0))
+    rows = [scene_startup(n) for n in sizes if n != largest]
+    rows += variants(largest)
     profiled = scene_startup(largest, graph_wait=None, profile=True)
     for r in rows:
-        print(f"  start-up of {r['instances']:3d} pendulums in one process"
-              f"{'' if r['graph_check'] else ' (no graph check)'}: {r['startup_s']:.2f} s",
-              file=sys.stderr)
+        print(f"  start-up of {r['instances']:3d} pendulums in one process, "
+              f"{VARIANTS[r['variant']]}: {r['startup_s']:.2f} s", file=sys.stderr)
     publishers = publishers_per_node()
     bare = bare_endpoints(largest, publishers)
     split = split_scene(largest)
     print(f"  {largest} pendulums as {SPLIT} processes: "
           f"{split['launch_to_first_sample_s']:.2f} s from launch", file=sys.stderr)
+    per_node = processes_mode()
+    print(f"  {per_node['instances']} pendulums, one process per node: "
+          f"{per_node['call_to_end_s']:.2f} s from the call to the end", file=sys.stderr)
     return {"one_process": rows, "profile": profiled, "bare": bare, "split": split,
-            "publishers_per_node": publishers}
+            "processes_mode": per_node, "publishers_per_node": publishers}

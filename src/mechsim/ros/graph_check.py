@@ -1,12 +1,21 @@
 """Joining the ROS graph, and checking it before a start.
 
-Before its simulator nodes exist, a start looks at the graph (after a bounded discovery wait,
-``GRAPH_WAIT`` or ``MECHSIM_GRAPH_WAIT`` seconds, 0 for no check, overlapped with loading the
-models; a conflict seen sooner refuses at once): an instance whose node ``/<name>/simulator``
-already runs elsewhere on the ROS domain, or a ``/clock`` already published by another live
-node, stops the start with one line naming the running node (one clock per graph: sim-time
-consumers would see time jump). A name left in the graph by a killed process (no answer from
-its parameter service) does not count.
+A start looks at the graph (after a bounded discovery wait, ``GRAPH_WAIT`` or
+``MECHSIM_GRAPH_WAIT`` seconds from joining it, 0 for no check; a conflict seen sooner refuses at
+once): an instance whose node ``/<name>/simulator`` already runs elsewhere on the ROS domain, or
+a ``/clock`` already published by another live node, stops the start with one line naming the
+running node (one clock per graph: sim-time consumers would see time jump). A name left in the
+graph by a killed process (no answer from its parameter service) does not count.
+
+The window overlaps the start's own work: the models are loaded and a scene's simulator nodes
+made (``launch``) while it runs. Those nodes publish no sample and nothing serves their
+parameters or services until the check has passed (nothing spins them; a refused start
+destroys them unanswered), and they are not in the way themselves (a name counts once more
+often in the graph than among the start's own nodes). What a live node of the same name sees
+meanwhile: a second node of its name in the graph, its service requests also reaching a server
+that does not answer, a publisher on its topics (and on /clock) that publishes nothing, and
+the new node's parameters announced on /parameter_events. Two starts of the same names at the
+same moment can both pass: neither answers the other's check until it has passed its own.
 
 A command joins the graph (:func:`join_graph`) once its input is validated, so that discovery
 runs while it loads the models; the next :func:`joined_context` takes that context. Every
@@ -16,9 +25,11 @@ environment is one line (``RosStartError``), never a traceback.
 
 from __future__ import annotations
 
+import math
 import os
 import time
-from collections.abc import Iterator
+from collections import Counter
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from mechsim.errors import MechsimError, ParameterError, RosStartError
@@ -76,6 +87,12 @@ class _Liveness:
         return False if now >= max(end, self.seen + LIVENESS_TIMEOUT) else None
 
 
+def _split(full: str) -> tuple[str, str]:
+    """(namespace, name) of a fully qualified node name, as the graph lists them."""
+    namespace, _, node = full.rpartition("/")
+    return namespace or "/", node
+
+
 def window_setting(value: Any, field: str) -> float:
     """``value`` (seconds, a number or its text) as a discovery window, else a ParameterError
     naming ``field`` and the range."""
@@ -110,8 +127,9 @@ def quiet_node(name: str, namespace: str, context: Any) -> Any:
 
 class GraphCheck:
     """Refuse (MechsimError, one line) to start simulator nodes whose names a live node of
-    the domain already uses, or a second /clock. Made before the models are built, so that
-    discovery (which starts with this probe's participant) runs meanwhile; :meth:`check` waits
+    the domain already uses, or a second /clock. Made before the models are built and the
+    nodes made, so that discovery (which starts with the context's participant) runs
+    meanwhile; :meth:`look` between them refuses a conflict seen early; :meth:`check` waits
     for the rest of the discovery window, refusing as soon as it sees a conflict."""
 
     def __init__(self, context: Any, started: float | None = None) -> None:
@@ -125,35 +143,52 @@ class GraphCheck:
         self.executor.add_node(self.probe)
         self._liveness: dict[str, _Liveness] = {}
 
-    def check(self, names: list[str], clock: bool, wait: float) -> None:
+    def check(self, names: list[str], clock: bool, wait: float, own: Iterable[Any] = ()
+              ) -> None:
         """Refuse as soon as a node in the way answers; start once ``wait`` seconds (from
         joining) passed and every node found in the way is known to be gone. ``names``:
-        instance names (their node ``/<name>/simulator``) or fully qualified node names."""
+        instance names (their node ``/<name>/simulator``) or fully qualified node names.
+        ``own``: this start's nodes made already (not spun yet), which are not in the way."""
         end = self.started + wait
         while True:
             now = time.monotonic()
-            undecided = False
-            for full, conflict in self._in_the_way(names, clock):
-                liveness = self._liveness.get(full)
-                if liveness is None:
-                    liveness = self._liveness[full] = _Liveness(self.probe, full, now)
-                answer = liveness.poll(now, end)
-                if answer:
-                    raise MechsimError(conflict)
-                undecided = undecided or answer is None
+            undecided = self.look(names, clock, own, now, end)
             if now >= end and not undecided:
                 return
             self.executor.spin_once(timeout_sec=0.05)
 
-    def _in_the_way(self, names: list[str], clock: bool) -> Iterator[tuple[str, str]]:
+    def look(self, names: list[str], clock: bool, own: Iterable[Any] = (),
+             now: float | None = None, end: float | None = None) -> bool:
+        """One look at the graph, without waiting: refuse (MechsimError) if a node in the way
+        answered; True if one found is not known yet to be gone. A start that makes its nodes
+        during the window calls this between them, so that a conflict refuses at once."""
+        now = time.monotonic() if now is None else now
+        end = math.inf if end is None else end
+        undecided = False
+        for full, conflict in self._in_the_way(names, clock, list(own)):
+            liveness = self._liveness.get(full)
+            if liveness is None:
+                liveness = self._liveness[full] = _Liveness(self.probe, full, now)
+            answer = liveness.poll(now, end)
+            if answer:
+                raise MechsimError(conflict)
+            undecided = undecided or answer is None
+        self.executor.spin_once(timeout_sec=0.0)
+        return undecided
+
+    def _in_the_way(self, names: list[str], clock: bool, own: list[Any]
+                    ) -> Iterator[tuple[str, str]]:
         """(full node name, the refusal if it is alive) for every node in the graph now that
-        an instance name or the clock would clash with."""
+        an instance name or the clock would clash with. ``own`` nodes are not in the way: a
+        name counts once more often in the graph than among them (the graph lists every
+        node, ours included, a name once per node), and a /clock publisher once more often
+        than they publish it."""
         domain = self.context.get_domain_id()
-        present = {(ns, n) for n, ns in self.probe.get_node_names_and_namespaces()}
+        present = Counter((ns, n) for n, ns in self.probe.get_node_names_and_namespaces())
+        ours = Counter(_split(n.get_fully_qualified_name()) for n in own)
         for name in names:
             full = name if name.startswith("/") else f"/{name}/simulator"
-            namespace, _, node = full.rpartition("/")
-            if (namespace or "/", node) not in present:
+            if present[_split(full)] <= ours[_split(full)]:
                 continue
             if name.startswith("/"):
                 yield full, (f"{full} is already running on ROS domain {domain}; stop it or "
@@ -163,11 +198,21 @@ class GraphCheck:
                              f"{domain}; stop it or give this instance another name "
                              "(--name, or `name:` in the scene)")
         if clock:
+            own_clocks = Counter(n.get_fully_qualified_name() for n in own
+                                 if any(p.topic_name == "/clock" for p in n.publishers))
             for info in self.probe.get_publishers_info_by_topic("/clock"):
                 full = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                if own_clocks[full] > 0:
+                    own_clocks[full] -= 1
+                    continue
                 yield full, (f"/clock is already published on ROS domain {domain} by {full}: "
                              "one clock per graph (stop that scene, run the systems in one "
                              "scene, or use another ROS_DOMAIN_ID)")
+
+    @property
+    def asked(self) -> set[str]:
+        """The full names of the nodes found in the way, asked whether they answer."""
+        return set(self._liveness)
 
     def close(self) -> None:
         for liveness in self._liveness.values():

@@ -18,6 +18,7 @@ import math
 import signal
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -68,6 +69,15 @@ def _warm(scene: Scene) -> None:
     keeps them for its node), while discovery runs."""
     for inst in scene.systems:
         _ = inst.build().kernels
+
+
+def _answers_to_the_check_unheard() -> None:
+    """A node of ours shares its name with a node the check asked (one that did not answer:
+    a killed process's entry): the check's requests reached our node too, which answers them
+    once it is served, to a client gone with the check. rclpy warns of every such answer;
+    they are ours to drop, not the user's to read."""
+    warnings.filterwarnings("ignore", message="failed to send response",
+                            category=RuntimeWarning, module="rclpy.service")
 
 
 def run_scene(scene: Scene, *, fast: bool | None = None, duration: float | None = None,
@@ -143,6 +153,10 @@ def check_given(nodes: list[Any], *others: Any) -> None:
 class _SceneLoop:
     """The nodes of one in-process scene and the loop that steps them."""
 
+    #: The graph check's discovery window runs while the nodes are made (False: the window
+    #: elapses before the first node is made; ``mechsim bench --streaming`` compares both).
+    overlap_window = True
+
     def __init__(self, scene: Scene, context: Any, sinks: list[Any] | None,
                  diagnostics_period: float, lossless: bool, *, fast: bool,
                  duration: float | None) -> None:
@@ -168,28 +182,40 @@ class _SceneLoop:
 
     def start(self, graph_wait: float, joined_at: float | None,
               before_first_message: Callable[[Any], None] | None) -> None:
-        """The graph checked (the kernels loaded meanwhile), then the simulator nodes, each
-        stepped by this loop (real_time_factor 0: the node never paces itself) and never past
-        the duration."""
+        """The simulator nodes made while the graph check's discovery window runs (kernels
+        loaded first), each stepped by this loop (real_time_factor 0: the node never paces
+        itself) and never past the duration. Until the check has passed, the nodes publish
+        no sample and nothing serves their services or parameters (nothing spins them: a
+        refused start destroys them unanswered); our own nodes are not in the way."""
         from mechsim.ros.simulator import SimulatorNode
 
         scene = self.scene
+        names = [i.name for i in scene.systems]
         graph = GraphCheck(self.context, joined_at) if graph_wait > 0 else None
         try:
             _warm(scene)
+            if graph is not None and not self.overlap_window:
+                graph.check(names, True, graph_wait)
+            for i, inst in enumerate(scene.systems):
+                if graph is not None:
+                    graph.look(names, True, self.nodes)  # a conflict seen refuses at once
+                self.nodes.append(SimulatorNode(
+                    inst, context=self.context, publish_rate=scene.publish_rate,
+                    real_time_factor=0.0 if self.fast else scene.real_time_factor,
+                    stepped=True, publish_clock=(i == 0),
+                    sinks=[*self.sinks, self.feed], end_time=self.duration,
+                    lossless=self.lossless, before_first_message=before_first_message,
+                    deferred=True))
+            check_given(self.nodes, self.diag)
             if graph is not None:
-                graph.check([i.name for i in scene.systems], True, graph_wait)
+                graph.check(names, True, graph_wait, own=self.nodes)
         finally:
             if graph is not None:
                 graph.close()
-        for i, inst in enumerate(scene.systems):
-            self.nodes.append(SimulatorNode(
-                inst, context=self.context, publish_rate=scene.publish_rate,
-                real_time_factor=0.0 if self.fast else scene.real_time_factor,
-                stepped=True, publish_clock=(i == 0),
-                sinks=[*self.sinks, self.feed], end_time=self.duration,
-                lossless=self.lossless, before_first_message=before_first_message))
-        check_given(self.nodes, self.diag)
+        if graph is not None and graph.asked & {n.get_fully_qualified_name() for n in self.nodes}:
+            _answers_to_the_check_unheard()
+        for n in self.nodes:
+            n.begin()
         self.executor.add_node(self.diag)
         for n in self.nodes:
             self.executor.add_node(n)

@@ -121,7 +121,7 @@ class SimulatorNode(Node):
                  prepare_timeout: float = PREPARE_TIMEOUT,
                  before_first_message: Callable[[SimulatorNode], None] | None = None,
                  lossless: bool = False, stepped: bool | None = None,
-                 node_name: str = NODE_NAME) -> None:
+                 node_name: str = NODE_NAME, deferred: bool = False) -> None:
         """``stepped`` (default: ``real_time_factor`` 0): the caller steps the node
         (``advance_to``), which then never paces itself; its ``real_time_factor`` (the
         caller's pace, 0: as fast as possible) is read-only. ``end_time``: the node never
@@ -129,6 +129,8 @@ class SimulatorNode(Node):
         ``before_first_message``: called once the publishers exist, before anything is
         published (a runner of separate processes waits there for its consumers).
         ``lossless``: every reliable subscriber receives every sample (``Outlet``).
+        ``deferred``: the node is made (its parameters, services and endpoints) but publishes
+        nothing until :meth:`begin` (a start whose graph check runs meanwhile).
         The values given to the node from outside (``--ros-args``, a params file, a launch
         file) take precedence over the arguments (``simulator_parameters``); its namespace,
         remapped or not, is the instance's name."""
@@ -171,11 +173,18 @@ class SimulatorNode(Node):
         self.create_service(SetBool, "~/pause", self._on_pause)
         self.create_service(Step, "~/step", self._on_step)
         self.topics.model_channels(model)
-        if before_first_message is not None:
-            before_first_message(self)
-        self.run.start()
+        self._before_first_message = before_first_message
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timer: Any = None
+        if not deferred:
+            self.begin()
+
+    def begin(self) -> None:
+        """Release the first sample (``before_first_message`` called first) and start the
+        pacing: done by the constructor unless the node was made ``deferred``."""
+        if self._before_first_message is not None:
+            self._before_first_message(self)
+        self.run.start()
         self._start_realtime()
 
     def _instance_name(self) -> str:

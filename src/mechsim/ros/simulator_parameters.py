@@ -142,40 +142,38 @@ def _flag(given: dict[str, Any], name: str, default: bool) -> bool:
 
 def declare(node: Node, start: Start, values: dict[str, Any], method: str) -> None:
     """Declare every parameter of the node with the values it runs (``values``: the model's,
-    ``method``: the integrator's), given values taken into account already."""
+    ``method``: the integrator's), given values taken into account already. One
+    declaration of them all (one parameter event)."""
+    declared: list[tuple[str, Any, ParameterDescriptor]] = []
     spec = system_class(start.instance.system).parameter_spec()
     ro = ParameterDescriptor
-    node.declare_parameter("system", start.instance.system, ro(
+    declared.append(("system", start.instance.system, ro(
         description="system id (see `mechsim systems`)", read_only=True,
-        additional_constraints=f"one of: {', '.join(system_ids())}"), ignore_override=True)
+        additional_constraints=f"one of: {', '.join(system_ids())}")))
     for p in spec:
         later = " (takes effect at the next reset)" if p.name.startswith("initial") else ""
-        node.declare_parameter(p.name, values[p.name],
-                               descriptor(p, description=p.description + later),
-                               ignore_override=True)
-    node.declare_parameter("method", method, ro(
-        description="integrator", additional_constraints=f"one of: {', '.join(METHODS)}"),
-        ignore_override=True)
+        declared.append((p.name, values[p.name],
+                         descriptor(p, description=p.description + later)))
+    declared.append(("method", method, ro(
+        description="integrator", additional_constraints=f"one of: {', '.join(METHODS)}")))
     for name, p in SETTINGS.items():
         paced_by_runner = name == "real_time_factor" and start.stepped
         text = ("simulated seconds per wall second of the scene runner that steps this "
                 "node (0: as fast as possible)") if paced_by_runner else None
-        node.declare_parameter(name, float(getattr(start.settings, name)),
-                               descriptor(p, read_only=paced_by_runner, description=text),
-                               ignore_override=True)
-    node.declare_parameter("time_offset", float(start.time_offset), ro(
+        declared.append((name, float(getattr(start.settings, name)),
+                         descriptor(p, read_only=paced_by_runner, description=text)))
+    declared.append(("time_offset", float(start.time_offset), ro(
         description="stamp of simulation time 0 [s] (ROS time 0 means uninitialised)",
-        read_only=True, additional_constraints=">= 0"), ignore_override=True)
-    node.declare_parameter("origin", [float(c) for c in start.instance.origin], ro(
+        read_only=True, additional_constraints=">= 0")))
+    declared.append(("origin", [float(c) for c in start.instance.origin], ro(
         description="where the system's world-rooted frames sit in the world [m]",
-        read_only=True, additional_constraints="three numbers [x, y, z]"),
-        ignore_override=True)
-    node.declare_parameter("duration", float(start.end_time or 0.0), ro(
+        read_only=True, additional_constraints="three numbers [x, y, z]")))
+    declared.append(("duration", float(start.end_time or 0.0), ro(
         description="simulated seconds after which the node stops stepping [s] (0: until "
-        "stopped)", read_only=True, additional_constraints=">= 0"), ignore_override=True)
-    node.declare_parameter("publish_clock", bool(start.publish_clock), ro(
-        description="this node publishes /clock (one clock per graph)", read_only=True),
-        ignore_override=True)
-    node.declare_parameter("wait_for_recorder", bool(start.wait_for_recorder), ro(
+        "stopped)", read_only=True, additional_constraints=">= 0")))
+    declared.append(("publish_clock", bool(start.publish_clock), ro(
+        description="this node publishes /clock (one clock per graph)", read_only=True)))
+    declared.append(("wait_for_recorder", bool(start.wait_for_recorder), ro(
         description="started alone: the first sample waits (at most 60 s) until a recorder "
-        "subscribes to every topic of the node", read_only=True), ignore_override=True)
+        "subscribes to every topic of the node", read_only=True)))
+    node.declare_parameters("", declared, ignore_override=True)
