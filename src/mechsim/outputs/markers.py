@@ -12,11 +12,20 @@ instance's namespace (``Marker.ns``, ids in the order of ``visuals()``):
   points kept over ``TRAIL_SPAN`` time scales of the model (``Model.time_scale``), then the
   current position (fewer kept yet: the oldest repeated).
 
-A frame named "world" in a visual is the instance's origin. Every message is self-contained: a
-DELETEALL of the namespace first (RViz and Foxglove then hold exactly this system's current
-markers), then every visual, stamped with the sample. All messages of one model share one
-layout, so a block of samples is encoded at once (``outputs.wire.Layout``: only the moving
-points and the stamps change).
+A frame named "world" in a visual is the instance's origin.
+
+Like /tf and /tf_static, the look is split by what changes (:meth:`MarkerEncoder.fixed`,
+:meth:`MarkerEncoder.encode`):
+
+- ``<ns>/markers_static`` (latched): a DELETEALL of the namespace, then every frame-locked
+  visual. Their content never changes while the model's look is the same, and /tf moves them,
+  so the set is published once per look (again when a parameter change alters it);
+- ``<ns>/markers``, one message per sample: the links and trails only (a model without them
+  has no such topic), each an ADD of the same namespace and id in every message, so RViz and
+  Foxglove replace them in place. Every message holds every moving marker, so the latest one
+  alone draws them (a seek in a bag). All messages of one model share one layout, so a block
+  of samples is encoded at once (``outputs.wire.Layout``: only the moving points and the
+  stamps change).
 """
 
 from __future__ import annotations
@@ -30,7 +39,7 @@ from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from mechsim.outputs.wire import Layout
+from mechsim.outputs.wire import Layout, encode
 from mechsim.systems._rotation import quat_product, rotate
 from mechsim.systems.base import Model, Visual
 
@@ -38,6 +47,8 @@ TYPE_NAME = "visualization_msgs/msg/MarkerArray"
 #: Points a trail keeps before the current one, spread over ``TRAIL_SPAN`` time scales.
 TRAIL_POINTS = 64
 TRAIL_SPAN = 2.0
+#: The kinds of visual that move in "world" (drawn on the per-sample topic).
+MOVING = ("link", "trail")
 #: Axes colours (x, y, z: red, green, blue, as RViz and Foxglove draw frames).
 _AXES = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
@@ -50,6 +61,38 @@ def _point(p: Any) -> Point:
     return Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
 
 
+def cleared(name: str, ns: int) -> MarkerArray:
+    """A DELETEALL of namespace ``name``, stamped ``ns``: what an instance drew goes."""
+    m = Marker(ns=name, action=Marker.DELETEALL)
+    m.header.stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+    return MarkerArray(markers=[m])
+
+
+def _drawable(v: Visual, frames: set[str]) -> bool:
+    ends = [v.frame] + ([v.to_frame] if v.kind == "link" else [])
+    known = all(f == "world" or f in frames for f in ends if f)
+    if v.kind == "trail":
+        return v.frame in frames
+    if v.kind == "link":
+        return known and bool(v.to_frame)
+    return known and (v.kind != "arrow" or bool(v.points))
+
+
+def drawn(model: Model) -> list[Visual]:
+    """The visuals of ``model`` that can be drawn (their frames are the model's)."""
+    if not model.frames:
+        return []
+    frames = {f.child for f in model.frames}
+    return [v for v in model.visuals() if _drawable(v, frames)]
+
+
+def topics_of(model: Model) -> tuple[bool, bool]:
+    """Does ``model`` draw (frame-locked markers: ``<ns>/markers_static``, moving ones:
+    ``<ns>/markers``)?"""
+    kinds = {v.kind for v in drawn(model)}
+    return bool(kinds - set(MOVING)), bool(kinds & set(MOVING))
+
+
 class MarkerEncoder:
     """The markers of one model's instance (``name``, world-rooted frames at ``origin``)."""
 
@@ -60,31 +103,39 @@ class MarkerEncoder:
         self.index = {f.child: k for k, f in enumerate(self.specs)}
         self.parent = [self.index.get(f.parent) for f in self.specs]
         self.order = self._order()
-        self.visuals = [v for v in model.visuals() if self._drawable(v)]
+        self.visuals = drawn(model)
         self.links = [(self.index.get(v.frame), self.index.get(v.to_frame or ""))
                       for v in self.visuals if v.kind == "link"]
         self.trails = [self.index[v.frame] for v in self.visuals if v.kind == "trail"]
         self.time_scale = float(model.time_scale())
-        markers = [Marker(ns=name, action=Marker.DELETEALL)]
-        markers += [self._marker(i, v) for i, v in enumerate(self.visuals)]
-        self.prototype = MarkerArray(markers=markers)
-        self.layout = Layout(TYPE_NAME, self.prototype)
-        moving = [k + 1 for k, v in enumerate(self.visuals) if v.kind in ("link", "trail")]
-        self.block = self.layout.block([
-            f"markers.{m}.points.{j}.{c}" for m in moving
-            for j in range(len(self.prototype.markers[m].points)) for c in "xyz"])
+        #: The ids (indices in ``visuals``) of the frame-locked visuals and of the moving ones.
+        self.fixed_ids = [i for i, v in enumerate(self.visuals) if v.kind not in MOVING]
+        self.moving_ids = [i for i, v in enumerate(self.visuals) if v.kind in MOVING]
+        self.prototype = MarkerArray(markers=[self._marker(i, self.visuals[i])
+                                              for i in self.moving_ids])
+        #: The layout of the per-sample markers; None: nothing moves (no per-sample topic).
+        self.layout = Layout(TYPE_NAME, self.prototype) if self.moving_ids else None
+        self.block = None if self.layout is None else self.layout.block([
+            f"markers.{m}.points.{j}.{c}" for m, marker in enumerate(self.prototype.markers)
+            for j in range(len(marker.points)) for c in "xyz"])
         #: The trail points kept so far: their times and world positions (kept, trails, 3).
         self.kept_t = np.zeros(0)
         self.kept_p = np.zeros((0, len(self.trails), 3))
 
-    def _drawable(self, v: Visual) -> bool:
-        frames = [v.frame] + ([v.to_frame] if v.kind == "link" else [])
-        known = all(f == "world" or f in self.index for f in frames if f)
-        if v.kind == "trail":
-            return v.frame in self.index
-        if v.kind == "link":
-            return known and bool(v.to_frame)
-        return known and (v.kind != "arrow" or bool(v.points))
+    @property
+    def look(self) -> bytes:
+        """What the frame-locked markers draw (their CDR bytes without stamps): equal for two
+        encoders whose ``fixed`` sets differ only in their stamps."""
+        return encode(TYPE_NAME, self.fixed(0))
+
+    def fixed(self, ns: int) -> MarkerArray:
+        """The ``<ns>/markers_static`` message stamped ``ns``: a DELETEALL of the namespace
+        (what an earlier look drew goes), then every frame-locked marker."""
+        markers = cleared(self.name, ns).markers
+        markers += [self._marker(i, self.visuals[i]) for i in self.fixed_ids]
+        for m in markers:
+            m.header.stamp = markers[0].header.stamp
+        return MarkerArray(markers=markers)
 
     def _order(self) -> list[int]:
         """Frame indices, every parent before its children."""
@@ -104,7 +155,7 @@ class MarkerEncoder:
         m = Marker(ns=self.name, id=i, action=Marker.ADD, color=_color(
             tuple(c / 255.0 for c in v.color)))
         m.pose.orientation.w = 1.0
-        locked = v.kind not in ("link", "trail")
+        locked = v.kind not in MOVING
         m.header.frame_id = self._frame_id(v.frame) if locked else "world"
         m.frame_locked = locked
         if v.frame == "world" and locked:
@@ -160,8 +211,10 @@ class MarkerEncoder:
 
     def encode(self, times: np.ndarray, ns: np.ndarray, placed: np.ndarray, rate: float,
                time_rows: np.ndarray | None = None) -> np.ndarray:
-        """(samples, size) CDR rows of the markers of samples at ``times`` (stamps ``ns``),
-        ``placed``: their frames as published; ``rate``: samples per simulated second."""
+        """(samples, size) CDR rows of the moving markers of samples at ``times`` (stamps
+        ``ns``), ``placed``: their frames as published; ``rate``: samples per simulated
+        second. Only for a model with moving markers (``layout`` not None)."""
+        assert self.layout is not None and self.block is not None
         n = times.shape[0]
         pos = self.world_origins(placed)
         trails = self._trails(times, pos, rate) if self.trails else None
@@ -175,8 +228,6 @@ class MarkerEncoder:
                 assert trails is not None
                 columns.append(trails[:, :, trail, :].reshape(n, -1))
                 trail += 1
-        if not columns:
-            return self.layout.encode(ns, (), time_rows)
         return self.layout.encode(ns, [(self.block, np.hstack(columns))], time_rows)
 
     def _trails(self, times: np.ndarray, pos: np.ndarray, rate: float) -> np.ndarray:
@@ -211,4 +262,4 @@ class MarkerEncoder:
             self.kept_t, self.kept_p = other.kept_t, other.kept_p
 
 
-__all__ = ["MarkerEncoder", "TRAIL_POINTS", "TYPE_NAME", "Time"]
+__all__ = ["MOVING", "MarkerEncoder", "cleared", "drawn", "topics_of", "TRAIL_POINTS", "TYPE_NAME"]
