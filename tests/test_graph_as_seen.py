@@ -47,6 +47,8 @@ def _expected(systems: list[str]) -> set[str]:
                           ("observables", bool(m.observables)),
                           ("markers", bool(m.frames) and any(
                               v.kind in ("link", "trail") for v in m.visuals())),
+                          ("markers_trails", bool(m.frames) and any(
+                              v.kind == "trail" for v in m.visuals())),
                           ("markers_static", bool(m.frames) and any(
                               v.kind not in ("link", "trail") for v in m.visuals())),
                           ("curves", bool(m.curves()))):

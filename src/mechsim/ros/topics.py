@@ -25,7 +25,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from mechsim.outputs import batch, messages
-from mechsim.outputs.markers import MarkerEncoder, cleared, topics_of
+from mechsim.outputs.markers import MarkerEncoder, cleared, drawn, topics_of
 from mechsim.outputs.messages import Chunk, ChunkEncoder, MessageFactory, Sample
 from mechsim.ros.outlet import (
     CLOCK_QOS,
@@ -46,16 +46,20 @@ EFFORT_NOTICE_PERIOD = 5.0
 
 #: (topic, CDR rows or None, message of sample i): one topic of an encoded block.
 Topic = tuple[str, np.ndarray | None, Callable[[int], Any]]
+#: (topic, what makes its messages of samples i to j as (sample, CDR bytes)): a topic of an
+#: encoded block with messages at some samples only (``Outlet.publish_chunk``).
+Sparse = tuple[str, Callable[[int, int], list[tuple[int, bytes]]]]
 
 
 class Encoded(NamedTuple):
-    """A block of samples ready for the Outlet (``Outlet.publish_chunk``); ``batch``: the
-    batch topic and what makes its message of samples i to j, if something takes it."""
+    """A block of samples ready for the Outlet (``Outlet.publish_chunk``); ``sparse``: the
+    topics with messages at some of its samples only (the batch topic, where something takes
+    it; the trail bodies)."""
 
     ns: np.ndarray
     topics: list[Topic]
     columns: dict[str, Any]
-    batch: tuple[str, Callable[[int, int], bytes]] | None = None
+    sparse: list[Sparse]
 
 
 def _builder(build: Callable[[Sample, int], Any], sample: Callable[[int], Sample],
@@ -97,7 +101,7 @@ class SystemTopics:
         #: The topics only some models have (``model_channels``): "" until one has them.
         self.t_state = self.t_pose = self.t_twist = self.t_inv = self.t_obs = ""
         self.t_tf = self.t_tf_static = self.t_markers = self.t_markers_static = ""
-        self.t_curves = ""
+        self.t_trails = self.t_curves = ""
         #: Wall seconds spent encoding and publishing.
         self.costs = {"encode": 0.0, "publish": 0.0}
         self._dynamic_frames = False
@@ -115,11 +119,13 @@ class SystemTopics:
         formulation has none): state (joint-like coordinates), pose and twist (an attitude),
         invariants, observables, /tf (moving frames), /tf_static (fixed frames), markers
         (links and trails: ``Model.visuals``, per sample), markers_static (the frame-locked
-        visuals, latched: once per look), curves (``Model.curves``, latched: once per
+        visuals, latched: once per look), markers_trails (the trails' older points, latched:
+        where they change), curves (``Model.curves``, latched: once per
         parameter set, with system_info). A topic nothing is ever published on is never
         advertised."""
         o, frames = self.outlet, model.frames
         fixed, moving = topics_of(model)
+        trails = any(v.kind == "trail" for v in drawn(model)) if moving else False
         quaternion = set(model.attitude.quaternion) if model.attitude is not None else set()
         wanted = (
             ("t_state", "state", JointState, STATE_QOS,
@@ -132,6 +138,7 @@ class SystemTopics:
             ("t_tf_static", "/tf_static", TFMessage, LATCHED_QOS, any(f.static for f in frames)),
             ("t_markers", "markers", MarkerArray, STATE_QOS, moving),
             ("t_markers_static", "markers_static", MarkerArray, LATCHED_QOS, fixed),
+            ("t_trails", "markers_trails", MarkerArray, LATCHED_QOS, trails),
             ("t_curves", "curves", MarkerArray, LATCHED_QOS, bool(model.curves())))
         for attr, topic, msg_type, qos, has in wanted:
             if has and not getattr(self, attr):
@@ -215,7 +222,7 @@ class SystemTopics:
             want.append("observables")
         self._moved = self._dynamic_frames and o.wanted(self.t_tf)
         self._drawn = self.markers is not None and self.markers.layout is not None \
-            and o.wanted(self.t_markers)
+            and (o.wanted(self.t_markers) or bool(self.t_trails) and o.wanted(self.t_trails))
         if self._moved or self._drawn:
             want.append("frames")
         return tuple(want)
@@ -232,14 +239,19 @@ class SystemTopics:
                   out.get("frames"))
         columns: dict[str, Any] = {}
         topics: list[Topic] = []
-        batched = None
+        sparse: list[Sparse] = []
         if block.times.size:
             columns = self._columns(c)
             topics = self._topics(c, _sampler(block.times, c), block.times)
+            if self._drawn and self.t_trails and self.markers is not None \
+                    and self.markers.trails and c.frames is not None:
+                sparse.append((self.t_trails, self.markers.bodies()))
             if self._batched:
                 times, make = block.times, self.batches.encode
-                batched = (self.t_batch, lambda a, b: make(times, c, a, b))
-        block.encoded = Encoded(ns, topics, columns, batched)
+                sparse.append((self.t_batch, lambda a, b: [
+                    (k, make(times, c, k, min(k + batch.MAX_SAMPLES, b)))
+                    for k in range(a, b, batch.MAX_SAMPLES)]))
+        block.encoded = Encoded(ns, topics, columns, sparse)
         self.costs["encode"] += time.perf_counter() - t0
 
     def _columns(self, c: Chunk) -> dict[str, Any]:
@@ -303,10 +315,10 @@ class SystemTopics:
 
     def release(self, block: Block, a: int, b: int) -> None:
         t0 = time.perf_counter()
-        ns, topics, columns, batched = block.encoded
+        ns, topics, columns, sparse = block.encoded
         size = block.times.size
         self.outlet.publish_chunk(ns, topics, columns,
-                                  None if a == 0 and b == size else slice(a, b), batched)
+                                  None if a == 0 and b == size else slice(a, b), sparse)
         if b == size:
             self.outlet.hand_over()  # the block's samples to the sinks, at once
         self.costs["publish"] += time.perf_counter() - t0
