@@ -209,8 +209,8 @@ def test_schemas_are_complete_ros2msg_definitions(recorded: dict[str, Any]) -> N
         assert isinstance(qos, list) and len(qos) == 1
         want = {"/tf_static": ("reliable", "transient_local"),
                 "/clock": ("best_effort", "volatile")}.get(
-            ch.topic, ("reliable", "transient_local" if ch.topic.endswith("system_info")
-                       else "volatile"))
+            ch.topic, ("reliable", "transient_local" if ch.topic.endswith(
+                ("system_info", "markers_static", "markers_trails")) else "volatile"))
         assert (qos[0]["reliability"], qos[0]["durability"]) == want, ch.topic
         assert qos[0]["deadline"] == {"sec": 9223372036, "nsec": 854775807}
 

@@ -42,6 +42,7 @@ def test_simulator_diagnostics_and_recorder_alone(tmp_path: Path) -> None:
     got = _bag(bag)
     assert len(got["/spring/state"]) == 401  # 0 … 4 s at 100 Hz: waited for, none lost
     assert got["/spring/markers"] and got["/spring/system_info"] and got["/tf"]
+    assert len(got["/spring/markers_static"]) == 1  # latched: the recorder got it once
     verdicts = {s.name: s.level for d in got["/diagnostics"] for s in d.status}
     assert verdicts and all(level == 0 for name, level in verdicts.items()
                             if name.startswith("mechsim/spring/")), verdicts

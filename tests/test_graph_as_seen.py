@@ -45,7 +45,12 @@ def _expected(systems: list[str]) -> set[str]:
                           ("pose", m.attitude is not None), ("twist", m.attitude is not None),
                           ("invariants", bool(m.invariants)),
                           ("observables", bool(m.observables)),
-                          ("markers", bool(m.frames and m.visuals())),
+                          ("markers", bool(m.frames) and any(
+                              v.kind in ("link", "trail") for v in m.visuals())),
+                          ("markers_trails", bool(m.frames) and any(
+                              v.kind == "trail" for v in m.visuals())),
+                          ("markers_static", bool(m.frames) and any(
+                              v.kind not in ("link", "trail") for v in m.visuals())),
                           ("curves", bool(m.curves()))):
             if has:
                 topics.add(f"/{s}/{leaf}")

@@ -76,6 +76,7 @@ def test_ros2_launch_starts_nodes_that_publish(launch_file: str, ros2_env: dict[
         states = got[f"/{name}/state"]
         assert len(states) == 301  # every sample of 3 s at 100 Hz: the recorder was waited for
         assert got[f"/{name}/markers"] and got[f"/{name}/system_info"]
+        assert len(got[f"/{name}/markers_static"]) == 1
     assert got["/diagnostics"] and got["/clock"]
     if launch_file == "swing_up.launch.py":
         assert got["/pendulum/effort"]  # the controller answered

@@ -138,7 +138,9 @@ def test_echo_once_answers_on_every_advertised_topic(ros2_env: dict[str, str],
         # two cores discover more slowly than an echo waits for a topic's type), and so the
         # latched topics' durability, which echo would otherwise learn from the publishers.
         latched = ("/tf_static", "/pendulum/system_info", "/rigid_body/system_info",
-                   "/lrc_circuit/system_info")
+                   "/lrc_circuit/system_info", "/pendulum/markers_static",
+                   "/rigid_body/markers_static", "/pendulum/markers_trails",
+                   "/rigid_body/markers_trails")
         # A few echoes at a time: a dozen ros2 processes starting at once on two loaded
         # cores can take longer to join the graph than a test waits.
         silent = []

@@ -245,8 +245,10 @@ def test_a_bag_records_what_the_scene_asks_and_the_helper_reads_its_batches(
         topics[what] = {m.topic for m in read_messages(tmp_path / what)}
     assert "/kepler/sample_batch" not in topics["samples"]
     assert {"/kepler/state", "/kepler/energy", "/clock", "/tf"} <= topics["samples"]
+    # (the latched look, as system_info and /tf_static: recorded whatever the choice)
     assert topics["batches"] == {"/kepler/sample_batch", "/kepler/system_info",
-                                 "/diagnostics"} | ({"/tf_static"} & topics["samples"])
+                                 "/kepler/markers_static", "/diagnostics"} | (
+        {"/tf_static"} & topics["samples"])
     assert topics["both"] == topics["samples"] | {"/kepler/sample_batch"}
     batch = joined(b for _, b in read_batches(tmp_path / "batches"))
     assert list(read_batches(tmp_path / "samples")) == []

@@ -76,8 +76,8 @@ _NUMBER_TEXT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 #: What a recording holds (``outputs.bag_topics``, ``--bag-topics``): every topic but the
 #: sample batches (``samples``, the default), the batches instead of the per-sample topics
-#: (``batches``), or ``both``; the other topics (system_info, /tf_static, /diagnostics, the
-#: efforts applied) always (``mechsim.outputs.batch.recorded``).
+#: (``batches``), or ``both``; the other topics (system_info, /tf_static, markers_static,
+#: /diagnostics, the efforts applied) always (``mechsim.outputs.batch.recorded``).
 BAG_TOPICS = ("samples", "batches", "both")
 
 #: Run settings of one instance (besides ``method``), under the names of the simulator node's

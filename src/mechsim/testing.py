@@ -361,7 +361,8 @@ class Graph:
 
     def collect(self, topic: str, msg_type: Any = None, qos: Any = None) -> Collector:
         """Subscribe to ``topic`` (type from the graph unless given; QoS: reliable depth 1000,
-        transient local for ``system_info`` and ``/tf_static``)."""
+        transient local for the latched ``system_info``, ``/tf_static``, ``markers_static``
+        and ``markers_trails``)."""
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
         from mechsim.outputs.bag import message_class
@@ -369,7 +370,8 @@ class Graph:
         if topic in self._collectors:
             return self._collectors[topic]
         cls = msg_type or message_class(self.topic_type(topic))
-        latched = topic.endswith(("system_info", "/tf_static"))
+        latched = topic.endswith(("system_info", "/tf_static", "/markers_static",
+                                  "/markers_trails"))
         qos = qos or QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
                                             else DurabilityPolicy.VOLATILE))

@@ -40,9 +40,10 @@ MAX_SAMPLES = 1000
 #: builtin_interfaces/Time as it lies in a CDR sequence (int32 sec, uint32 nanosec).
 TIME_RECORD = np.dtype([("sec", "<i4"), ("nanosec", "<u4")])
 
-#: The topics with one message per sample (in an instance's namespace, or global).
+#: The topics that follow the samples (in an instance's namespace, or global): one message
+#: per sample, and the trail bodies (``markers_trails``) with the samples where they change.
 PER_SAMPLE_TOPICS = ("state", "pose", "twist", "energy", "invariants", "observables",
-                     "markers")
+                     "markers", "markers_trails")
 PER_SAMPLE_GLOBAL = ("/tf", "/clock")
 
 

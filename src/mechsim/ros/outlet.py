@@ -133,8 +133,9 @@ class Outlet:
         #: Published samples not yet handed to the sinks: [stamps, topics, columns, first,
         #: end] of one chunk (``hand_over``).
         self._held: list[Any] | None = None
-        #: Batch messages published and not yet handed to the sinks: (topic, stamp, bytes).
-        self._held_batches: list[tuple[str, int, bytes]] = []
+        #: Messages of sparse topics (batches, trail bodies) published and not yet handed to
+        #: the sinks: (topic, stamp, bytes).
+        self._held_sparse: list[tuple[str, int, bytes]] = []
         #: The topics with subscribers, with their rows, of the chunk ``_live_for``.
         self._live: list[tuple[_Channel, np.ndarray]] = []
         self._live_for: Any = None
@@ -189,15 +190,18 @@ class Outlet:
                       topics: list[tuple[str, np.ndarray | None, Callable[[int], Any]]],
                       columns: Mapping[str, Any] | None = None,
                       part: slice | None = None,
-                      batch: tuple[str, Callable[[int, int], bytes]] | None = None) -> None:
+                      sparse: list[tuple[str, Callable[[int, int], list[tuple[int, bytes]]]]]
+                      | None = None) -> None:
         """The messages of a chunk of samples stamped ``ns``, already encoded: for each
         (topic, rows, message), row i holds the CDR bytes of sample i (rows None where
         ``needs_rows`` was false when the chunk was encoded). The bytes are
         published at once (only on topics with subscribers at the last ``refresh``); the
         sinks get them later, in one hand-off per chunk (``hand_over``). ``part``: only these
-        samples of the chunk. ``batch``: (topic, make) where ``make(i, j)`` is one message
-        holding samples i to j (exclusive), published for each ``batch.MAX_SAMPLES`` of them
-        where a subscriber or a sink takes the topic."""
+        samples of the chunk. ``sparse``: the topics with messages at some samples only, each
+        (topic, make) where ``make(i, j)`` gives the messages of samples i to j (exclusive)
+        as (sample, CDR bytes) (a batch of samples; a trail body where it changes), asked
+        only where a subscriber or a sink takes the topic; the sinks get them after the
+        samples of the chunk."""
         a = 0 if part is None else part.start
         b = len(ns) if part is None else part.stop
         n = b - a
@@ -206,7 +210,7 @@ class Outlet:
                           if rows is not None and self.subscribers.get(topic, 0) > 0]
             self._live_for = topics
         live = self._live
-        batches = self._batch_outlet(batch)
+        extra = [p for p in map(self._sparse_outlet, sparse or ()) if p is not None]
         step = LOSSLESS_DEPTH if self.lossless else max(n, 1)
         for start in range(a, b, step):
             end = min(start + step, b)
@@ -215,8 +219,8 @@ class Outlet:
                 publish = ch.publisher.publish
                 for r in rows[start:end]:
                     publish(r.tobytes())
-            if batches is not None:
-                batches(start, end, ns)
+            for publish_sparse in extra:
+                publish_sparse(start, end, ns)
             if self.lossless:
                 self._in_flight += end - start
                 self._unacknowledged.update((ch.publisher.topic_name, ch) for ch, _ in live)
@@ -233,15 +237,11 @@ class Outlet:
         if self._sinks().immediate:
             self.hand_over()
 
-    def _batch_outlet(self, batch: tuple[str, Callable[[int, int], bytes]] | None
-                      ) -> Callable[[int, int, np.ndarray], None] | None:
-        """What publishes the batch messages of samples i to j of a chunk, or None if
-        nothing takes them."""
-        if batch is None:
-            return None
-        from mechsim.outputs.batch import MAX_SAMPLES
-
-        topic, make = batch
+    def _sparse_outlet(self, sparse: tuple[str, Callable[[int, int], list[tuple[int, bytes]]]]
+                       ) -> Callable[[int, int, np.ndarray], None] | None:
+        """What publishes the messages of a sparse topic (``publish_chunk``) of samples i to
+        j of a chunk, or None if nothing takes them."""
+        topic, make = sparse
         ch = self.channels[topic]
         live = self.subscribers.get(topic, 0) > 0
         held = self._sinks().wants(topic)
@@ -249,12 +249,11 @@ class Outlet:
             return None
 
         def publish(i: int, j: int, ns: np.ndarray) -> None:
-            for k in range(i, j, MAX_SAMPLES):
-                data = make(k, min(k + MAX_SAMPLES, j))
+            for k, data in make(i, j):
                 if live:
                     ch.publisher.publish(data)
                 if held:
-                    self._held_batches.append((topic, int(ns[k]), data))
+                    self._held_sparse.append((topic, int(ns[k]), data))
                 self.counts[topic] += 1
             if live and self.lossless:
                 self._unacknowledged[topic] = ch
@@ -272,8 +271,8 @@ class Outlet:
         published. The runner hands over what is held before it reports diagnostics and when
         it stops: nothing published is left out."""
         self._hand_over_chunk()
-        if self._held_batches:
-            batches, self._held_batches = self._held_batches, []
+        if self._held_sparse:
+            batches, self._held_sparse = self._held_sparse, []
             for topic, ns, data in batches:
                 ch = self.channels[topic]
                 self._sinks().message(topic, ch.type_name, ch.qos, ns, data=data,

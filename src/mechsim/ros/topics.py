@@ -25,7 +25,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from mechsim.outputs import batch, messages
-from mechsim.outputs.markers import MarkerEncoder
+from mechsim.outputs.markers import MarkerEncoder, cleared, drawn, topics_of
 from mechsim.outputs.messages import Chunk, ChunkEncoder, MessageFactory, Sample
 from mechsim.ros.outlet import (
     CLOCK_QOS,
@@ -46,16 +46,20 @@ EFFORT_NOTICE_PERIOD = 5.0
 
 #: (topic, CDR rows or None, message of sample i): one topic of an encoded block.
 Topic = tuple[str, np.ndarray | None, Callable[[int], Any]]
+#: (topic, what makes its messages of samples i to j as (sample, CDR bytes)): a topic of an
+#: encoded block with messages at some samples only (``Outlet.publish_chunk``).
+Sparse = tuple[str, Callable[[int, int], list[tuple[int, bytes]]]]
 
 
 class Encoded(NamedTuple):
-    """A block of samples ready for the Outlet (``Outlet.publish_chunk``); ``batch``: the
-    batch topic and what makes its message of samples i to j, if something takes it."""
+    """A block of samples ready for the Outlet (``Outlet.publish_chunk``); ``sparse``: the
+    topics with messages at some of its samples only (the batch topic, where something takes
+    it; the trail bodies)."""
 
     ns: np.ndarray
     topics: list[Topic]
     columns: dict[str, Any]
-    batch: tuple[str, Callable[[int, int], bytes]] | None = None
+    sparse: list[Sparse]
 
 
 def _builder(build: Callable[[Sample, int], Any], sample: Callable[[int], Sample],
@@ -96,7 +100,8 @@ class SystemTopics:
         self.t_effort = node.resolve_topic_name("effort")
         #: The topics only some models have (``model_channels``): "" until one has them.
         self.t_state = self.t_pose = self.t_twist = self.t_inv = self.t_obs = ""
-        self.t_tf = self.t_tf_static = self.t_markers = self.t_curves = ""
+        self.t_tf = self.t_tf_static = self.t_markers = self.t_markers_static = ""
+        self.t_trails = self.t_curves = ""
         #: Wall seconds spent encoding and publishing.
         self.costs = {"encode": 0.0, "publish": 0.0}
         self._dynamic_frames = False
@@ -104,15 +109,23 @@ class SystemTopics:
         #: What the block being made carries: /tf (moving frames), markers, a batch.
         self._moved = self._drawn = self._batched = False
         self.markers: MarkerEncoder | None = None
+        #: The look last published on markers_static (``MarkerEncoder.look``), and what a new
+        #: model's look asks for at its first sample: (markers_static, clear <ns>/markers).
+        self._look: bytes | None = None
+        self._redraw = (False, False)
 
     def model_channels(self, model: Model) -> None:
         """The topics of what ``model`` has, each advertised once one has it (kept if a later
         formulation has none): state (joint-like coordinates), pose and twist (an attitude),
         invariants, observables, /tf (moving frames), /tf_static (fixed frames), markers
-        (a look: ``Model.visuals``), curves (``Model.curves``, latched: once per parameter
-        set, with system_info). A topic nothing is ever published on is never
+        (links and trails: ``Model.visuals``, per sample), markers_static (the frame-locked
+        visuals, latched: once per look), markers_trails (the trails' older points, latched:
+        where they change), curves (``Model.curves``, latched: once per
+        parameter set, with system_info). A topic nothing is ever published on is never
         advertised."""
         o, frames = self.outlet, model.frames
+        fixed, moving = topics_of(model)
+        trails = any(v.kind == "trail" for v in drawn(model)) if moving else False
         quaternion = set(model.attitude.quaternion) if model.attitude is not None else set()
         wanted = (
             ("t_state", "state", JointState, STATE_QOS,
@@ -123,7 +136,9 @@ class SystemTopics:
             ("t_obs", "observables", NamedScalars, STATE_QOS, bool(model.observables)),
             ("t_tf", "/tf", TFMessage, TF_QOS, any(not f.static for f in frames)),
             ("t_tf_static", "/tf_static", TFMessage, LATCHED_QOS, any(f.static for f in frames)),
-            ("t_markers", "markers", MarkerArray, STATE_QOS, bool(frames and model.visuals())),
+            ("t_markers", "markers", MarkerArray, STATE_QOS, moving),
+            ("t_markers_static", "markers_static", MarkerArray, LATCHED_QOS, fixed),
+            ("t_trails", "markers_trails", MarkerArray, LATCHED_QOS, trails),
             ("t_curves", "curves", MarkerArray, LATCHED_QOS, bool(model.curves())))
         for attr, topic, msg_type, qos, has in wanted:
             if has and not getattr(self, attr):
@@ -141,10 +156,37 @@ class SystemTopics:
         self.batches = batch.BatchEncoder(self.factory)
         self._dynamic_frames = any(not fr.static for fr in model.frames)
         previous, self.markers = self.markers, None
-        if self.t_markers and model.frames and model.visuals():
+        if (self.t_markers or self.t_markers_static) and model.frames and model.visuals():
             self.markers = MarkerEncoder(model, self.instance.name, self.instance.origin)
             if previous is not None and not structural:
                 self.markers.take_trails(previous)
+        self._redraw = self._look_changes(previous)
+
+    def _look_changes(self, previous: MarkerEncoder | None) -> tuple[bool, bool]:
+        """What the new model's look asks for: its frame-locked markers published (a look
+        not published yet: the first, or one a parameter changed), and the moving markers
+        cleared (an earlier model drew some this one does not replace)."""
+        new = self.markers
+        look = new.look if new is not None else None
+        fixed = bool(self.t_markers_static) and look != self._look
+        self._look = look
+        before = previous.moving_ids if previous is not None else []
+        clear = bool(self.t_markers and before) \
+            and (new is None or new.moving_ids[:len(before)] != before)
+        return fixed, clear
+
+    def _publish_look(self) -> None:
+        """The look's markers due since the model changed (``_look_changes``), stamped
+        with the current sample: a bag then draws each look from where it applies."""
+        fixed, clear = self._redraw
+        self._redraw = (False, False)
+        ns = messages.stamp_ns(self.run.t, self.time_offset)
+        if clear:
+            self.outlet.publish(self.t_markers, cleared(self.instance.name, ns), ns)
+        if fixed:
+            msg = self.markers.fixed(ns) if self.markers is not None \
+                else cleared(self.instance.name, ns)
+            self.outlet.publish(self.t_markers_static, msg, ns)
 
     def laws_changed(self) -> None:
         """system_info (what runs, the laws that hold and their scales) and /tf_static."""
@@ -163,6 +205,7 @@ class SystemTopics:
             msg = TFMessage(transforms=self.factory.transforms(run.static_frames(), ns0,
                                                                  static=True))
             self.outlet.publish(self.t_tf_static, msg, ns0)
+        self._publish_look()
 
     def wanted(self) -> tuple[str, ...]:
         """The outputs something consumes now (subscribers counted again)."""
@@ -178,7 +221,8 @@ class SystemTopics:
         if shape.observables and (every or o.wanted(self.t_obs)):
             want.append("observables")
         self._moved = self._dynamic_frames and o.wanted(self.t_tf)
-        self._drawn = self.markers is not None and o.wanted(self.t_markers)
+        self._drawn = self.markers is not None and self.markers.layout is not None \
+            and (o.wanted(self.t_markers) or bool(self.t_trails) and o.wanted(self.t_trails))
         if self._moved or self._drawn:
             want.append("frames")
         return tuple(want)
@@ -195,14 +239,19 @@ class SystemTopics:
                   out.get("frames"))
         columns: dict[str, Any] = {}
         topics: list[Topic] = []
-        batched = None
+        sparse: list[Sparse] = []
         if block.times.size:
             columns = self._columns(c)
             topics = self._topics(c, _sampler(block.times, c), block.times)
+            if self._drawn and self.t_trails and self.markers is not None \
+                    and self.markers.trails and c.frames is not None:
+                sparse.append((self.t_trails, self.markers.bodies()))
             if self._batched:
                 times, make = block.times, self.batches.encode
-                batched = (self.t_batch, lambda a, b: make(times, c, a, b))
-        block.encoded = Encoded(ns, topics, columns, batched)
+                sparse.append((self.t_batch, lambda a, b: [
+                    (k, make(times, c, k, min(k + batch.MAX_SAMPLES, b)))
+                    for k in range(a, b, batch.MAX_SAMPLES)]))
+        block.encoded = Encoded(ns, topics, columns, sparse)
         self.costs["encode"] += time.perf_counter() - t0
 
     def _columns(self, c: Chunk) -> dict[str, Any]:
@@ -266,10 +315,10 @@ class SystemTopics:
 
     def release(self, block: Block, a: int, b: int) -> None:
         t0 = time.perf_counter()
-        ns, topics, columns, batched = block.encoded
+        ns, topics, columns, sparse = block.encoded
         size = block.times.size
         self.outlet.publish_chunk(ns, topics, columns,
-                                  None if a == 0 and b == size else slice(a, b), batched)
+                                  None if a == 0 and b == size else slice(a, b), sparse)
         if b == size:
             self.outlet.hand_over()  # the block's samples to the sinks, at once
         self.costs["publish"] += time.perf_counter() - t0

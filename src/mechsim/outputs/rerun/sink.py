@@ -42,7 +42,8 @@ HANDLED_TYPES = {
 #: Topics published with every sample whose types nothing here draws: their messages are not
 #: made for this sink (its ``wants``). (markers: the recording draws the model's look itself;
 #: sample_batch: the same values as the per-sample topics it draws.)
-_NOT_DRAWN = ("clock", "pose", "twist", "markers", "sample_batch")
+_NOT_DRAWN = ("clock", "pose", "twist", "markers", "markers_static", "markers_trails",
+              "sample_batch")
 #: Live streams: buffered columns are sent at least this often [s of wall time].
 LIVE_PERIOD = 0.1
 #: Live streams: how long :meth:`RerunSink.close` waits for the viewer to take the rest [s].
@@ -70,7 +71,7 @@ def writer_stuck() -> bool:
 
 def drawn(topic: str) -> bool:
     """The topics a RerunSink wants: all but those of types never drawn (clock, pose,
-    twist, markers, sample_batch)."""
+    twist, markers, markers_static, markers_trails, sample_batch)."""
     return topic.rpartition("/")[2] not in _NOT_DRAWN
 
 
