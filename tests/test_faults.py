@@ -599,3 +599,30 @@ def test_consumers_of_a_refused_run_do_not_drain(tmp_path: Path) -> None:
     drain(idle, lambda: 0, report)
     assert idle.spins == 0
 
+
+
+_STUCK_TEARDOWN = """
+import sys, threading
+from mechsim.ros.process import bounded_teardown
+with bounded_teardown("the test's teardown", lambda: 7, limit=float(sys.argv[1])):
+    if sys.argv[2] == "stuck":
+        threading.Event().wait()  # what a DDS deadlock looks like from Python: never returns
+print("went on", flush=True)
+sys.exit(3)
+"""
+
+
+@pytest.mark.parametrize("block", ["stuck", "returns"])
+def test_a_stuck_teardown_ends_the_process(block: str) -> None:
+    """A node process whose DDS teardown never returns (Fast DDS can deadlock there) ends
+    with the status it was given and one line saying why; a teardown that returns goes on."""
+    limit = "0.5" if block == "stuck" else "600"
+    r = subprocess.run([sys.executable, "-c", _STUCK_TEARDOWN, limit, block],
+                       capture_output=True, text=True, timeout=300)
+    if block == "stuck":
+        assert r.returncode == 7 and "went on" not in r.stdout
+        assert r.stderr.strip().splitlines() == [
+            "mechsim: the test's teardown did not return within 0.5 s (DDS teardown stuck); "
+            "exiting"]
+    else:
+        assert (r.returncode, r.stdout, r.stderr) == (3, "went on\n", "")

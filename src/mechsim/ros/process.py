@@ -4,11 +4,13 @@ parent: ``mechsim.runcore.stops``.) Standard library only (and the project's ato
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 #: A consumer process stops once nothing arrived for this long after its stop signal (the
@@ -20,6 +22,11 @@ DRAIN_LIMIT = 60.0
 #: of its simulators published anything (a refused start): nothing of the run to drain. (What
 #: arrives then comes from another graph's nodes of the same names, and never stops.)
 NOTHING_PUBLISHED = "nothing-published"
+#: Longest a node process waits for DDS to destroy its endpoints or shut its context down.
+#: Normally well under a second; Fast DDS can deadlock there (its discovery thread removing a
+#: participant that left while a writer of ours is deleted, each holding the lock the other
+#: waits for), and a process stuck there would hold its whole multi-process run forever.
+TEARDOWN_LIMIT = 20.0
 
 
 def drain(executor: Any, received: Callable[[], int], report: str | None = None) -> None:
@@ -35,6 +42,27 @@ def drain(executor: Any, received: Callable[[], int], report: str | None = None)
         executor.spin_once(timeout_sec=0.05)
         if received() != last:
             last, quiet_since = received(), time.monotonic()
+
+
+@contextlib.contextmanager
+def bounded_teardown(what: str, code: Callable[[], int],
+                     limit: float = TEARDOWN_LIMIT) -> Iterator[None]:
+    """Run the block (DDS teardown); if it has not returned within ``limit`` s, say so in one
+    line on stderr and end the process with ``code()`` (exit handlers not run: a thread of
+    the interpreter is stuck in DDS)."""
+    done = threading.Event()
+
+    def expire() -> None:
+        if not done.wait(limit):
+            print(f"mechsim: {what} did not return within {limit:g} s (DDS teardown stuck); "
+                  "exiting", file=sys.stderr, flush=True)
+            os._exit(code())
+
+    threading.Thread(target=expire, name="teardown-limit", daemon=True).start()
+    try:
+        yield
+    finally:
+        done.set()
 
 
 def write_report(path: str | None, data: dict[str, Any]) -> None:

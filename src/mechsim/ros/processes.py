@@ -37,7 +37,7 @@ from mechsim.ros.graph_check import (
     start_context,
 )
 from mechsim.ros.launch import FAST_CHUNK, SceneRun, _warm
-from mechsim.ros.process import NOTHING_PUBLISHED, drain, write_report
+from mechsim.ros.process import NOTHING_PUBLISHED, bounded_teardown, drain, write_report
 from mechsim.runcore.stops import stop_on_sigterm
 
 if TYPE_CHECKING:
@@ -289,10 +289,11 @@ def diagnostics_process(scene: Scene | None, report: str | None = None) -> int:
             pass
         if node is not None:
             write_report(report, {"summary": node.summary(), "messages": node.outlet.counts})
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        context.try_shutdown()
+        with bounded_teardown("the diagnostics process's teardown", lambda: 0):
+            executor.shutdown()
+            if node is not None:
+                node.destroy_node()
+            context.try_shutdown()
     return 0
 
 
@@ -322,10 +323,15 @@ def simulator_process(scene: Scene, name: str, *, readers: int = 0, recorder: bo
         pass
     finally:
         sim.close(report)
-        executor.shutdown()
-        if sim.node is not None:
-            sim.node.destroy_node()
-        context.try_shutdown()
+
+        def status() -> int:
+            return 1 if sim.node is None or sim.node.failed else 0
+
+        with bounded_teardown(f"{name}: the simulator's teardown", status):
+            executor.shutdown()
+            if sim.node is not None:
+                sim.node.destroy_node()
+            context.try_shutdown()
     return 1 if sim.node is not None and sim.node.failed else 0
 
 
@@ -351,7 +357,9 @@ class _Simulator:
                 graph.check([scene.systems[idx].name], idx == 0, window)
         finally:
             if graph is not None:
-                graph.close()
+                with bounded_teardown(f"{scene.systems[idx].name}: the graph check's close",
+                                      lambda: 1):
+                    graph.close()
         waits = bool(self.readers or self.recorder)
         rtf = 0.0 if scene.pacing == "fast" else scene.real_time_factor
         node = self.node = SimulatorNode(
