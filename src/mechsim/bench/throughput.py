@@ -127,20 +127,33 @@ def _compiled_loop(model: Any, dt: float) -> tuple[Callable[[], Any], Callable[[
     return dispatched, direct
 
 
+@functools.cache
+def _rk4_step() -> Any:
+    """One classical RK4 step of the pendulum θ'' = -g sin θ (inlined where it is called)."""
+    from numba import njit
+
+    @njit(inline="always", cache=False)
+    def step(g, th, om, h):  # type: ignore[no-untyped-def]
+        k1t, k1o = om, -g * math.sin(th)
+        k2t, k2o = om + 0.5 * h * k1o, -g * math.sin(th + 0.5 * h * k1t)
+        k3t, k3o = om + 0.5 * h * k2o, -g * math.sin(th + 0.5 * h * k2t)
+        k4t, k4o = om + h * k3o, -g * math.sin(th + h * k3t)
+        return (th + h / 6.0 * (k1t + 2.0 * (k2t + k3t) + k4t),
+                om + h / 6.0 * (k1o + 2.0 * (k2o + k3o) + k4o))
+    return step
+
+
 def _rk4_one() -> Any:
     from numba import njit
+
+    step = _rk4_step()
 
     @njit(cache=False)
     def rk4(g, y0, t, n):  # type: ignore[no-untyped-def]
         th, om = y0[0], y0[1]
         h = t / n
         for _ in range(n):
-            k1t, k1o = om, -g * math.sin(th)
-            k2t, k2o = om + 0.5 * h * k1o, -g * math.sin(th + 0.5 * h * k1t)
-            k3t, k3o = om + 0.5 * h * k2o, -g * math.sin(th + 0.5 * h * k2t)
-            k4t, k4o = om + h * k3o, -g * math.sin(th + h * k3t)
-            th += h / 6.0 * (k1t + 2.0 * (k2t + k3t) + k4t)
-            om += h / 6.0 * (k1o + 2.0 * (k2o + k3o) + k4o)
+            th, om = step(g, th, om, h)
         out = np.empty((2, 2))
         out[0] = y0
         out[1, 0], out[1, 1] = th, om
@@ -153,6 +166,8 @@ def _rk4_many() -> Any:
     members in parallel (``prange``)."""
     from numba import njit, prange
 
+    step = _rk4_step()
+
     @njit(cache=False, parallel=True)
     def rk4_many(g, y0, t_out, n_sub, Y):  # type: ignore[no-untyped-def]
         for i in prange(y0.shape[0]):
@@ -161,12 +176,7 @@ def _rk4_many() -> Any:
             for k in range(1, t_out.size):
                 h = (t_out[k] - t_out[k - 1]) / n_sub
                 for _ in range(n_sub):
-                    k1t, k1o = om, -g * math.sin(th)
-                    k2t, k2o = om + 0.5 * h * k1o, -g * math.sin(th + 0.5 * h * k1t)
-                    k3t, k3o = om + 0.5 * h * k2o, -g * math.sin(th + 0.5 * h * k2t)
-                    k4t, k4o = om + h * k3o, -g * math.sin(th + h * k3t)
-                    th += h / 6.0 * (k1t + 2.0 * (k2t + k3t) + k4t)
-                    om += h / 6.0 * (k1o + 2.0 * (k2o + k3o) + k4o)
+                    th, om = step(g, th, om, h)
                 Y[i, k, 0], Y[i, k, 1] = th, om
     return rk4_many
 
