@@ -1,6 +1,7 @@
-"""``simulate`` runs a model without events in one compiled call (``integrators.runs``): its
-rows, outputs and counters equal those of the stepper ``make_stepper`` makes, advanced and
-evaluated from Python, bit for bit, for every system and every method the call covers."""
+"""``simulate`` runs a model without events in one compiled call (``integrators.runs``), and
+a closed form in one evaluation: its rows, outputs and counters equal those of the stepper
+``make_stepper`` makes, advanced and evaluated from Python, bit for bit, for every system and
+every method the call covers."""
 
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
 def test_one_call_equals_the_stepper_bit_for_bit(system: str) -> None:
     model = mechsim.load_system(system)
     tau = model.time_scale()
-    for method in METHODS:
+    for method in METHODS + (("exact",) if model.has_closed_form() else ()):
         if method == "dopri5" and model.events:
             continue
         res = simulate(model, 2.0 * tau, 0.1 * tau, tolerance=1e-8, method=method)
@@ -60,6 +61,20 @@ def test_without_work_terms_and_with_fewer_outputs() -> None:
     Y, out, _ = _by_stepper(model, "dop853", 1e-9, 3.0, 0.05, work_terms=False)
     assert _same(res.q, Y[:, model.layout.q]) and np.isnan(res.work_external).all()
     assert _same(res.kinetic, out.kinetic) and res.invariants == {}
+
+
+@pytest.mark.parametrize("system", ["driven_oscillator", "periodic_drive", "charged_particle"])
+def test_a_closed_form_without_work_terms_has_the_same_motion(system: str) -> None:
+    """Without the work terms a closed form may skip them (the driven oscillators' ∫ b ẋ²):
+    the motion is the one with them, bit for bit, and the work terms are NaN."""
+    model = mechsim.load_system(system)
+    tau = model.time_scale()
+    full = simulate(model, 3.0 * tau, 0.05 * tau, method="exact", outputs=())
+    bare = simulate(model, 3.0 * tau, 0.05 * tau, method="exact", outputs=(),
+                    work_terms=False)
+    assert _same(bare.q, full.q) and _same(bare.v, full.v)
+    assert np.isfinite(full.work_dissipated).all()
+    assert np.isnan(bare.work_external).all() and np.isnan(bare.work_dissipated).all()
 
 
 def test_bad_settings_are_refused_as_before() -> None:

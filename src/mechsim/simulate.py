@@ -11,7 +11,7 @@ import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.integrators import METHODS, Request, Stepper, loops, make_stepper
-from mechsim.integrators.runs import RunPlan, plan_run
+from mechsim.integrators.runs import Plan, plan_run
 from mechsim.integrators.state import Status
 from mechsim.params import PUBLISH_RATE, TOLERANCE, shown
 from mechsim.systems import load_system as _load_model
@@ -268,7 +268,9 @@ def output_times(t_end: float, output_dt: float, t0: float = 0.0) -> np.ndarray:
     if not (math.isfinite(output_dt) and output_dt > 0):
         raise ParameterError("output_dt", f"must be a positive time (got {output_dt!r})")
     n = int(math.floor((t_end - t0) / output_dt + 1e-9))
-    t = t0 + output_dt * np.arange(n + 1)
+    t = output_dt * np.arange(n + 1.0)
+    if t0:
+        t += t0
     if t[-1] < t_end - 1e-12 * max(1.0, abs(t_end)):
         t = np.append(t, t_end)
     return t
@@ -350,7 +352,7 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
                             error_estimate=stepper.error_estimate)
 
 
-def _run_planned(model: Model, plan: RunPlan, tolerance: float, t: np.ndarray,
+def _run_planned(model: Model, plan: Plan, tolerance: float, t: np.ndarray,
                  outputs: tuple[str, ...], work_terms: bool, start: float
                  ) -> SimulationResult | None:
     """The run of ``simulate`` in one compiled call (``integrators.runs``), its rows and
@@ -363,7 +365,7 @@ def _run_planned(model: Model, plan: RunPlan, tolerance: float, t: np.ndarray,
     shape = OutputShape.of(model)
     arrays = output_buffers(shape, outputs, t.size)
     status, _, n_steps, n_evaluations, n_rejected, error_estimate, _ = plan.run(
-        y, p, t, Y, *arrays)
+        model, y, p, t, Y, *arrays)
     if status != Status.OK:
         return None
     at = model.layout

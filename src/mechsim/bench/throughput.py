@@ -103,11 +103,11 @@ def _compiled_loop(model: Any, dt: float) -> tuple[Callable[[], Any], Callable[[
     method="dop853")`` with its arguments made once: through the dispatcher, and through the
     entry point of the overload it picks (what is left of a call: unboxing the arguments)."""
     from mechsim.integrators.base import Request
-    from mechsim.integrators.runs import plan_run
+    from mechsim.integrators.runs import RunPlan, plan_run
     from mechsim.simulate import OUTPUTS, OutputShape, output_buffers, output_times
 
     plan = plan_run(model, "dop853", TOLERANCE, Request(horizon=dt), OUTPUTS)
-    assert plan is not None and not plan.radau
+    assert isinstance(plan, RunPlan) and not plan.radau
     t = output_times(dt, dt)
     y, p = model.initial_y(), model.parameter_vector()
     state, start = np.zeros(1, plan.dtype), np.zeros(1, plan.dtype)

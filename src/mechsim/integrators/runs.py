@@ -1,5 +1,5 @@
-"""A whole run in one compiled call: what ``mechsim.simulate`` does for the explicit pairs and
-radau15 on a model without events, without a Python stepper in between.
+"""A whole run in one compiled call: what ``mechsim.simulate`` does for the explicit pairs,
+radau15 and the closed forms on a model without events, without a Python stepper in between.
 
 ``plan_run`` decides once per model and set of inputs what ``make_stepper`` would make (the
 method, ``auto``'s choice included, its tolerance and options) and keeps it as a
@@ -8,7 +8,9 @@ for, and every argument that does not change from call to call. ``RunPlan.run`` 
 one call into compiled code, which starts the method as its stepper does, steps, and
 evaluates the outputs; its rows equal the stepper's bit for bit (``tests/test_fast_path.py``).
 A run the loop cannot finish (an event, a step limit, a stiff phase: any status but OK) is
-left to the stepper, which goes on or raises as the solver contract says.
+left to the stepper, which goes on or raises as the solver contract says. ``exact`` has a plan
+of its own (``ClosedFormPlan``): the model's closed form at the output times, then the outputs
+in one compiled call, as its stepper and ``evaluate`` do.
 """
 
 from __future__ import annotations
@@ -19,10 +21,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from mechsim.integrators.auto import Auto
 from mechsim.integrators.base import Request, Stepper, event_directions
-from mechsim.integrators.compiled import load_runs
+from mechsim.integrators.closed_form import ClosedForm
+from mechsim.integrators.compiled import load, load_runs
 from mechsim.integrators.dop853 import DOP853
 from mechsim.integrators.dopri5 import DOPRI5
 from mechsim.integrators.model import SteppableModel as Model
@@ -47,12 +51,12 @@ class RunPlan:
     want: tuple[bool, bool, bool, bool]
     loop: Any
 
-    def run(self, y: np.ndarray, p: np.ndarray, t: np.ndarray, Y: np.ndarray, E: np.ndarray,
-            I: np.ndarray, O: np.ndarray, F: np.ndarray  # noqa: E741
+    def run(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray, Y: np.ndarray,
+            E: np.ndarray, I: np.ndarray, O: np.ndarray, F: np.ndarray  # noqa: E741
             ) -> tuple[Status, int, int, int, int, float, float]:
-        """Integrate from (0, y) to the times ``t`` into ``Y`` and evaluate the outputs wanted
-        into E, I, O, F: (status, rows written, steps, evaluations, rejections, error
-        estimate, time reached)."""
+        """Integrate ``model`` from (0, y) to the times ``t`` into ``Y`` and evaluate the
+        outputs wanted into E, I, O, F: (status, rows written, steps, evaluations,
+        rejections, error estimate, time reached)."""
         state = np.zeros(1, self.dtype)
         we, wi, wo, wf = self.want
         if self.radau:
@@ -62,8 +66,51 @@ class RunPlan:
                          *self.tail, we, wi, wo, wf, E, I, O, F)
 
 
+@dataclass(frozen=True)
+class ClosedFormPlan:
+    """``exact`` from the model's initial state: ``Model.propagate`` at the output times and
+    the outputs wanted in one compiled call (``ks``: the output kernels alone). Without the
+    work terms, the closed form may leave them NaN: the first ``n_finite`` entries of each row
+    (q and q̇) are the ones that must be finite."""
+
+    method: str
+    ks: Any
+    want: tuple[bool, bool, bool, bool]
+    work_terms: bool
+    n_finite: int
+
+    def run(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray, Y: np.ndarray,
+            E: np.ndarray, I: np.ndarray, O: np.ndarray, F: np.ndarray  # noqa: E741
+            ) -> tuple[Status, int, int, int, int, float, float]:
+        """As ``RunPlan.run``: one evaluation of the closed form, no steps; a status other
+        than OK where there is none from this state or it is not finite (the stepper then
+        raises what the solver contract says)."""
+        rows = model.propagate(0.0, y, t, self.work_terms)
+        if rows is None:
+            return Status.NOT_CONVERGED, 0, 0, 0, 0, 0.0, 0.0
+        if not _finite_columns(rows, self.n_finite):
+            return Status.NOT_FINITE, 0, 0, 0, 0, 0.0, 0.0
+        Y[:] = rows
+        if any(self.want):
+            load().evaluate_outputs(self.ks, t, Y, p, *self.want, E, I, O, F)
+        return Status.OK, t.size, 0, 1, 0, 0.0, float(t[-1])
+
+
+Plan = RunPlan | ClosedFormPlan
+
+
+@njit(cache=True)
+def _finite_columns(rows: np.ndarray, n: int) -> bool:
+    """Whether the first ``n`` entries of every row are finite (one pass, no temporaries)."""
+    for i in range(rows.shape[0]):
+        for j in range(n):
+            if not math.isfinite(rows[i, j]):
+                return False
+    return True
+
+
 def plan_run(model: Model, method: str, tolerance: float, request: Request,
-             which: tuple[str, ...]) -> RunPlan | None:
+             which: tuple[str, ...]) -> Plan | None:
     """The plan of a run of ``model`` from its initial state at t = 0 as ``make_stepper(model,
     method, tolerance, ...)`` would make it (``method`` already checked against the model),
     with the outputs ``which``; None where the stepper must run it (events, the other
@@ -77,12 +124,12 @@ def plan_run(model: Model, method: str, tolerance: float, request: Request,
     return plan
 
 
-_PLANS: weakref.WeakKeyDictionary[Model, dict[tuple[Any, ...], RunPlan | None]] = (
+_PLANS: weakref.WeakKeyDictionary[Model, dict[tuple[Any, ...], Plan | None]] = (
     weakref.WeakKeyDictionary())
 
 
 def _make_plan(model: Model, method: str, tolerance: float, request: Request,
-               which: tuple[str, ...]) -> RunPlan | None:
+               which: tuple[str, ...]) -> Plan | None:
     from mechsim.integrators import method_class
 
     cls = method_class(method)
@@ -95,6 +142,11 @@ def _make_plan(model: Model, method: str, tolerance: float, request: Request,
     elif issubclass(cls, Stepper):
         options = cls.options(request)
     want = tuple(name in which for name in _OUTPUT_KERNELS)
+    if cls is ClosedForm and not request.given_state:
+        n_y = model.initial_y().size
+        return ClosedFormPlan(ClosedForm.method, model.kernels.kernel_set(*which),
+                              want, request.work_terms,  # type: ignore[arg-type]
+                              n_y if request.work_terms else 2 * model.kernels.n_q)
     needed = ("rhs", "project", "event", "energy", *which)
     loops = load_runs()
     ks = model.kernels.kernel_set(*needed)

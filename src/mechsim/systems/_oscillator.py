@@ -141,6 +141,10 @@ def cumulative_integral(f: Callable[[np.ndarray], np.ndarray], t0: float, t: np.
     return np.cumsum(np.bincount(owner, weights=pieces, minlength=t.size))
 
 
+#: No modes (``_modal_rows`` without the work integral).
+_NO_MODES = np.zeros(0, dtype=np.complex128)
+
+
 @njit(cache=True)
 def _modal_rows(tau: np.ndarray, amp_x: np.ndarray, amp_v: np.ndarray, rates: np.ndarray,
                 pair_amps: np.ndarray, pair_rates: np.ndarray, m: float, k: float, c: float,
@@ -278,12 +282,15 @@ class LinearOscillator(LagrangianModel):
     #: Anchors whose drive modes are kept (``propagate``), per model.
     MODE_CACHE_SIZE = 8
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """x = x_p + transient (free solution from the state at t₀), x_p the sum of the
         responses to the drive's tones. Work terms: without a drive W_d grows by E(t₀) − E(t);
         with one, W_d = ∫ b ẋ² dt of the exact ẋ in closed form (``_modal_rows``; by
         quadrature at critical damping), and W_ext closes the balance. A driven motion's modes
-        are computed once per anchor (t₀, y₀) and parameter values, and kept on the model."""
+        are computed once per anchor (t₀, y₀) and parameter values, and kept on the model.
+        ``work_terms=False``: a driven motion's work terms are NaN (∫ b ẋ² is most of the
+        cost)."""
         t = np.asarray(t, dtype=float)
         if self.drive_tones():
             y0 = np.asarray(y0, dtype=float)
@@ -298,9 +305,13 @@ class LinearOscillator(LagrangianModel):
                 cache[key] = modes
             if modes is not None:
                 rows = np.empty((t.size, y0.size))
+                if not work_terms:  # no pairs of modes: W_d not integrated, both work terms NaN
+                    modes = (*modes[:3], _NO_MODES, _NO_MODES)
                 _modal_rows(np.ascontiguousarray(t - t0), *modes, self.value("mass"),
                             self.value("spring_constant"), self._optional("damping"),
                             np.ascontiguousarray(y0), rows)
+                if not work_terms:
+                    rows[:, 2:4] = np.nan
                 return rows
         return self._propagate_numpy(t0, y0, t)
 

@@ -224,7 +224,8 @@ class QuaternionRigidBody(DirectModel):
         d = self.rigid
         return not any(d.torque) and not (d.weight and any(d.center_of_mass))
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """The torque-free motion in closed form (``free_rotation``): rows [q, q̇ = ½ q ⊗ ω,
         work terms of y0]; None when a torque acts."""
         if not self.torque_free():

@@ -376,9 +376,12 @@ class Model(ABC):
              for n in names]
         return np.array(q, dtype=np.float64), np.array(v, dtype=np.float64)
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """Closed-form state rows ``[q, v, work_external, work_dissipated, ...]`` at times
-        ``t`` from the state ``y0`` at ``t0``, or None where the model has none (default)."""
+        ``t`` from the state ``y0`` at ``t0``, or None where the model has none (default).
+        ``work_terms=False``: the caller reads the rest of the state only, and a model whose
+        work terms cost more than its motion may leave them NaN."""
         return None
 
     def curves(self) -> tuple[Any, ...]:

@@ -195,7 +195,8 @@ class ChargedParticle(LagrangianModel):
                 self.gyration_rate(), t, r, v)
         return r, v
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """Closed form in every formulation (``cartesian_motion``; static fields: the work
         terms stay as they are). Cylindrical: φ continues φ(t₀) through the angle swept about
         the axis, summed over intervals short enough to be unambiguous (the path over an

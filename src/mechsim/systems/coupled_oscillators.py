@@ -162,7 +162,8 @@ class CoupledOscillators(LagrangianModel):
         rows = self.propagate(0.0, self.initial_y(), t.ravel())
         return rows[:, : self.count].reshape(t.shape + (self.count,))
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray:
         """Superposition of the normal modes, each η_r = u_r·x a free oscillator at ω_r from
         its state at t₀ (ω_r > 0: every mass has its anchor spring κ > 0), all modes at once:
         η_r = η_r(t₀) cos ω_r τ + η̇_r(t₀)/ω_r sin ω_r τ, x = Σ η_r u_r. Nothing drives or

@@ -61,7 +61,8 @@ class Kepler(LagrangianModel):
         rp = a * (1 - e)
         return np.array([rp, 0.0]), np.array([0.0, math.sqrt(GM * (1 + e) / rp)])
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """Exact orbit from any elliptic state (f and g functions, Kepler's equation)."""
         out = kepler_propagate(self.value("gravitational_parameter"), y0[:2], y0[2:4],
                                np.asarray(t) - t0)

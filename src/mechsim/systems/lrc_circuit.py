@@ -80,10 +80,11 @@ class LRCCircuit(LagrangianModel):
             **{"initial.x": self.value("initial.q"),
                "initial_rate.x": self.value("initial_rate.q")})
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """Exact: the analogue's closed form (same state layout [q, I, W_ext, W_d] and the same
         energies under the mapping)."""
-        return self.mechanical_analogue().propagate(t0, y0, t)
+        return self.mechanical_analogue().propagate(t0, y0, t, work_terms)
 
     def time_scale(self) -> float:
         return 2 * math.pi / self.natural_frequency()

@@ -163,7 +163,8 @@ class OscillatorChain(LagrangianModel):
                 2 * self.count * self.value("mass") * self.energy_scale())
         return scales
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray:
         """The superposition of the free normal modes (``normal_mode_rows``)."""
         return normal_mode_rows(chain_modes(self.count, self.walls)[1], self.mode_frequencies(),
                                 y0, np.asarray(t, dtype=float) - t0)

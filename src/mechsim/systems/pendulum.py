@@ -110,7 +110,8 @@ class Pendulum(LagrangianModel):
         g = self.value("gravity")
         return 2 * math.pi * math.sqrt(self.value("length") / g) if g > 0 else 1.0
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """The reduced and small-angle forms' motion in closed form (see the module docstring);
         the rest of the state (work terms: none act) carried unchanged. None for the multiplier
         forms."""

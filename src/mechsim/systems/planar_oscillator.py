@@ -109,7 +109,8 @@ class PlanarOscillator(LagrangianModel):
         """ω₀ = √(k/m)."""
         return math.sqrt(self.value("spring_constant") / self.value("mass"))
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """Cartesian form: each axis a free oscillator from the state at t₀ (no work terms)."""
         if self.formulation != "cartesian":
             return None

@@ -158,7 +158,8 @@ class SmallOscillations(LagrangianModel):
         """a_r as columns, M-orthonormal (aᵀMa = I)."""
         return self._eig()[1]
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """Exact: η_r = a_rᵀM q evolves as a free oscillator at ω_r; q = Σ a_r η_r."""
         n = self.dimension
         M = self.matrices()[0]

@@ -517,11 +517,12 @@ class _QuaternionTop(SymmetricTop, QuaternionRigidBody):
                       dphi * math.cos(th) + dpsi])
         return q, w
 
-    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
+                  work_terms: bool = True) -> np.ndarray | None:
         """The motion in closed form: torque-free (gravity 0) as any rigid body, else
         Lagrange's top (``lagrange_motion``); None where the top comes near the vertical."""
         if self.torque_free():
-            return super().propagate(t0, y0, t)
+            return super().propagate(t0, y0, t, work_terms)
         t = np.ascontiguousarray(t, dtype=float)
         y0 = np.ascontiguousarray(y0, dtype=float)
         I1, I3, mgr = self._consts()
