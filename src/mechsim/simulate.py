@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mechsim.errors import ParameterError
-from mechsim.integrators import METHODS, Request, Stepper, loops, make_stepper
+from mechsim.integrators import METHODS, Stepper, loops, make_stepper
 from mechsim.integrators.runs import Plan, plan_run
 from mechsim.integrators.state import Status
 from mechsim.params import PUBLISH_RATE, TOLERANCE, shown
@@ -325,9 +325,8 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
                                                     output_dt, publish_rate)
     t = output_times(t_end, output_dt)
     start = time.perf_counter()
-    plan = plan_run(model, method, tolerance,
-                    Request(step=step, horizon=t_end, closed_form=closed_form,
-                            work_terms=work_terms), outputs)
+    plan = plan_run(model, method, tolerance, outputs, step=step, horizon=t_end,
+                    closed_form=closed_form, work_terms=work_terms)
     if plan is not None:
         done = _run_planned(model, plan, tolerance, t, outputs, work_terms, start)
         if done is not None:

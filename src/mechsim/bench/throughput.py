@@ -102,11 +102,10 @@ def _compiled_loop(model: Any, dt: float) -> tuple[Callable[[], Any], Callable[[
     """The one compiled call of ``simulate(model, dt, dt, tolerance=TOLERANCE,
     method="dop853")`` with its arguments made once: through the dispatcher, and through the
     entry point of the overload it picks (what is left of a call: unboxing the arguments)."""
-    from mechsim.integrators.base import Request
     from mechsim.integrators.runs import RunPlan, plan_run
     from mechsim.simulate import OUTPUTS, OutputShape, output_buffers, output_times
 
-    plan = plan_run(model, "dop853", TOLERANCE, Request(horizon=dt), OUTPUTS)
+    plan = plan_run(model, "dop853", TOLERANCE, OUTPUTS, horizon=dt)
     assert isinstance(plan, RunPlan) and not plan.radau
     t = output_times(dt, dt)
     y, p = model.initial_y(), model.parameter_vector()

@@ -109,21 +109,31 @@ def _finite_columns(rows: np.ndarray, n: int) -> bool:
     return True
 
 
-def plan_run(model: Model, method: str, tolerance: float, request: Request,
-             which: tuple[str, ...]) -> Plan | None:
+def plan_run(model: Model, method: str, tolerance: float, which: tuple[str, ...], *,
+             step: float | None = None, horizon: float | None = None,
+             closed_form: bool = False, work_terms: bool = True) -> Plan | None:
     """The plan of a run of ``model`` from its initial state at t = 0 as ``make_stepper(model,
-    method, tolerance, ...)`` would make it (``method`` already checked against the model),
-    with the outputs ``which``; None where the stepper must run it (events, the other
-    methods). Kept per model and inputs (``_PLANS``): a model's parameters never change."""
-    key = (method, tolerance, request, which)
+    method, tolerance, ...)`` would make it with the options of ``base.Request`` given here
+    (``method`` already checked against the model), with the outputs ``which``; None where
+    the stepper must run it (events, the other methods). Kept per model and inputs
+    (``_PLANS``, at most ``PLANS_PER_MODEL`` a model): a model's parameters never change."""
+    key = (method, tolerance, which, step, horizon, closed_form, work_terms)
     plans = _PLANS.get(model)
-    if plans is not None and key in plans:
+    if plans is None:
+        plans = _PLANS[model] = {}
+    elif key in plans:
         return plans[key]
-    plan = _make_plan(model, method, tolerance, request, which)
-    _PLANS.setdefault(model, {})[key] = plan
+    plan = _make_plan(model, method, tolerance,
+                      Request(step=step, horizon=horizon, closed_form=closed_form,
+                              work_terms=work_terms), which)
+    if len(plans) >= PLANS_PER_MODEL:  # a sweep over horizons or tolerances
+        plans.clear()
+    plans[key] = plan
     return plan
 
 
+#: Plans kept per model.
+PLANS_PER_MODEL = 64
 _PLANS: weakref.WeakKeyDictionary[Model, dict[tuple[Any, ...], Plan | None]] = (
     weakref.WeakKeyDictionary())
 

@@ -17,6 +17,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
@@ -498,9 +499,10 @@ class Model(ABC):
         parameters in the order of ``parameter_spec``, nothing else)."""
         return ParameterLayout(tuple(p.name for p in self.parameter_spec() if p.is_numeric))
 
-    @property
+    @cached_property
     def layout(self) -> StateLayout:
-        """Where coordinates, rates, work terms and modes sit in the state vector."""
+        """Where coordinates, rates, work terms and modes sit in the state vector (made once:
+        a model's coordinates and modes never change)."""
         return StateLayout(len(self.coordinates), len(self.modes))
 
     def initial_y(self) -> np.ndarray:

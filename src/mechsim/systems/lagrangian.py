@@ -96,7 +96,7 @@ class LagrangianModel(Model):
         chosen = self.chosen_formulation
         return self.formulations[0] if chosen == HAMILTONIAN else chosen
 
-    @property
+    @cached_property
     def hamiltonian(self) -> bool:
         """Whether the state holds the canonical momenta (formulation ``hamiltonian``)."""
         return self.chosen_formulation == HAMILTONIAN
