@@ -77,6 +77,19 @@ def test_a_closed_form_without_work_terms_has_the_same_motion(system: str) -> No
     assert np.isnan(bare.work_external).all() and np.isnan(bare.work_dissipated).all()
 
 
+def test_autos_ladder_keeps_the_cost_monotone_where_the_probe_judges_a_decade_harder() -> None:
+    """On the double pendulum from θ = (2, 2.5) over 5 s, the probe judges DOP853 at 1e-3 to
+    miss its tolerance but DOP853 at 1e-4 to meet it: ``auto`` at 1e-3 takes DOP853 at the
+    tighter tolerance rather than radau15 at its finest, so no looser tolerance costs more."""
+    model = mechsim.load_system("double_pendulum")  # (θ₁, θ₂) = (2, 2.5) from rest
+    costs = []
+    for tol in (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3):
+        run = simulate(model, 5.0, 0.025, tolerance=tol, method="auto", outputs=())
+        costs.append((tol, run.method, run.n_evaluations))
+    assert all(b[2] <= a[2] for a, b in zip(costs, costs[1:], strict=False)), costs
+    assert all(method == "dop853" for _, method, _ in costs), costs
+
+
 def test_bad_settings_are_refused_as_before() -> None:
     model = mechsim.load_system("pendulum")
     with pytest.raises(mechsim.ParameterError, match="^tolerance"):

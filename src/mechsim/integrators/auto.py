@@ -10,8 +10,12 @@ fastest first, and passes what it decides to the stepper's constructor:
   beyond ``LONG_HORIZON`` time scales (DOP853's error, growing with every step, outruns the
   tolerance while radau15 stays at round-off);
 - else ``dop853``, unless a probe shows its error outgrowing the tolerance over the horizon
-  (chaotic motion amplifying every error): then ``radau15`` with the finest ε of its range
-  (``dop853`` at ``FINEST_TOLERANCE`` for a state of momenta).
+  (chaotic motion amplifying every error): then ``dop853`` at the loosest of the tighter
+  tolerances τ/10, τ/100, ... (down to ``RADAU_TOLERANCE``) that the probe shows meeting its
+  own tolerance, hence τ; where none does, ``radau15`` with the finest ε of its range
+  (``dop853`` at ``FINEST_TOLERANCE`` for a state of momenta). A looser tolerance so never
+  gets a costlier choice than a tighter one of the same ladder (no cliff where the probe
+  judges one tolerance harder than the next tighter one).
 
 The fixed-step symplectic methods are for whoever asks for their energy behaviour by name.
 """
@@ -40,6 +44,8 @@ class Auto:
     RADAU_TOLERANCE: ClassVar[float] = 1e-10
     #: radau15 for horizons longer than this many time scales.
     LONG_HORIZON: ClassVar[float] = 100.0
+    #: The ratio of one tolerance of DOP853's ladder to the one before (a decade).
+    LADDER_STEP: ClassVar[float] = 0.1
     #: DOP853's tolerance where the probe sees errors amplified and radau15 does not apply.
     FINEST_TOLERANCE: ClassVar[float] = 1e-14
 
@@ -64,15 +70,18 @@ class Auto:
         """The method, the tolerance its stepper is made with and its options: what
         ``create`` makes."""
         chosen = cls.choose(model, request.closed_form, tolerance, request.horizon)
-        if (chosen is DOP853 and not model.structure.dissipative
-                and not _dop853_meets(model, y0, t0, tolerance, request.horizon,
-                                      not request.given_state)):
-            # Errors amplified by the motion: radau15 at its finest (round-off) setting; for
-            # a state of momenta, which radau15 does not take, DOP853 at the finest tolerance.
-            if not model.structure.second_order:
-                return DOP853, cls.FINEST_TOLERANCE, {}
-            return Radau15, tolerance, {"eps": Radau15.EPS_RANGE[0]}
-        return chosen, tolerance, chosen.options(request)
+        if chosen is not DOP853 or model.structure.dissipative:
+            return chosen, tolerance, chosen.options(request)
+        local = tolerance
+        while local >= cls.RADAU_TOLERANCE:
+            if _dop853_meets(model, y0, t0, local, request.horizon, not request.given_state):
+                return DOP853, local, DOP853.options(request)
+            local *= cls.LADDER_STEP
+        # Errors amplified by the motion: radau15 at its finest (round-off) setting; for a
+        # state of momenta, which radau15 does not take, DOP853 at the finest tolerance.
+        if not model.structure.second_order:
+            return DOP853, cls.FINEST_TOLERANCE, {}
+        return Radau15, tolerance, {"eps": Radau15.EPS_RANGE[0]}
 
     @classmethod
     def create(cls, model: Model, y0: np.ndarray, t0: float, tolerance: float,
