@@ -151,7 +151,7 @@ def _radau15_steps(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e,
             _zero(cost)
             converged, iterations, rho = _radau_iterate(
                 ks, t0, y, comp, F0, b, g, dt, p, w_floor,
-                _inside_tolerance(dense_inside, t_out[k] - t0, dt), cost, inc, dy, dg)
+                _inside_tolerance(dense_inside, t_out[k] - t0, dt), True, cost, inc, dy, dg)
             status, again, dt, dt_new = _radau_control(s_, b, g, e, b_start, dy, cost, converged,
                                                       a_floor, eps, dt, dt_first, n)
         if status != Status.OK:

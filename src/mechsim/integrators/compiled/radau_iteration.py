@@ -32,11 +32,12 @@ _RADAU_MAX_ITERATIONS = 30
 _RADAU_CONTRACTION = 0.4
 _RADAU_RHO_FLOOR = 1e-10
 _RADAU_SLOW = 6
-# The iteration is settled when what it still owes to the state at the end of the step is
-# below this fraction of the state's scale: a 64th of the unit round-off. What is left is of
-# one sign along an orbit, so it adds up like N, not like the √N of round-off: owing a whole
-# unit round-off a step shows in the energy error of long runs, where a 64th keeps it at the
-# level of the fully converged iteration (IAS15's test alone), for fewer evaluations.
+# A side step's iteration (an output or event state inside a step, which the run does not
+# carry on from) is settled when what it still owes to the state at its end is below this
+# fraction of the state's scale: a 64th of the unit round-off. A step the run carries on from
+# is not settled on such an estimate (see ``_radau_iterate``): what a cut-short iteration
+# leaves is of one sign along an orbit (the prediction's error, contracted), so it adds up
+# like N, not like the √N of round-off, however small the bound.
 _RADAU_ROUND_OFF = 2.0**-59
 # Once the iteration stagnates, a change within this fraction of the state's scale settles
 # it (a few units of round-off): a work term whose rate is round-off of cancelling terms
@@ -61,17 +62,36 @@ def _settled(change, last, theta_b6, bound, noise):
     return theta < 0.5 and theta / (1.0 - theta) * change <= bound
 
 
+@njit(inline="always")
+def _end_settled(carried, end, last_end, theta_b6, noise):
+    """Whether the iteration is settled at the step's end: where the run carries on from it,
+    only once an iteration has not moved it at all; otherwise on ``_settled``'s estimate."""
+    if carried:
+        return end == 0.0
+    return _settled(end, last_end, theta_b6, _RADAU_ROUND_OFF, noise)
+
+
 @njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, ys, dy, dg):
+def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, carried, cost, ys,
+                   dy, dg):
     """Predictor–corrector iteration of the step of length dt from (t0, y): the expansion
     ``b`` (with its divided differences ``g``) is corrected in place until it is settled.
     Returns (converged, iterations, contraction ρ of b₆ measured above round-off); ``dy`` ends
     as f at the last node; ``ys`` and ``dg`` (7, N_Q + 2) are scratch; ``cost`` counts
     evaluations and iterations.
 
-    Settled (``_settled``, from the second iteration on, the contraction θ measured on the
-    last two changes and on b₆): what the iteration still owes to the state at the step's
-    end, which the run carries on from, is below ``_RADAU_ROUND_OFF`` of the state's scale (the
+    ``carried``: the run carries on from the step's end (a step of the run, not a side
+    step). Its iteration goes on until the change of b₆ is at round-off (IAS15's test) or
+    no longer falls (converged only if that change is below 1e-13, as before: a step
+    stagnating above it is redone shorter), or until an iteration changes nothing at the
+    end; the estimates below do not end it. Stopping on an estimate of what is still owed,
+    however small, leaves a remainder of one sign along an orbit, and the energy error of
+    long runs then drifts like N instead of the √N of round-off (Brouwer's law: ``mechsim
+    bench --brouwer``); so does accepting a stagnating iteration as noise.
+
+    Settled otherwise (side steps; ``_settled``, from the second iteration on, the contraction
+    θ measured on the last two changes and on b₆): what the iteration still owes to the state
+    at the step's end is below ``_RADAU_ROUND_OFF`` of the state's scale (the
     largest |q| and |q̇|, or their changes over the step where those are larger; each work
     term's size, at least ``w_floor``, the system's energy scale: their rates may be
     round-off of cancelling terms); and what it owes anywhere inside the step (bounded on the
@@ -111,7 +131,7 @@ def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, cost, 
         end, inside = _radau_owed(y, F0, dg, dt, n, scale_q, scale_v, w_floor, inside_wanted)
         theta_b6 = pc / previous if previous > 0.0 else 1.0
         noise = it >= 2 and pc >= previous  # stagnating: the changes are noise
-        settled = (it >= 1 and _settled(end, last_end, theta_b6, _RADAU_ROUND_OFF, noise)
+        settled = (it >= 1 and _end_settled(carried, end, last_end, theta_b6, noise)
                    and _settled(inside, last_inside, theta_b6, inside_tol, noise))
         last_end = end
         last_inside = inside
@@ -213,7 +233,7 @@ def _radau_side_step(ks, t0, y0, comp0, F0, b, dt, frac, p, w_floor, cost, out):
     inc = np.empty(y0.size)
     dy = np.empty(y0.size)
     converged, _, _ = _radau_iterate(ks, t0, y0, comp0, F0, bs, gs, frac * dt, p, w_floor,
-                                     math.inf, cost, inc, dy, np.empty((7, m)))
+                                     math.inf, False, cost, inc, dy, np.empty((7, m)))
     _radau_increments(n, y0, F0, bs, frac * dt, inc)
     c = comp0.copy()
     out[:] = y0
