@@ -181,6 +181,61 @@ def test_reset_pause_and_parameters_answered_during_a_fast_run(ros_context: Any)
     assert not runner.is_alive() and result["run"].interrupted
 
 
+def test_every_node_of_a_scene_serves_its_parameters(ros_context: Any) -> None:
+    """A scene of more nodes than get their parameter services per chunk: every node comes to
+    serve all six parameter services (made once the samples flow), and answers with its own
+    values."""
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from mechsim.ros.launch import PARAMETER_SERVICES_PER_CHUNK, run_scene
+    from mechsim.scene import parse_scene
+
+    n = 2 * PARAMETER_SERVICES_PER_CHUNK + 3
+    scene = parse_scene({"name": "many", "pacing": "fast", "publish_rate": 100.0,
+                         "systems": [{"system": "pendulum", "name": f"m{i}",
+                                      "parameters": {"length": 1.0 + i / 8}}
+                                     for i in range(n)]})
+    stop = threading.Event()
+    result: dict[str, Any] = {}
+
+    def progress(t: float, duration: float) -> None:
+        if stop.is_set():
+            raise KeyboardInterrupt  # the run's own stop path
+
+    def body() -> None:
+        result["run"] = run_scene(scene, fast=True, duration=1e7, context=ros_context,
+                                  progress=progress, graph_wait=0)
+
+    runner = threading.Thread(target=body, daemon=True)
+    runner.start()
+    probe = Node("many_probe", context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(probe)
+    services = ("describe_parameters", "get_parameter_types", "get_parameters",
+                "list_parameters", "set_parameters", "set_parameters_atomically")
+    try:
+        def served() -> bool:
+            assert runner.is_alive(), "the run ended"
+            names = {s for s, _ in probe.get_service_names_and_types()}
+            return all(f"/m{i}/simulator/{s}" in names for i in range(n) for s in services)
+
+        assert wait_until(ex, served, DEADLINE), "parameter services missing"
+        for i in (0, n - 1):
+            client = probe.create_client(GetParameters, f"/m{i}/simulator/get_parameters")
+            assert wait_until(ex, client.service_is_ready, DEADLINE)
+            fut = client.call_async(GetParameters.Request(names=["length"]))
+            assert wait_until(ex, fut.done, DEADLINE), f"/m{i}: no answer"
+            assert fut.result().values[0].double_value == 1.0 + i / 8
+    finally:
+        stop.set()
+        runner.join(DEADLINE)
+        ex.shutdown()
+        probe.destroy_node()
+    assert not runner.is_alive() and result["run"].interrupted
+
+
 def test_chunk_feed_tracks_drift_and_epochs(ros_context: Any) -> None:
     """A chunk of energy samples whose stamps go back in the middle (a reset): the law
     re-bases there; drifts are |E - E0| / scale of the new epoch; a non-finite sample counts

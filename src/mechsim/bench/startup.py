@@ -5,7 +5,8 @@
    their parameters, services, publishers and subscriptions made meanwhile, the models), warm
    kernels; for the largest N the design variants beside it, each started ``REPEAT`` times in
    turn and the median kept: the window elapsing before the first node is made, no graph
-   check, and the nodes without rclpy's type-description service; and where the time goes (a
+   check, each node's parameter services made with it (before the first sample), and the
+   nodes without rclpy's type-description service; and where the time goes (a
    profile of the start: the seconds inside rclpy's calls that make endpoints and nodes).
 2. The same endpoints made by bare rclpy, to tell the design's share from the middleware's:
    N nodes as a simulator node makes them (its services, the parameter and type-description
@@ -43,9 +44,12 @@ PROCESSES_MODE = 25
 #: Starts of each design variant of the largest scene (the median is reported).
 REPEAT = 3
 #: The design variants of the largest scene (name -> what differs from ``mechsim run``).
-VARIANTS = {"overlapped": "as `mechsim run` starts it: the nodes made during the window",
+VARIANTS = {"overlapped": "as `mechsim run` starts it: the nodes made during the window, "
+                          "their parameter services once the samples flow",
             "window_first": "the window elapsing before the first node is made",
             "no_graph_check": "no graph check",
+            "parameter_services_first": "each node's parameter services made with it, before "
+                                        "the first sample (not once the samples flow)",
             "no_type_description": "the nodes without rclpy's type-description service"}
 #: rclpy's calls whose time the profile reports (function name -> label).
 PROFILED = {"create_service": "create_service", "create_publisher": "create_publisher",
@@ -75,6 +79,8 @@ def scene_startup(n: int, graph_wait: float | None = None, profile: bool = False
         graph_wait = 0
     elif variant == "window_first":
         _SceneLoop.overlap_window = False
+    elif variant == "parameter_services_first":
+        _SceneLoop.parameter_services_later = False
     elif variant == "no_type_description":
         use_ros_arguments(["--ros-args", "-p", "start_type_description_service:=false"])
     if prof:
@@ -83,6 +89,7 @@ def scene_startup(n: int, graph_wait: float | None = None, profile: bool = False
         run = run_scene(pendulums(n), fast=True, duration=0.02, graph_wait=graph_wait)
     finally:
         _SceneLoop.overlap_window = True
+        _SceneLoop.parameter_services_later = True
         use_ros_arguments(given)
     row: dict[str, Any] = {"instances": n, "startup_s": run.startup_time,
                            "graph_check": graph_wait != 0, "variant": variant}

@@ -33,6 +33,8 @@ if TYPE_CHECKING:
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go;
 #: ``pacing.BLOCK`` at most). A service or parameter request waits one chunk at most.
 FAST_CHUNK = 1000
+#: Nodes whose parameter services a scene makes per chunk once its samples flow.
+PARAMETER_SERVICES_PER_CHUNK = 10
 #: Longest wall wait [s] of a paced scene between two looks at its nodes (all paused: how
 #: soon a resume is seen; otherwise the next sample due wakes it earlier).
 _IDLE_WAIT = 0.1
@@ -156,6 +158,10 @@ class _SceneLoop:
     #: The graph check's discovery window runs while the nodes are made (False: the window
     #: elapses before the first node is made; ``mechsim bench --streaming`` compares both).
     overlap_window = True
+    #: The nodes' parameter services (``ros2 param``) made once the samples flow, a few nodes
+    #: a chunk (False: each node makes them as it is made; ``mechsim bench --streaming``
+    #: compares both).
+    parameter_services_later = True
 
     def __init__(self, scene: Scene, context: Any, sinks: list[Any] | None,
                  diagnostics_period: float, lossless: bool, *, fast: bool,
@@ -179,6 +185,7 @@ class _SceneLoop:
         self.started = time.monotonic()
         self.startup = 0.0
         self.diag_cost = 0.0
+        self._unserved = 0  # nodes before this one serve their parameters
 
     def start(self, graph_wait: float, joined_at: float | None,
               before_first_message: Callable[[Any], None] | None) -> None:
@@ -205,7 +212,7 @@ class _SceneLoop:
                     stepped=True, publish_clock=(i == 0),
                     sinks=[*self.sinks, self.feed], end_time=self.duration,
                     lossless=self.lossless, before_first_message=before_first_message,
-                    deferred=True))
+                    deferred=True, parameter_services=not self.parameter_services_later))
             check_given(self.nodes, self.diag)
             if graph is not None:
                 graph.check(names, True, graph_wait, own=self.nodes)
@@ -250,11 +257,20 @@ class _SceneLoop:
                         self._advance_due(due)
                 if all(n.failed for n in nodes):
                     break  # every system stopped with an error: nothing left to run
+                self._serve_parameters()
                 serving.let_in()  # a service or parameter request waits one chunk at most
                 next_diag = self._report(next_diag)
                 if progress is not None and self.duration is not None:
                     progress(min(self.t, self.duration), self.duration)
             self._hand_over()
+
+    def _serve_parameters(self) -> None:
+        """The parameter services of the next ``PARAMETER_SERVICES_PER_CHUNK`` nodes made
+        without them (none left after the first chunks of a scene)."""
+        end = min(self._unserved + PARAMETER_SERVICES_PER_CHUNK, len(self.nodes))
+        for n in self.nodes[self._unserved:end]:
+            n.serve_parameters()
+        self._unserved = end
 
     def _done(self) -> bool:
         """The duration reached: in simulated time of the scene (as fast as possible), by every

@@ -53,6 +53,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter as RosParameter
+from rclpy.parameter_service import ParameterService
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
@@ -121,7 +122,8 @@ class SimulatorNode(Node):
                  prepare_timeout: float = PREPARE_TIMEOUT,
                  before_first_message: Callable[[SimulatorNode], None] | None = None,
                  lossless: bool = False, stepped: bool | None = None,
-                 node_name: str = NODE_NAME, deferred: bool = False) -> None:
+                 node_name: str = NODE_NAME, deferred: bool = False,
+                 parameter_services: bool = True) -> None:
         """``stepped`` (default: ``real_time_factor`` 0): the caller steps the node
         (``advance_to``), which then never paces itself; its ``real_time_factor`` (the
         caller's pace, 0: as fast as possible) is read-only. ``end_time``: the node never
@@ -131,6 +133,11 @@ class SimulatorNode(Node):
         ``lossless``: every reliable subscriber receives every sample (``Outlet``).
         ``deferred``: the node is made (its parameters, services and endpoints) but publishes
         nothing until :meth:`begin` (a start whose graph check runs meanwhile).
+        ``parameter_services`` False: the node's parameters are declared (overrides applied)
+        but the services that serve them to other processes (``ros2 param``) are made later,
+        by :meth:`serve_parameters` (a scene of many nodes makes them once its samples flow:
+        they are most of a node's endpoints, and their cost grows with the endpoints a
+        process already has).
         The values given to the node from outside (``--ros-args``, a params file, a launch
         file) take precedence over the arguments (``simulator_parameters``); its namespace,
         remapped or not, is the instance's name."""
@@ -142,7 +149,9 @@ class SimulatorNode(Node):
                                "constraint_limit": constraint_limit,
                                **instance.settings}).checked()
         instance_name("instance", instance.name)
-        super().__init__(node_name, namespace=instance.name, context=context)
+        super().__init__(node_name, namespace=instance.name, context=context,
+                         start_parameter_services=parameter_services)
+        self._parameter_services: Any = True if parameter_services else None
         try:
             start = start_values(self, with_changes(instance, name=self._instance_name()),
                                  settings, stepped=stepped, time_offset=time_offset,
@@ -186,6 +195,12 @@ class SimulatorNode(Node):
             self._before_first_message(self)
         self.run.start()
         self._start_realtime()
+
+    def serve_parameters(self) -> None:
+        """Make the services that serve the node's parameters (``ros2 param``), if the node
+        was made without them."""
+        if self._parameter_services is None:
+            self._parameter_services = ParameterService(self)
 
     def _instance_name(self) -> str:
         """The instance name: this node's namespace (as remapped, if it was), one level."""
