@@ -233,7 +233,11 @@ def test_every_node_of_a_scene_serves_its_parameters(ros_context: Any) -> None:
         runner.join(DEADLINE)
         ex.shutdown()
         probe.destroy_node()
-    assert not runner.is_alive() and result["run"].interrupted
+    run = result["run"]
+    assert not runner.is_alive() and run.interrupted
+    # (a fast scene makes every node's after its first chunk, and says when)
+    assert run.parameters_served_time is not None
+    assert run.parameters_served_time >= run.startup_time
 
 
 def test_chunk_feed_tracks_drift_and_epochs(ros_context: Any) -> None:

@@ -92,6 +92,7 @@ def scene_startup(n: int, graph_wait: float | None = None, profile: bool = False
         _SceneLoop.parameter_services_later = True
         use_ros_arguments(given)
     row: dict[str, Any] = {"instances": n, "startup_s": run.startup_time,
+                           "parameters_served_s": run.parameters_served_time,
                            "graph_check": graph_wait != 0, "variant": variant}
     if prof:
         prof.disable()
@@ -237,11 +238,16 @@ def variants(n: int, repeat: int = REPEAT) -> list[dict[str, Any]]:
     """Each of ``VARIANTS`` started ``repeat`` times in turn (a loaded machine's drift shared
     among them): the median start-up of each, with every start's seconds."""
     starts: dict[str, list[float]] = {v: [] for v in VARIANTS}
+    served: dict[str, list[float]] = {v: [] for v in VARIANTS}
     for _ in range(repeat):
         for v in VARIANTS:
-            starts[v].append(scene_startup(n, variant=v)["startup_s"])
+            row = scene_startup(n, variant=v)
+            starts[v].append(row["startup_s"])
+            served[v].append(row["parameters_served_s"])
     return [{"instances": n, "variant": v, "graph_check": v != "no_graph_check",
-             "startup_s": statistics.median(s), "starts_s": s} for v, s in starts.items()]
+             "startup_s": statistics.median(s), "starts_s": s,
+             "parameters_served_s": statistics.median(served[v])}
+            for v, s in starts.items()]
 
 
 def startup(sizes: tuple[int, ...] = SIZES) -> dict[str, Any]:

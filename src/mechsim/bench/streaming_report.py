@@ -121,13 +121,18 @@ def _startup_lines(r: dict[str, Any]) -> list[str]:
              "discovery window (one name, one node) runs while the nodes are made; they "
              "publish and serve nothing until it passed. For the largest scene, the design "
              "variants beside it, each the median of starts made in turn (every start's "
-             "seconds in brackets).", "",
-             "| instances | design | graph check | start-up [s] |", "|---|---|---|---|"]
+             "seconds in brackets). A scene's nodes make the services that serve their "
+             "parameters (`ros2 param`) once the first samples are out: the last column is "
+             "when every node serves them.", "",
+             "| instances | design | graph check | start-up [s] | every node serving its "
+             "parameters [s] |", "|---|---|---|---|---|"]
     for x in st["one_process"]:
         starts = (" (" + ", ".join(f"{s:.2f}" for s in x["starts_s"]) + ")"
                   if "starts_s" in x else "")
+        served = x.get("parameters_served_s")
         lines.append(f"| {x['instances']} | {VARIANTS[x['variant']]} | "
-                     f"{'yes' if x['graph_check'] else 'no'} | {x['startup_s']:.2f}{starts} |")
+                     f"{'yes' if x['graph_check'] else 'no'} | {x['startup_s']:.2f}{starts} | "
+                     f"{'—' if served is None else f'{served:.2f}'} |")
     prof = st["profile"]
     lines += ["", f"Where the start-up of {prof['instances']} goes (a profiled start, "
               f"{prof['startup_s']:.2f} s with the profiler; seconds inside each call, all "

@@ -33,7 +33,8 @@ if TYPE_CHECKING:
 #: Samples per chunk in fast mode (each node steps, evaluates and encodes them in one go;
 #: ``pacing.BLOCK`` at most). A service or parameter request waits one chunk at most.
 FAST_CHUNK = 1000
-#: Nodes whose parameter services a scene makes per chunk once its samples flow.
+#: Nodes whose parameter services a paced scene makes per tick once its samples flow (a
+#: scene as fast as possible makes every node's after its first chunk).
 PARAMETER_SERVICES_PER_CHUNK = 10
 #: Longest wall wait [s] of a paced scene between two looks at its nodes (all paused: how
 #: soon a resume is seen; otherwise the next sample due wakes it earlier).
@@ -60,6 +61,9 @@ class SceneRun:
     #: evaluate, encode, publish (including the hand-off to sinks), diagnostics (the
     #: in-process law tracking and reports); a recording adds write (the bag writer thread).
     costs: dict[str, float] = field(default_factory=dict)
+    #: Seconds from the start to every node serving its parameters (``ros2 param``): a
+    #: scene's nodes make those services once the samples flow; None if the run ended first.
+    parameters_served_time: float | None = None
 
 
 class _Stop(BaseException):
@@ -186,6 +190,7 @@ class _SceneLoop:
         self.startup = 0.0
         self.diag_cost = 0.0
         self._unserved = 0  # nodes before this one serve their parameters
+        self.parameters_served: float | None = None  # seconds from the start
 
     def start(self, graph_wait: float, joined_at: float | None,
               before_first_message: Callable[[Any], None] | None) -> None:
@@ -242,6 +247,8 @@ class _SceneLoop:
                 n.run.stagger = i * n.run.lookahead // len(nodes)
         self.startup = time.monotonic() - self.started
         self.started = time.monotonic()
+        if not self.parameter_services_later:
+            self.parameters_served = self.startup  # (every node made them as it was made)
         if not self.fast:
             for n in nodes:  # each run paced on its own: a reset or a pause restarts its own
                 n.run.pacing = Pacing(scene.real_time_factor, n.publish_rate, self.started,
@@ -257,7 +264,9 @@ class _SceneLoop:
                         self._advance_due(due)
                 if all(n.failed for n in nodes):
                     break  # every system stopped with an error: nothing left to run
-                self._serve_parameters()
+                if self.parameters_served is None:
+                    with serving.paused():
+                        self._serve_parameters()
                 serving.let_in()  # a service or parameter request waits one chunk at most
                 next_diag = self._report(next_diag)
                 if progress is not None and self.duration is not None:
@@ -265,12 +274,16 @@ class _SceneLoop:
             self._hand_over()
 
     def _serve_parameters(self) -> None:
-        """The parameter services of the next ``PARAMETER_SERVICES_PER_CHUNK`` nodes made
-        without them (none left after the first chunks of a scene)."""
-        end = min(self._unserved + PARAMETER_SERVICES_PER_CHUNK, len(self.nodes))
+        """The parameter services of the nodes made without them: all of them after a fast
+        scene's first chunk, ``PARAMETER_SERVICES_PER_CHUNK`` nodes a tick of a paced one (a
+        tick's delay stays short); none left after that."""
+        step = len(self.nodes) if self.fast else PARAMETER_SERVICES_PER_CHUNK
+        end = min(self._unserved + step, len(self.nodes))
         for n in self.nodes[self._unserved:end]:
             n.serve_parameters()
         self._unserved = end
+        if end == len(self.nodes):
+            self.parameters_served = self.startup + time.monotonic() - self.started
 
     def _done(self) -> bool:
         """The duration reached: in simulated time of the scene (as fast as possible), by every
@@ -355,6 +368,7 @@ class _SceneLoop:
         reached = max([self.t, *(n.t for n in nodes if not n.failed)])
         run = SceneRun(scene=self.scene, sim_time=reached,
                        wall_time=time.monotonic() - self.started, startup_time=self.startup,
+                       parameters_served_time=self.parameters_served,
                        samples={n.instance.name: n.samples_published for n in nodes},
                        messages={}, summary=diag.summary(),
                        failures={n.instance.name: n.failed for n in nodes if n.failed},

@@ -9,7 +9,9 @@ waits on the lock's condition (``wait``), which a callback's end signals.
 
 from __future__ import annotations
 
+import contextlib
 import threading
+from collections.abc import Iterator
 from typing import Any
 
 from rclpy.executors import (
@@ -45,6 +47,28 @@ class Serving:
         self.executor.wake()
         self.lock.release()
         self._thread.join(timeout=10.0)
+
+    @contextlib.contextmanager
+    def paused(self) -> Iterator[None]:
+        """No callback served inside (the serving thread ended, the runner keeping the lock):
+        entities made meanwhile wake no executor, which would otherwise rebuild its wait set
+        over every entity of the scene for each one (a scene making many nodes' services at
+        once). The thread serves again afterwards, the new entities included."""
+        self._stop = True
+        self.executor.wake()
+        self.lock.release()  # a callback already waiting for it runs to its end first
+        try:
+            self._thread.join(timeout=LET_IN_LIMIT)
+        finally:
+            self.lock.acquire()
+        try:
+            yield
+        finally:
+            self._stop = False
+            if not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._serve, name="mechsim-serving",
+                                                daemon=True)
+                self._thread.start()
 
     def _stopping(self) -> bool:
         return self._stop
