@@ -162,9 +162,9 @@ class _SceneLoop:
     #: The graph check's discovery window runs while the nodes are made (False: the window
     #: elapses before the first node is made; ``mechsim bench --streaming`` compares both).
     overlap_window = True
-    #: The nodes' parameter services (``ros2 param``) made once the samples flow, a few nodes
-    #: a chunk (False: each node makes them as it is made; ``mechsim bench --streaming``
-    #: compares both).
+    #: The nodes' parameter services (``ros2 param``) made once the samples flow
+    #: (``_serve_parameters``; False: each node makes them as it is made; ``mechsim bench
+    #: --streaming`` compares both).
     parameter_services_later = True
 
     def __init__(self, scene: Scene, context: Any, sinks: list[Any] | None,

@@ -34,8 +34,10 @@ class Serving:
         self.error: BaseException | None = None
         self._asking = False  # a callback is ready and waits for the lock
         self._stop = False
-        self._thread = threading.Thread(target=self._serve, name="mechsim-serving",
-                                        daemon=True)
+        self._thread = self._new_thread()
+
+    def _new_thread(self) -> threading.Thread:
+        return threading.Thread(target=self._serve, name="mechsim-serving", daemon=True)
 
     def __enter__(self) -> Serving:
         self._thread.start()
@@ -66,8 +68,7 @@ class Serving:
         finally:
             self._stop = False
             if not self._thread.is_alive():
-                self._thread = threading.Thread(target=self._serve, name="mechsim-serving",
-                                                daemon=True)
+                self._thread = self._new_thread()
                 self._thread.start()
 
     def _stopping(self) -> bool:

@@ -151,7 +151,7 @@ class SimulatorNode(Node):
         instance_name("instance", instance.name)
         super().__init__(node_name, namespace=instance.name, context=context,
                          start_parameter_services=parameter_services)
-        self._parameter_services: Any = True if parameter_services else None
+        self._serves_parameters = parameter_services
         try:
             start = start_values(self, with_changes(instance, name=self._instance_name()),
                                  settings, stepped=stepped, time_offset=time_offset,
@@ -199,8 +199,9 @@ class SimulatorNode(Node):
     def serve_parameters(self) -> None:
         """Make the services that serve the node's parameters (``ros2 param``), if the node
         was made without them."""
-        if self._parameter_services is None:
-            self._parameter_services = ParameterService(self)
+        if not self._serves_parameters:
+            ParameterService(self)  # (its services are the node's: the node keeps them)
+            self._serves_parameters = True
 
     def _instance_name(self) -> str:
         """The instance name: this node's namespace (as remapped, if it was), one level."""
