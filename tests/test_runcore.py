@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import threading
 from typing import Any
 
 import numpy as np
@@ -14,7 +15,9 @@ import pytest
 
 from mechsim.errors import MechsimError
 from mechsim.outputs.sink import Capabilities
+from mechsim.runcore import run as run_module
 from mechsim.runcore.change import Settings
+from mechsim.runcore.pacing import BLOCK
 from mechsim.runcore.run import Block, SystemRun
 from mechsim.scene import Instance
 from mechsim.simulate import OUTPUTS, OutputShape, simulate
@@ -256,3 +259,110 @@ def test_paced_lookahead_releases_only_what_is_due() -> None:
     assert integrated == [19, 1, 1]  # the rest dropped; held: sample by sample
     assert seen.efforts == [(pytest.approx(0.2), [0.3])]
     assert seen.times == pytest.approx([k / RATE for k in range(13)])
+
+
+class _Counted:
+    """``run.NextBlock`` counting the blocks integrated ahead."""
+
+    made = 0
+
+    def __init__(self, *args: Any) -> None:
+        type(self).made += 1
+        self.inner = run_module.NextBlock.__wrapped__(*args)  # type: ignore[attr-defined]
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
+def _blocks_ahead(monkeypatch: pytest.MonkeyPatch) -> type[_Counted]:
+    class Counted(_Counted):
+        made = 0
+
+    Counted.__wrapped__ = run_module.NextBlock  # type: ignore[attr-defined]
+    monkeypatch.setattr(run_module, "NextBlock", Counted)
+    return Counted
+
+
+def _in_block_calls(run: SystemRun, t_end: float) -> None:
+    """``run`` to ``t_end`` one block per call: no block is integrated ahead."""
+    while run.t < t_end - 1e-9 and run.advance_to(min(run.t + BLOCK / RATE, t_end)):
+        pass
+
+
+@pytest.mark.parametrize(("system", "method"), [("double_pendulum", "radau15"),
+                                                ("gas_in_box", "auto"), ("pendulum", "dop853")])
+def test_blocks_integrated_ahead_change_no_sample(system: str, method: str,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Unpaced, a run integrates each block's successor while it releases the block
+    (``NextBlock``): 3.5 blocks in one call give the samples of calls one block each, bit
+    for bit (events and restarts included: the gas's collisions)."""
+    counted = _blocks_ahead(monkeypatch)
+    t_end = 3.5 * BLOCK / RATE
+    whole, seen_whole = _run(system, method=method)
+    assert whole.advance_to(t_end) == 3.5 * BLOCK and counted.made == 3
+    part, seen_part = _run(system, method=method)
+    _in_block_calls(part, t_end)
+    assert counted.made == 3  # (none more: nothing was left to integrate ahead)
+    assert seen_whole.times == seen_part.times
+    assert np.array_equal(np.array(seen_whole.Y), np.array(seen_part.Y))
+    for name in OUTPUTS:
+        assert np.array_equal(np.array(seen_whole.outputs[name]),
+                              np.array(seen_part.outputs[name]))
+
+
+def test_a_stop_drops_the_block_integrated_ahead(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A guard that stops the system in a block whose successor was being integrated: the
+    same samples released and the same reason as without the block ahead, nothing after."""
+    counted = _blocks_ahead(monkeypatch)
+
+    def poisoned(system_run: SystemRun) -> None:
+        advance = system_run.stepper.advance
+
+        def poisoned_advance(t: np.ndarray) -> np.ndarray:
+            Y = advance(t)
+            at = np.flatnonzero(np.isclose(t, 1.5 * BLOCK / RATE))
+            if at.size:
+                Y[at[0], 0] = math.nan  # the state goes bad half way through block 2
+            return Y
+
+        system_run.stepper.advance = poisoned_advance  # type: ignore[method-assign, assignment]
+
+    whole, seen_whole = _run("pendulum", method="dop853")
+    poisoned(whole)
+    whole.advance_to(3 * BLOCK / RATE)
+    assert counted.made == 2  # block 2 while block 1 left; block 3 while block 2 did
+    part, seen_part = _run("pendulum", method="dop853")
+    poisoned(part)
+    _in_block_calls(part, 3 * BLOCK / RATE)
+    assert whole.failed and whole.failed == part.failed
+    assert len(seen_whole.times) == len(seen_part.times) == 1 + 1.5 * BLOCK - 1
+    assert np.array_equal(np.array(seen_whole.Y), np.array(seen_part.Y))
+    assert whole.t == part.t and np.array_equal(whole.y, part.y)
+
+
+def test_an_effort_during_a_block_drops_the_block_integrated_ahead(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A command offered while a block is released (from another thread, as a controller's
+    callback may) applies from the next sample: the block integrated ahead without it is
+    dropped, and the samples are those of a run given the command between two calls."""
+    counted = _blocks_ahead(monkeypatch)
+
+    class Commanding(Collector):
+        def release(self, block: Block, a: int, b: int) -> None:
+            super().release(block, a, b)
+            if len(self.times) == 1 + BLOCK:  # the first block out
+                assert self.run is not None
+                threading.Thread(target=self.run.offer, args=(np.array([0.2]),)).start()
+
+    whole, seen_whole = _run("pendulum", method="dop853", observer=Commanding())
+    whole.commit(whole.plan([("effort_timeout", 1e3)]))
+    whole.advance_to(2 * BLOCK / RATE)
+    assert counted.made == 1
+    part, seen_part = _run("pendulum", method="dop853")
+    part.commit(part.plan([("effort_timeout", 1e3)]))
+    part.advance_to(BLOCK / RATE)
+    assert part.offer(np.array([0.2])) is None
+    part.advance_to(2 * BLOCK / RATE)
+    assert seen_whole.efforts == seen_part.efforts == [(pytest.approx(BLOCK / RATE), [0.2])]
+    assert seen_whole.times == seen_part.times
+    assert np.array_equal(np.array(seen_whole.Y), np.array(seen_part.Y))

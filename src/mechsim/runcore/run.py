@@ -14,6 +14,7 @@ and, for a paced run, samples computed ahead and released as the wall clock make
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,6 +36,45 @@ from mechsim.systems.base import Model
 _COLUMN = {name: i for i, name in enumerate(OUTPUTS)}  # in evaluate_arrays' result
 #: Most samples one ``SystemRun.step`` takes: a request is served in bounded time.
 MAX_STEP = 100_000
+
+
+class NextBlock:
+    """The rows of the next block of an unpaced run, integrated on a thread of its own while
+    the run evaluates, encodes and releases the block before (the compiled loops release the
+    interpreter lock). Taken by :meth:`SystemRun.advance_to` only if nothing changed in
+    between: the same stepper and parameters, the same output times."""
+
+    def __init__(self, stepper: Stepper, p: np.ndarray, times: np.ndarray) -> None:
+        self.stepper, self.p, self.times = stepper, p, times
+        self._rows: np.ndarray | None = None
+        self.error: BaseException | None = None
+        self.seconds = 0.0
+        self._thread = threading.Thread(target=self._integrate, name="mechsim-next-block",
+                                         daemon=True)
+        self._thread.start()
+
+    def _integrate(self) -> None:
+        t0 = time.perf_counter()
+        try:
+            self._rows = self.stepper.advance(self.times)
+        except BaseException as e:  # noqa: BLE001 - raised where the rows are taken
+            self.error = e
+        self.seconds = time.perf_counter() - t0
+
+    def finish(self) -> None:
+        """Wait until the integration has ended (the stepper is the caller's again)."""
+        self._thread.join()
+
+    def rows(self) -> np.ndarray:
+        """The rows, as ``stepper.advance(times)`` returns them (or its error raised)."""
+        self.finish()
+        if self.error is not None:
+            raise self.error
+        assert self._rows is not None
+        return self._rows
+
+    def matches(self, stepper: Stepper, p: np.ndarray, times: np.ndarray) -> bool:
+        return stepper is self.stepper and p is self.p and np.array_equal(times, self.times)
 
 
 @dataclass
@@ -411,32 +451,70 @@ class SystemRun:
         every sample on the way. Returns the number of samples released. A failed or paused
         run releases none. With ``lookahead`` > 0 (a paced run) up to that many samples are
         computed in one go and released as they become due; any change (a parameter set, a
-        reset, an effort command) drops the ones not yet released."""
+        reset, an effort command) drops the ones not yet released. Unpaced, each block's
+        successor is integrated while the block is evaluated, encoded and released
+        (:class:`NextBlock`)."""
         if self.end_time is not None:
             t_target = min(t_target, self.end_time)
         released = 0
-        while not (self.failed or self.paused):
-            due = min(self._samples_to(t_target), BLOCK)
-            if due <= 0:
-                break
-            ahead = self._ahead
-            if ahead is not None and ahead.left:
-                if not self.effort.pending:
-                    released += self._release(ahead, min(due, ahead.left))
-                    continue
-                self._drop_ahead()  # a command applies from the next sample
-            n = 1 if self._effort_step() else self._block_size(due)
-            times = self.t + (1.0 / self.settings.publish_rate) * np.arange(1, n + 1)
-            Y = self._integrate(times, n > due)
-            if Y is None:
-                if self.failed:
+        following: NextBlock | None = None
+        try:
+            while not (self.failed or self.paused):
+                if following is not None:
+                    following.finish()  # (the stepper is this thread's again)
+                due = min(self._samples_to(t_target), BLOCK)
+                if due <= 0:
                     break
-                continue  # computing ahead failed: the due samples only, from the last one
-            block = self._prepare(times, Y)
-            if n > due:
-                self._ahead = block
-            released += self._release(block, min(due, block.left))
+                ahead = self._ahead
+                if ahead is not None and ahead.left:
+                    if not self.effort.pending:
+                        released += self._release(ahead, min(due, ahead.left))
+                        continue
+                    self._drop_ahead()  # a command applies from the next sample
+                n = 1 if self._effort_step() else self._block_size(due)
+                times = self.t + (1.0 / self.settings.publish_rate) * np.arange(1, n + 1)
+                if following is not None and not following.matches(self.stepper, self.p,
+                                                                    times):
+                    self._drop_following(following)
+                    following = None
+                Y = self._integrate(times, n > due, following)
+                following = None
+                if Y is None:
+                    if self.failed:
+                        break
+                    continue  # computing ahead failed: the due samples only, from the last one
+                if n == due:
+                    following = self._integrate_next(times, t_target)
+                block = self._prepare(times, Y)
+                if n > due:
+                    self._ahead = block
+                released += self._release(block, min(due, block.left))
+        finally:
+            if following is not None:
+                self._drop_following(following)
         return released
+
+    def _integrate_next(self, times: np.ndarray, t_target: float) -> NextBlock | None:
+        """Start integrating the block after ``times`` (to ``t_target``), unless the run is
+        paced or an effort may change before it (then each block is integrated as it comes)."""
+        effort = self.effort
+        if self.lookahead or (effort.at is not None and (
+                effort.held_until is not None or effort.pending or effort.responsive)):
+            return None
+        dt = 1.0 / self.settings.publish_rate
+        last = float(times[-1])  # self.t once this block is released
+        n = min(int(math.floor((t_target - last) / dt + 1e-9)), BLOCK)
+        if n <= 0:
+            return None
+        return NextBlock(self.stepper, self.p, last + dt * np.arange(1, n + 1))
+
+    def _drop_following(self, following: NextBlock) -> None:
+        """Something changed after the next block was started (a guard stopped the system, an
+        effort came, ...): its rows are dropped and the stepper, unless the system stopped,
+        goes on from the last released sample."""
+        following.finish()
+        if not self.failed and self.stepper is following.stepper:
+            self._rewind()
 
     def step(self, samples: int) -> int:
         """Advance a paused run by ``samples`` samples of its grid (released as any others:
@@ -474,17 +552,22 @@ class SystemRun:
         ahead = self.lookahead - (self.samples_published + self.stagger) % self.lookahead
         return max(due, min(ahead, last, BLOCK))
 
-    def _integrate(self, times: np.ndarray, ahead: bool) -> np.ndarray | None:
-        """The state rows at ``times``; None if the step failed (then either computing ahead
-        failed and the stepper went back to the last released sample, or the system
-        stopped)."""
+    def _integrate(self, times: np.ndarray, ahead: bool,
+                   following: NextBlock | None = None) -> np.ndarray | None:
+        """The state rows at ``times`` (those ``following`` integrated, if given); None if the
+        step failed (then either computing ahead failed and the stepper went back to the last
+        released sample, or the system stopped)."""
         try:
             t0 = time.perf_counter()
-            Y = self.stepper.advance(times)
+            if following is None:
+                Y = self.stepper.advance(times)
+                seconds = time.perf_counter() - t0
+            else:
+                Y, seconds = following.rows(), following.seconds
             # (the events' record is simulate()'s result; a run that may go on for ever
             # keeps none: memory stays flat however many bounces)
             self.stepper.events.clear()
-            self.costs["integrate"] += time.perf_counter() - t0
+            self.costs["integrate"] += seconds
             return Y
         except Exception as e:  # noqa: BLE001 - e.g. numba errors from extreme values
             raise_if_stop(e)

@@ -47,7 +47,7 @@ def _borrowed(typingctx, a):  # type: ignore[no-untyped-def]
     return a(a), codegen
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _rms_norm(x, scale):
     s = 0.0
     for i in range(x.size):
@@ -65,7 +65,7 @@ def _kahan(x, comp, i, inc):
     x[i] = xn
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _add_compensated(x, inc, comp, lo, hi):
     """x[lo:hi] += inc[lo:hi] with Kahan compensation carried in comp[lo:hi]."""
     for i in range(lo, hi):

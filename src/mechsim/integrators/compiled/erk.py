@@ -72,7 +72,7 @@ def _fsal(pair):
     return 6 if pair == PAIR_DOPRI5 else 12
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def erk_initial_step(ks, t, y, p, f0, rtol, atol, order, n):
     """First step size (Hairer's starting-step algorithm, as in ``dop853.f`` (``order`` 8) and
     ``dopri5.f`` (5)), from the first ``n`` (integrated) components."""
@@ -98,7 +98,7 @@ def erk_initial_step(ks, t, y, p, f0, rtol, atol, order, n):
     return min(100.0 * h0, h1)
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def erk_restart(ks, pair, state, y, p, K, rtol, atol, g_old, keep_dense):
     """Start (or restart after an event) at the state's time and y: project y, f(t, y) into
     K[_fsal(pair)] (the next step's first stage), the first step, the event functions into
@@ -183,7 +183,7 @@ def _take_increment(i, h, sums, y, comp, y_new, inc, err5, err3):
     err3[i] = a3
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
                    g_old, ev_dir, comp, restart):
     """Advance with DOP853 (``_erk_advance``). ``restart``: first start afresh at the state's
@@ -194,7 +194,7 @@ def dop853_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max
                          max_steps, g_old, ev_dir, comp, _erk_work(ks, state, y))
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def dopri5_advance(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
                    g_old, ev_dir, comp, restart):
     """Advance with DOPRI5, as ``dop853_advance``."""
@@ -214,14 +214,14 @@ def _erk_work(ks, state, y):
             np.empty(max(ks.n_ev, 1)))
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _dop853_steps(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
                   g_old, ev_dir, comp, work):
     return _erk_advance(ks, PAIR_DOP853, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,
                         h_max, max_steps, g_old, ev_dir, comp, work)
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _dopri5_steps(ks, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol, h_max, max_steps,
                   g_old, ev_dir, comp, work):
     return _erk_advance(ks, PAIR_DOPRI5, state, y, y_old, K, F, p, t_out, Y_out, rtol, atol,

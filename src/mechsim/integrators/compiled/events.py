@@ -30,7 +30,7 @@ DENSE_RADAU = 1
 DENSE_RADAU_STEP = 2
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _dense_eval(F, y_old, x, out):
     n = y_old.size
     for i in range(n):
@@ -44,7 +44,7 @@ def _dense_eval(F, y_old, x, out):
         out[i] = acc + y_old[i]
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, out):
     """The state at t inside the step that started at (t0 + tc, y0) with length h
     (unprojected; tc, the low-order part of the start time, keeps the offset into the step
@@ -62,7 +62,7 @@ def _state_in_step(ks, mode, t, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, ou
     return _radau_side_step(ks, t0 + tc, y0, comp, F0, F, h, frac, p, w_floor, cost, out)
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _event_at(ks, mode, t, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, ytmp, g, i):
     """Event function ``i`` at time t inside the last step (state projected); NaN where a
     side step did not converge."""
@@ -74,7 +74,7 @@ def _event_at(ks, mode, t, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, ytmp, g
     return g[i]
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _locate_event(ks, mode, F, F0, y0, comp, t0, tc, h, p, w_floor, cost, i, a, fa, b, fb):
     """Root of event ``i`` bracketed by (a, fa) and (b, fb), fb on the far side of the sign
     change or zero: Illinois false position, bisecting when the bracket shrinks slowly.

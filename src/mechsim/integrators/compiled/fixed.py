@@ -36,7 +36,7 @@ def _composition_step(nq, accel, t, y, p, a, kick, drift, q, d, comp):
     _add_compensated(y, d, comp, 0, 2 * nq)
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def composition_advance(ks, state, y, p, n_out, n_sub, h, weights, Y_out, a, comp):
     """Fixed-step symmetric composition of velocity Verlet for separable systems.
     ``state``: a ``FIXED_STATE`` record; ``a`` holds accel_q(q) on entry and on exit;
@@ -62,7 +62,7 @@ def composition_advance(ks, state, y, p, n_out, n_sub, h, weights, Y_out, a, com
                               (kick, drift, np.empty(nq), np.empty(2 * nq)))
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _composition_steps(ks, state, y, p, n_out, n_sub, h, Y_out, a, comp, work):
     """``composition_advance``'s steps, on the arrays borrowed (see ``common``); ``work``:
     the kick and drift coefficients, scratch for q and for the increments [dq, dv]."""
@@ -102,7 +102,7 @@ _GL_A = np.array([[5.0 / 36.0, 2.0 / 9.0 - _S15 / 15.0, 5.0 / 36.0 - _S15 / 30.0
 _GL_B = np.array([5.0 / 18.0, 4.0 / 9.0, 5.0 / 18.0])
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def gauss_advance(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp):
     """Three-stage Gauss–Legendre collocation (order 6, symplectic) on the canonical
     variables z = [q, p, work terms] of a conservative system, fixed step ``h``, stage
@@ -115,7 +115,7 @@ def gauss_advance(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp):
                         (np.empty(n), np.empty(n), np.empty((3, n))))
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _gauss_steps(ks, state, z, p, n_out, n_sub, h, Y_out, K, comp, work):
     """``gauss_advance``'s steps; ``work``: scratch (the stages' z, the increments, the new
     stages)."""

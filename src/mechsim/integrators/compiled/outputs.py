@@ -4,7 +4,7 @@ and frames at each sample, evaluated in one compiled call."""
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def evaluate_outputs(ks, ts, Y, p, want_energy, want_inv, want_obs, want_frames,
                      E_out, I_out, O_out, F_out):
     """Energy terms, invariants, observables and frames at each sample, only those wanted."""

@@ -62,7 +62,7 @@ _RADAU_DENSE_FLOOR = 2.0**-47
 _RADAU_INSIDE_SHARE = 1e-4
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
                     g_old, ev_dir, a_floor, w_floor, dense_tol):
     """Adaptive 15th-order Gauss–Radau predictor–corrector on q̈ = f(t, q, q̇) (the scheme of
@@ -108,7 +108,7 @@ def radau15_advance(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e
                           np.zeros(3, dtype=np.int64))
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau15_steps(ks, state, y, p, t_out, Y_out, eps, max_steps, comp, b, g, e, F0, dy,
                    g_old, ev_dir, a_floor, w_floor, dense_tol, work, cost):
     """``radau15_advance``'s steps; ``work``: scratch (the increments, the prediction a step
@@ -321,7 +321,7 @@ def _radau_end_time(landing, t0, tc0, dt, t_target):
     return t_new, dtc - (t_new - t0)
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_event(ks, s_, mode, t_out, Y_out, k, b8, F0, y, comp, t0, tc0, dt, p, w_floor,
                  cost, t_new, y_new, g_old, g_new, ev_dir):
     """The earliest event in the step just taken (event functions ``g_old`` at its start,
@@ -417,7 +417,7 @@ def _radau_next_step(s_, b, g, e, dt, dt_new, iterations, rho, landing):
     s_.h = dt_new
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_outputs(ks, mode, t_out, Y_out, k, t_end, y_end, inclusive, b, F0, y0, comp0, t0,
                    tc, dt, p, w_floor, cost):
     """Write the outputs from index k on that fall before t_end (and at t_end when

@@ -82,7 +82,7 @@ _RADAU_CV = np.ascontiguousarray(_RADAU_C @ _RADAU_V[:7])
 _RADAU_CX = np.ascontiguousarray(_RADAU_C @ _RADAU_X[:7])
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_state_at(s, n, y0, F0, b, dt, comp, ys):
     """y at t₀ + s·dt from the expansion F(s) = F₀ + Σ_k b_k s^(k+1) (7 rows) of the second
     derivatives of q and the first derivatives of the work terms (compensation of y₀
@@ -100,7 +100,7 @@ def _radau_state_at(s, n, y0, F0, b, dt, comp, ys):
             ys[j] = y0[j] + (comp[j] + s * dt * (y0[n + j] + s * dt * (0.5 * F0[j] + s * ix)))
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_dense_at(s, n, y0, F0, b8, dt, comp, ys):
     """``_radau_state_at`` for the dense output's expansion (8 rows,
     ``_radau_dense_expansion``): its first 7 rows as the step's own, plus the eighth row's

@@ -45,7 +45,7 @@ _RADAU_ROUND_OFF = 2.0**-59
 _RADAU_NOISE = 4.0 * 2.0**-53
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _settled(change, last, theta_b6, bound, noise):
     """Whether a linearly converging iteration whose last two changes were ``last`` and
     ``change`` still owes at most ``bound``: with θ the larger of change / last and
@@ -71,7 +71,7 @@ def _end_settled(carried, end, last_end, theta_b6, noise):
     return _settled(end, last_end, theta_b6, _RADAU_ROUND_OFF, noise)
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_iterate(ks, t0, y, comp, F0, b, g, dt, p, w_floor, inside_tol, carried, cost, ys,
                    dy, dg):
     """Predictor–corrector iteration of the step of length dt from (t0, y): the expansion
@@ -213,7 +213,7 @@ def _radau_owed(y, F0, dg, dt, n, scale_q, scale_v, w_floor, inside_wanted):
     return end, inside
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_side_step(ks, t0, y0, comp0, F0, b, dt, frac, p, w_floor, cost, out):
     """The state at t₀ + frac·dt by a Gauss–Radau step of its own from the start (t0, y0,
     comp0, F0) of the step just taken, with that step's expansion ``b`` restricted to
@@ -242,7 +242,7 @@ def _radau_side_step(ks, t0, y0, comp0, F0, b, dt, frac, p, w_floor, cost, out):
     return converged
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _radau_derivatives(s_, rhs, t, y, inc, pp, dy, n, out):
     """``out`` ← the second derivatives of q and the work rates at (t, y) (one evaluation,
     counted; ``inc`` and ``dy`` are scratch)."""

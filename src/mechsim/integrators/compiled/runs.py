@@ -24,7 +24,7 @@ from mechsim.integrators.compiled.outputs import evaluate_outputs
 from mechsim.integrators.compiled.radau import radau15_advance
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def radau15_restart(ks, state, y, p, dy, b, g, e, comp, g_old, tau, tau2, floor, tolerance):
     """``Radau15._restart`` compiled, operation for operation: project, the floors of the
     acceleration and work scales (returned), f at the state, the first step, a fresh
@@ -57,13 +57,13 @@ def radau15_restart(ks, state, y, p, dy, b, g, e, comp, g_old, tau, tau2, floor,
     return floor * top, w_floor
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _counters(state, status, k):
     s = state[0]
     return status, k, s.n_steps, s.n_evaluations, s.n_rejected, s.error_estimate, s.t
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def erk_run(ks, pair, n_stages, n_integrated, state, y, p, t_out, Y_out, rtol, atol, h_max,
             max_steps, ev_dir, want_e, want_i, want_o, want_f, E, I, O, F):
     """A DOP853 (``pair`` 0) or DOPRI5 (1) run from (state.t, y) to every time of ``t_out``,
@@ -89,7 +89,7 @@ def erk_run(ks, pair, n_stages, n_integrated, state, y, p, t_out, Y_out, rtol, a
     return _counters(state, status, k)
 
 
-@njit(cache=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def radau15_run(ks, state, y, p, t_out, Y_out, eps, max_steps, ev_dir, tau, tau2, floor,
                 tolerance, dense_tol, want_e, want_i, want_o, want_f, E, I, O, F):
     """A radau15 run, as ``Radau15(model, y, t, tolerance, eps=eps).advance(t_out)``, then the

@@ -68,15 +68,16 @@ class RecordBatch(NamedTuple):
 
 
 class _RowLayout(NamedTuple):
-    """The Message records of one sample on a set of topics (channel, payload size): a row's
-    bytes with every field but the stamps and payloads set, a structured dtype over a row
-    naming the stamps (log and publish time, ``t<i>``) and payloads (``d<i>``), and the
-    channels (ascending) with their records' byte offsets in the row."""
+    """The Message records of one sample on a set of topics (channel, payload size), side by
+    side in a row of ``width`` bytes: each record's byte offset in the row (``columns``, in
+    the topics' order) and its first 15 bytes (opcode, length, channel, sequence: the same in
+    every row; the two stamps and the payload follow); the channels ascending, with their
+    records' offsets (``order``: the topics' indexes in that order)."""
 
-    template: np.ndarray
-    row: np.dtype
-    channels: np.ndarray
-    columns: np.ndarray
+    heads: np.ndarray  # (C, 15) uint8
+    columns: np.ndarray  # (C,) offsets in the topics' order
+    width: int
+    order: np.ndarray
 
 
 class Spill:
@@ -204,60 +205,54 @@ class McapFile:
         self._add_to_chunk(c)
         return cid
 
+    def _row_layout(self, topics: list[tuple[int, np.ndarray]]) -> _RowLayout:
+        """The row layout of ``topics`` (one entry per set of topics: a few)."""
+        key = tuple((channel, rows.shape[1]) for channel, rows in topics)
+        lay = self._layouts.get(key)
+        if lay is None:
+            if len(self._layouts) >= 64:
+                self._layouts.clear()
+            heads = np.array([np.frombuffer(struct.pack("<BQHI", _OP_MESSAGE,
+                                                        _HEAD - 9 + size, channel, 0),
+                                            dtype=np.uint8) for channel, size in key])
+            sizes = np.array([_HEAD + size for _, size in key], dtype=np.int64)
+            columns = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+            order = np.argsort([channel for channel, _ in key], kind="stable")
+            lay = self._layouts[key] = _RowLayout(heads, columns, int(sizes.sum()), order)
+        return lay
+
     def layout(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> RecordBatch:
         """The records of N samples stamped ``ns`` (int64, nondecreasing), each with one
         message on every (channel id, (N, size) uint8 payload rows) of ``topics`` (distinct
-        channels), in that order within a sample: a row template (every header field but
-        the stamps) copied to every row, then the stamps and payloads as fields of a
-        structured view (a few numpy operations per topic)."""
-        ns = np.asarray(ns, dtype=np.int64)
-        key = tuple((channel, rows.shape[1]) for channel, rows in topics)
-        if key not in self._layouts:
-            if len(self._layouts) >= 64:  # (one entry per set of topics: a few)
-                self._layouts.clear()
-            self._layouts[key] = self._row_layout(key)
-        lay = self._layouts[key]
-        out = np.empty((ns.shape[0], lay.template.shape[0]), dtype=np.uint8)
-        out[:] = lay.template
-        fields = out.view(lay.row)[:, 0]
-        for i, (_, rows) in enumerate(topics):
-            fields[f"t{i}"] = ns[:, None]
-            if rows.shape[1]:
-                payload = np.ascontiguousarray(rows)
-                fields[f"d{i}"] = payload.view(f"V{payload.shape[1]}")[:, 0]
-        return RecordBatch(ns, out, lay.channels, lay.columns)
-
-    @staticmethod
-    def _row_layout(key: tuple[tuple[int, int], ...]) -> _RowLayout:
-        template = bytearray()
-        names: list[str] = []
-        formats: list[Any] = []
-        offsets: list[int] = []
-        columns: list[int] = []
-        for i, (channel, size) in enumerate(key):
-            columns.append(len(template))
-            names.append(f"t{i}")
-            formats.append(("<u8", (2,)))
-            offsets.append(len(template) + 15)
-            if size:
-                names.append(f"d{i}")
-                formats.append(f"V{size}")
-                offsets.append(len(template) + _HEAD)
-            template += struct.pack("<BQHIQQ", _OP_MESSAGE, _HEAD - 9 + size, channel, 0, 0,
-                                    0) + bytes(size)
-        row = np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                        "itemsize": len(template)})
-        channels = np.array([c for c, _ in key], dtype=np.int64)
-        order = np.argsort(channels, kind="stable")
-        return _RowLayout(np.frombuffer(bytes(template), dtype=np.uint8), row,
-                          channels[order], np.array(columns, dtype=np.int64)[order])
+        channels), in that order within a sample: each record's header, stamps and payload
+        written as byte columns of one (N, row bytes) array (four copies per topic)."""
+        ns = np.ascontiguousarray(ns, dtype="<i8")
+        lay = self._row_layout(topics)
+        out = np.empty((ns.shape[0], lay.width), dtype=np.uint8)
+        stamps = ns.view(np.uint8).reshape(-1, 8)
+        for (_, rows), head, at in zip(topics, lay.heads, lay.columns.tolist(), strict=True):
+            out[:, at:at + 15] = head
+            out[:, at + 15:at + 23] = stamps  # log time
+            out[:, at + 23:at + _HEAD] = stamps  # publish time
+            out[:, at + _HEAD:at + _HEAD + rows.shape[1]] = rows
+        channels = np.array([channel for channel, _ in topics], dtype=np.int64)
+        return RecordBatch(ns, out, channels[lay.order], lay.columns[lay.order])
 
     def add_batch(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> None:
         """N samples stamped ``ns`` (int64, nondecreasing), each with one message on every
-        (channel id, (N, size) uint8 payload rows) of ``topics``."""
-        if len(ns) and topics:
-            batch = self.layout(ns, topics)
-            self.add_rows(batch, 0, len(ns))
+        (channel id, (N, size) uint8 payload rows) of ``topics``. Laid out a chunk's worth at
+        a time: every chunk closes just past ``chunk_size``, and the rows being laid out,
+        checksummed and compressed stay in the processor's cache."""
+        n = len(ns)
+        if not (n and topics):
+            return
+        width = self._row_layout(topics).width
+        start = 0
+        while start < n:
+            end = min(n, start + max(1, (self.chunk_size - self._size) // width + 1))
+            self.add_rows(self.layout(ns[start:end], [(c, r[start:end]) for c, r in topics]),
+                          0, end - start)
+            start = end
 
     def add_rows(self, batch: RecordBatch, start: int, end: int) -> None:
         """Samples ``start`` to ``end`` (exclusive) of ``batch``, appended to the chunk in
