@@ -65,6 +65,39 @@ def recording_rtf(system: str, duration: float) -> dict[str, Any]:
             "split_us": {k: 1e6 * v / samples for k, v in run.costs.items()}}
 
 
+#: Systems (the slowest to record) recorded again with and without each block's successor
+#: integrated while the block is released, in turn, ``VARIANT_REPEATS`` times each.
+VARIANT_SYSTEMS = 3
+VARIANT_REPEATS = 2
+
+
+def recording_variants(systems: list[str], duration: float) -> list[dict[str, Any]]:
+    """``recording_rtf`` of each system as recorded (the next block integrated meanwhile)
+    and with its blocks integrated one after the other (``SystemRun.integrates_ahead``
+    off), made in turn: the median real-time factor of each and every run's."""
+    import statistics
+
+    from mechsim.runcore.run import SystemRun
+
+    rows = []
+    for s in systems:
+        got: dict[bool, list[float]] = {True: [], False: []}
+        for _ in range(VARIANT_REPEATS):
+            for ahead in (True, False):
+                SystemRun.integrates_ahead = ahead
+                try:
+                    got[ahead].append(recording_rtf(s, duration)["rtf"])
+                finally:
+                    SystemRun.integrates_ahead = True
+        row = {"system": s, "ahead": statistics.median(got[True]), "ahead_runs": got[True],
+               "one_after_the_other": statistics.median(got[False]),
+               "one_after_the_other_runs": got[False]}
+        print(f"  {s:22s} RTF {row['ahead']:8.1f} next block integrated meanwhile, "
+              f"{row['one_after_the_other']:8.1f} one after the other", file=sys.stderr)
+        rows.append(row)
+    return rows
+
+
 #: A live subscriber in another process: raw (no deserialisation), reliable, KEEP_ALL, one
 #: subscription per streamed topic given as JSON [[topic, type], ...]; prints "ready", then,
 #: once nothing arrived for 3 s, the count per topic and the time.monotonic() of the last
@@ -425,6 +458,8 @@ def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
         print(f"  {s:22s} RTF {row['rtf']:8.1f}  ({row['us_per_sample']:.1f} µs/sample: "
               f"{_split(row['split_us'])})", file=sys.stderr)
         rows.append(row)
+    variants = recording_variants([r["system"] for r in sorted(rows, key=lambda r: r["rtf"])
+                                   [:VARIANT_SYSTEMS]], duration)
     batches = live_batches(ids, batch_duration, pendulum_batch_duration)
     live = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -442,7 +477,8 @@ def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
     cpu_rec = all_systems_realtime(realtime_duration, record=True)
     starts = startup()
     latency = first_message_latency()
-    result = {"schema": "mechsim-streaming/2", "recording": rows, "batches": batches,
+    result = {"schema": "mechsim-streaming/2", "recording": rows,
+              "recording_variants": variants, "batches": batches,
               "live": live, "realtime_all": cpu, "realtime_all_recording": cpu_rec,
               "startup": starts, "first_message_s": latency, "targets": TARGETS,
               "host": {"cores": os.cpu_count(), "loadavg": os.getloadavg()}}

@@ -100,7 +100,22 @@ def _recording_lines(r: dict[str, Any], duration: float) -> list[str]:
         lines.append(f"| {x['system']} | {x['rtf']:.0f} | {x['us_per_sample']:.1f} | "
                      + " | ".join(f"{split.get(k, 0.0):.1f}" for k in STAGES)
                      + f" | {x['messages']} |")
+    variants = r.get("recording_variants") or []
+    if variants:
+        lines += ["", "The slowest systems recorded again, each block's successor integrated while "
+                  "the block is released (as above) and the blocks integrated one after the "
+                  "other, in turn (median real-time factor; every run's in brackets):", "",
+                  "| system | next block integrated meanwhile | one after the other |",
+                  "|---|---|---|"]
+        for v in variants:
+            lines.append(f"| {v['system']} | {v['ahead']:.0f} ({_runs(v['ahead_runs'])}) | "
+                         f"{v['one_after_the_other']:.0f} "
+                         f"({_runs(v['one_after_the_other_runs'])}) |")
     return lines + [""]
+
+
+def _runs(values: list[float]) -> str:
+    return ", ".join(f"{v:.0f}" for v in values)
 
 
 def _realtime_lines(r: dict[str, Any]) -> list[str]:

@@ -3,12 +3,12 @@ by one loop. Used by ``mechsim run`` and ``mechsim record`` (one process per nod
 ``mechsim.ros.processes``; the graph check before a start: ``mechsim.ros.graph_check``).
 
 The loop steps every node's run to the same simulated time: a chunk of ``FAST_CHUNK`` samples
-per step as fast as possible (several for a scene of few nodes, ``FAST_CHUNKS``), or, paced, the samples the wall clock has made due (each node
-computing ahead and releasing them as they become due, ``mechsim.runcore.pacing``). Services,
-parameter sets and subscriptions are served from a thread of their own between steps
-(``serving``). The diagnostics node is fed in-process (``feed``: lossless) and reports once
-per ``diagnostics_period`` of simulated time. Ctrl-C / SIGTERM stop the run cleanly; every
-published sample reaches the sinks however it ends.
+per step as fast as possible (several for a scene of few nodes, ``FAST_CHUNKS``), or, paced,
+the samples the wall clock has made due (each node computing ahead and releasing them as they
+become due, ``mechsim.runcore.pacing``). Services, parameter sets and subscriptions are served
+from a thread of their own between steps (``serving``). The diagnostics node is fed in-process
+(``feed``: lossless) and reports once per ``diagnostics_period`` of simulated time. Ctrl-C /
+SIGTERM stop the run cleanly; every published sample reaches the sinks however it ends.
 """
 
 from __future__ import annotations

@@ -143,6 +143,10 @@ class SystemRun:
     ``reset`` restarts at t = 0; ``offer`` takes an effort command. ``start()`` releases the
     first sample (t = 0): call it once the observer is ready."""
 
+    #: Unpaced, integrate each block's successor while the block is released (False: one
+    #: after the other, as ``mechsim bench --streaming`` measures beside it).
+    integrates_ahead = True
+
     def __init__(self, model: Model, method: str, settings: Settings, observer: Observer, *,
                  stepped: bool, end_time: float | None = None,
                  prepare_timeout: float = PREPARE_TIMEOUT) -> None:
@@ -496,10 +500,14 @@ class SystemRun:
 
     def _integrate_next(self, times: np.ndarray, t_target: float) -> NextBlock | None:
         """Start integrating the block after ``times`` (to ``t_target``), unless the run is
-        paced or an effort may change before it (then each block is integrated as it comes)."""
+        paced, an effort may change before it, or the model has events (then each block is
+        integrated as it comes). (An event is handled in Python, between two calls of the
+        compiled loop: integrated meanwhile, each handler would wait for the interpreter
+        lock while this thread encodes, up to a switch interval of 5 ms.)"""
         effort = self.effort
-        if self.lookahead or (effort.at is not None and (
-                effort.held_until is not None or effort.pending or effort.responsive)):
+        if not self.integrates_ahead or self.lookahead or self.model.events or (
+                effort.at is not None and (effort.held_until is not None or effort.pending
+                                           or effort.responsive)):
             return None
         dt = 1.0 / self.settings.publish_rate
         last = float(times[-1])  # self.t once this block is released
