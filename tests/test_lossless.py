@@ -20,17 +20,19 @@ import sys
 from mechsim.environment import import_rclpy
 rclpy = import_rclpy()
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from diagnostic_msgs.msg import DiagnosticArray
 from mechsim_msgs.msg import Energy
 from sensor_msgs.msg import JointState
 rclpy.init()
 n = rclpy.create_node("lossless_counter")
 qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
                  reliability=ReliabilityPolicy.RELIABLE)
-got = {"/swing/state": [], "/swing/energy": []}
+got = {"/swing/state": [], "/swing/energy": [], "/diagnostics": []}
 def keep(topic):
     return lambda m: got[topic].append((m.header.stamp.sec, m.header.stamp.nanosec))
 n.create_subscription(JointState, "/swing/state", keep("/swing/state"), qos)
 n.create_subscription(Energy, "/swing/energy", keep("/swing/energy"), qos)
+n.create_subscription(DiagnosticArray, "/diagnostics", keep("/diagnostics"), qos)
 print("ready", flush=True)
 quiet = 0
 while quiet < 50 or sum(map(len, got.values())) == 0:  # 5 s without a message: done
@@ -76,12 +78,18 @@ def test_a_lossless_fast_run_reaches_a_live_subscriber_with_every_sample(
         run = run_scene(scene, fast=True, duration=30.0, context=ros_context, lossless=True,
                         before_first_message=matched)
         assert not run.failures
-        published = {t: run.messages[t] for t in ("/swing/state", "/swing/energy")}
+        published = {t: run.messages[t] for t in ("/swing/state", "/swing/energy",
+                                                  "/diagnostics")}
         assert published["/swing/state"] == 3001  # t = 0, 0.01, ..., 30
+        # A report per simulated second, those of a chunk published at once: more than
+        # the /diagnostics history (depth 10) holds.
+        assert published["/diagnostics"] > 2 * 10
         counts = {}
         for _ in published:
             topic, received, distinct = _line(counter).split()
             counts[topic] = (int(received), int(distinct))
+        # (every sample once; the last report may repeat the stamp of the one before)
+        assert counts.pop("/diagnostics")[0] == published.pop("/diagnostics")
         assert counts == {t: (n, n) for t, n in published.items()}
     finally:
         if counter.poll() is None:

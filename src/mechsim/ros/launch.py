@@ -340,6 +340,7 @@ class _SceneLoop:
         """A diagnostics report per period of simulated time, on the samples up to it.
         Returns when the next one is due."""
         from mechsim.outputs.messages import stamp_ns
+        from mechsim.ros.outlet import DIAGNOSTICS_QOS
 
         t0 = time.perf_counter()
         if self.t >= next_diag - 1e-12:
@@ -349,7 +350,11 @@ class _SceneLoop:
         while self.t >= next_diag - 1e-12:
             stamps.append(stamp_ns(next_diag, offset))
             next_diag += self.period
-        for _ in self.feed.reports(stamps) if stamps else ():
+        depth = DIAGNOSTICS_QOS.depth
+        for i, _ in enumerate(self.feed.reports(stamps) if stamps else ()):
+            if self.lossless and i % depth == 0:
+                # A chunk's reports come at once: no more than the history holds in flight.
+                self.diag.outlet.acknowledged(self.diag.t_diag)
             self.diag.publish_now()
         self.diag_cost += time.perf_counter() - t0
         return next_diag

@@ -318,6 +318,12 @@ class Outlet:
             self._acknowledged(channels)
         self._in_flight = 0
 
+    def acknowledged(self, topic: str) -> None:
+        """Wait until every reliable subscriber of ``topic`` has acknowledged what was
+        published on it (``lossless``: before more single messages than its history holds go
+        out at once), giving up as :meth:`settle` does."""
+        self._acknowledged([self.channels[topic]])
+
     def _acknowledged(self, channels: list[_Channel]) -> None:
         """Wait until every reliable subscriber of ``channels`` has acknowledged what was
         published (``lossless``), giving up on a topic whose reader stopped answering."""
