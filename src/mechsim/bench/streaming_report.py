@@ -102,8 +102,9 @@ def _recording_lines(r: dict[str, Any], duration: float) -> list[str]:
                      + f" | {x['messages']} |")
     variants = r.get("recording_variants") or []
     if variants:
-        lines += ["", "The slowest systems recorded again, each block's successor integrated while "
-                  "the block is released (as above) and the blocks integrated one after the "
+        lines += ["", "The slowest systems without events (a model with events integrates its "
+                  "blocks one after the other) recorded again, each block's successor integrated "
+                  "while the block is released (as above) and the blocks integrated one after the "
                   "other, in turn (median real-time factor; every run's in brackets):", "",
                   "| system | next block integrated meanwhile | one after the other |",
                   "|---|---|---|"]
