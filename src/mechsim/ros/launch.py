@@ -34,8 +34,8 @@ if TYPE_CHECKING:
 #: ``pacing.BLOCK``). A service or parameter request waits one chunk at most.
 FAST_CHUNK = 1000
 #: A scene of fewer nodes than this steps each of them by this many chunks at a time divided
-#: by the number of nodes (the scene's chunk holds no more samples than one of four nodes'),
-#: so a run releases several blocks in one go and integrates each one's successor meanwhile
+#: by the number of nodes (so its chunk holds no more samples than a four-node scene's): a
+#: run releases several blocks in one go and integrates each one's successor meanwhile
 #: (``SystemRun.advance_to``).
 FAST_CHUNKS = 4
 #: Nodes whose parameter services a paced scene makes per tick once its samples flow (a
