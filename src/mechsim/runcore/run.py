@@ -476,7 +476,7 @@ class SystemRun:
                         continue
                     self._drop_ahead()  # a command applies from the next sample
                 n = 1 if self._effort_step() else self._block_size(due)
-                times = self.t + (1.0 / self.settings.publish_rate) * np.arange(1, n + 1)
+                times = self._times_after(self.t, n)
                 if following is not None and not following.matches(self.stepper, self.p,
                                                                     times):
                     self._drop_following(following)
@@ -509,12 +509,11 @@ class SystemRun:
                 effort.at is not None and (effort.held_until is not None or effort.pending
                                            or effort.responsive)):
             return None
-        dt = 1.0 / self.settings.publish_rate
         last = float(times[-1])  # self.t once this block is released
-        n = min(int(math.floor((t_target - last) / dt + 1e-9)), BLOCK)
+        n = min(self._samples_to(t_target, last), BLOCK)
         if n <= 0:
             return None
-        return NextBlock(self.stepper, self.p, last + dt * np.arange(1, n + 1))
+        return NextBlock(self.stepper, self.p, self._times_after(last, n))
 
     def _drop_following(self, following: NextBlock) -> None:
         """Something changed after the next block was started (a guard stopped the system, an
@@ -547,9 +546,14 @@ class SystemRun:
             self.paused = True
         return taken
 
-    def _samples_to(self, t: float) -> int:
-        """Whole sample periods from the current time to ``t``."""
-        return int(math.floor((t - self.t) / (1.0 / self.settings.publish_rate) + 1e-9))
+    def _samples_to(self, t: float, start: float | None = None) -> int:
+        """Whole sample periods from ``start`` (the current time) to ``t``."""
+        start = self.t if start is None else start
+        return int(math.floor((t - start) / (1.0 / self.settings.publish_rate) + 1e-9))
+
+    def _times_after(self, start: float, n: int) -> np.ndarray:
+        """The ``n`` sample times after ``start``."""
+        return start + (1.0 / self.settings.publish_rate) * np.arange(1, n + 1)
 
     def _block_size(self, due: int) -> int:
         """Samples to integrate now: the due ones, or (paced) to the next block boundary

@@ -72,12 +72,13 @@ class _RowLayout(NamedTuple):
     side in a row of ``width`` bytes: each record's byte offset in the row (``columns``, in
     the topics' order) and its first 15 bytes (opcode, length, channel, sequence: the same in
     every row; the two stamps and the payload follow); the channels ascending, with their
-    records' offsets (``order``: the topics' indexes in that order)."""
+    records' offsets in the row (``RecordBatch.channels``, ``RecordBatch.columns``)."""
 
     heads: np.ndarray  # (C, 15) uint8
     columns: np.ndarray  # (C,) offsets in the topics' order
     width: int
-    order: np.ndarray
+    channels: np.ndarray  # (C,) ascending
+    offsets: np.ndarray  # (C,) the offsets in that order
 
 
 class Spill:
@@ -217,17 +218,21 @@ class McapFile:
                                             dtype=np.uint8) for channel, size in key])
             sizes = np.array([_HEAD + size for _, size in key], dtype=np.int64)
             columns = np.concatenate(([0], np.cumsum(sizes)[:-1]))
-            order = np.argsort([channel for channel, _ in key], kind="stable")
-            lay = self._layouts[key] = _RowLayout(heads, columns, int(sizes.sum()), order)
+            channels = np.array([channel for channel, _ in key], dtype=np.int64)
+            order = np.argsort(channels, kind="stable")
+            lay = self._layouts[key] = _RowLayout(heads, columns, int(sizes.sum()),
+                                                  channels[order], columns[order])
         return lay
 
-    def layout(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> RecordBatch:
+    @staticmethod
+    def layout(ns: np.ndarray, topics: list[tuple[int, np.ndarray]],
+               lay: _RowLayout) -> RecordBatch:
         """The records of N samples stamped ``ns`` (int64, nondecreasing), each with one
         message on every (channel id, (N, size) uint8 payload rows) of ``topics`` (distinct
-        channels), in that order within a sample: each record's header, stamps and payload
-        written as byte columns of one (N, row bytes) array (four copies per topic)."""
+        channels; their row layout ``lay``), in that order within a sample: each record's
+        header, stamps and payload written as byte columns of one (N, row bytes) array
+        (four copies per topic)."""
         ns = np.ascontiguousarray(ns, dtype="<i8")
-        lay = self._row_layout(topics)
         out = np.empty((ns.shape[0], lay.width), dtype=np.uint8)
         stamps = ns.view(np.uint8).reshape(-1, 8)
         for (_, rows), head, at in zip(topics, lay.heads, lay.columns.tolist(), strict=True):
@@ -235,8 +240,7 @@ class McapFile:
             out[:, at + 15:at + 23] = stamps  # log time
             out[:, at + 23:at + _HEAD] = stamps  # publish time
             out[:, at + _HEAD:at + _HEAD + rows.shape[1]] = rows
-        channels = np.array([channel for channel, _ in topics], dtype=np.int64)
-        return RecordBatch(ns, out, channels[lay.order], lay.columns[lay.order])
+        return RecordBatch(ns, out, lay.channels, lay.offsets)
 
     def add_batch(self, ns: np.ndarray, topics: list[tuple[int, np.ndarray]]) -> None:
         """N samples stamped ``ns`` (int64, nondecreasing), each with one message on every
@@ -246,11 +250,12 @@ class McapFile:
         n = len(ns)
         if not (n and topics):
             return
-        width = self._row_layout(topics).width
+        lay = self._row_layout(topics)
         start = 0
         while start < n:
-            end = min(n, start + max(1, (self.chunk_size - self._size) // width + 1))
-            self.add_rows(self.layout(ns[start:end], [(c, r[start:end]) for c, r in topics]),
+            end = min(n, start + max(1, (self.chunk_size - self._size) // lay.width + 1))
+            self.add_rows(self.layout(ns[start:end],
+                                      [(c, r[start:end]) for c, r in topics], lay),
                           0, end - start)
             start = end
 
