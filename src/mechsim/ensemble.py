@@ -165,7 +165,10 @@ def _members(model: Model, parameters: Sequence[Mapping[str, Any]] | None,
         y0 = np.array([m.initial_y() for m in models]).reshape(len(models), -1)
     if not models:
         raise ParameterError("parameters", "an ensemble needs at least one member")
-    P = np.array([m.parameter_vector() for m in models]).reshape(len(models), -1)
+    if parameters is None:  # one model: its parameter vector for every member
+        P = np.tile(model.parameter_vector(), (len(models), 1))
+    else:
+        P = np.array([m.parameter_vector() for m in models]).reshape(len(models), -1)
     return Members(cast(list[SteppableModel], models), np.ascontiguousarray(y0), P,
                    given_state=states is not None)
 
@@ -191,9 +194,10 @@ def _states(model: Model, states: Any, n: int | None) -> np.ndarray | None:
         raise ParameterError("states", "must be finite")
     if rows.shape[1] == at.size:
         return rows
-    modes = model.initial_y()[at.modes]
-    return np.array([at.compose(r[:n_q], r[n_q:], modes=modes) for r in rows]
-                    ).reshape(rows.shape[0], at.size)
+    full = np.zeros((rows.shape[0], at.size))  # work terms 0, modes those of the model
+    full[:, at.q], full[:, at.v] = rows[:, :n_q], rows[:, n_q:]
+    full[:, at.modes] = model.initial_y()[at.modes]
+    return full
 
 
 def _on_dask(cluster: Any, model: Model, parameters: Sequence[Mapping[str, Any]] | None,

@@ -101,13 +101,7 @@ def integrate_many(cls: Any, members: Members, tolerance: float, t: np.ndarray,
     run = EnsembleRun(np.full((n, m, members.y0.shape[1]), np.nan),
                       [c.method.method for c in choices], np.zeros(n, np.int64),
                       np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n))
-    groups: dict[_Choice, list[int]] = {}
-    alone: list[int] = []
-    for i, c in enumerate(choices):
-        if c.compiled and request.step is None:
-            groups.setdefault(c, []).append(i)
-        else:
-            alone.append(i)
+    groups, alone = _partition(choices, request)
     before = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
@@ -119,6 +113,25 @@ def integrate_many(cls: Any, members: Members, tolerance: float, t: np.ndarray,
     for i in sorted(alone):
         _run_alone(i, choices[i], members, t, request, run)
     return run
+
+
+def _partition(choices: list[_Choice], request: Request
+               ) -> tuple[dict[_Choice, list[int]], list[int]]:
+    """The members in shared compiled calls, by choice, and those run alone."""
+    kinds = set(choices)
+    if len(kinds) == 1:  # one method for all (any but auto): no per-member pass
+        (c,) = kinds
+        every = list(range(len(choices)))
+        return ({c: every}, []) if c.compiled and request.step is None else ({}, every)
+    groups: dict[_Choice, list[int]] = {}
+    alone: list[int] = []
+    compiled = {c: c.compiled and request.step is None for c in kinds}
+    for i, c in enumerate(choices):
+        if compiled[c]:
+            groups.setdefault(c, []).append(i)
+        else:
+            alone.append(i)
+    return groups, alone
 
 
 class _Group:
@@ -240,9 +253,10 @@ def _run_group(choice: _Choice, idx: np.ndarray, members: Members, t: np.ndarray
     active = idx
     while active.size:
         group.call(ks, active, t, run.Y)
-        again = [int(i) for i in active if group.status[i] != Status.OK]
-        failed += [i for i in again if not group.resume(i, gap)]
-        active = np.array([i for i in again if i not in failed], dtype=np.int64)
+        again = active[group.status[active] != Status.OK]
+        stopped = [int(i) for i in again if not group.resume(int(i), gap)]
+        failed += stopped
+        active = again[~np.isin(again, stopped)]
     for name in ("n_steps", "n_evaluations", "n_rejected", "error_estimate"):
         getattr(run, name)[idx] = group.state[name][idx]
     if not group.radau and not group.options.get("work_terms", True):
