@@ -117,11 +117,14 @@ class MarkerEncoder:
         self.specs = list(model.frames)
         self.index = {f.child: k for k, f in enumerate(self.specs)}
         self.parent = [self.index.get(f.parent) for f in self.specs]
-        self.order = self._order()
         self.visuals = drawn(model)
         self.links = [(self.index.get(v.frame), self.index.get(v.to_frame or ""))
                       for v in self.visuals if v.kind == "link"]
         self.trails = [self.index[v.frame] for v in self.visuals if v.kind == "trail"]
+        #: The frames whose world origins the moving markers draw, and their ancestors,
+        #: every parent before its children (the other frames' origins are not computed).
+        self.order = self._order(self._ancestry([k for pair in self.links for k in pair
+                                                 if k is not None] + self.trails))
         self.time_scale = float(model.time_scale())
         #: The ids (indices in ``visuals``) of the frame-locked visuals and of the moving ones.
         self.fixed_ids = [i for i, v in enumerate(self.visuals) if v.kind not in MOVING]
@@ -163,12 +166,23 @@ class MarkerEncoder:
             m.header.stamp = markers[0].header.stamp
         return MarkerArray(markers=markers)
 
-    def _order(self) -> list[int]:
-        """Frame indices, every parent before its children."""
+    def _ancestry(self, frames: list[int]) -> set[int]:
+        """``frames`` and every ancestor of theirs."""
+        found: set[int] = set()
+        for k in frames:
+            at: int | None = k
+            while at is not None and at not in found:
+                found.add(at)
+                at = self.parent[at]
+        return found
+
+    def _order(self, frames: set[int]) -> list[int]:
+        """The indices ``frames`` (closed under parents), every parent before its
+        children."""
         order: list[int] = []
         placed: set[int] = set()
-        while len(order) < len(self.specs):
-            ready = [k for k in range(len(self.specs)) if k not in placed
+        while len(order) < len(frames):
+            ready = [k for k in sorted(frames) if k not in placed
                      and (self.parent[k] is None or self.parent[k] in placed)]
             if not ready:
                 raise ValueError("the model's frames form a cycle")
@@ -222,9 +236,9 @@ class MarkerEncoder:
         return "world" if frame == "world" else f"{self.name}/{frame}"
 
     def world_origins(self, placed: np.ndarray) -> np.ndarray:
-        """(samples, frames, 3): each frame's origin in "world", from the frames as published
-        (``MessageFactory.placed``: relative to their parents, world-rooted ones moved by the
-        origin)."""
+        """(samples, frames, 3): the origin in "world" of each frame of ``order`` (the
+        others' are zero), from the frames as published (``MessageFactory.placed``: relative
+        to their parents, world-rooted ones moved by the origin)."""
         n, count = placed.shape[0], len(self.specs)
         pos = np.zeros((n, count, 3))
         rot = np.zeros((n, count, 4))

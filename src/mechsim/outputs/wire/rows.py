@@ -101,16 +101,17 @@ class Layout:
             return self._encode_one(int(np.asarray(ns).reshape(-1)[0]), blocks)
         out = np.empty((n, self.size), dtype=np.uint8)
         out[:] = self.template
+        # Each field is written through a typed view of ``out`` (one element a row, strided
+        # by the row size, unaligned as CDR places it), not as a column of bytes.
         if self.time_offsets:
-            tb = time_rows(ns) if times is None else times
+            tb = (time_rows(ns) if times is None else times).view("<u8").reshape(n)
             for off in self.time_offsets:
-                out[:, off:off + 8] = tb
+                np.ndarray((n,), "<u8", out, off, (self.size,))[:] = tb
         for block, values in blocks:
             m = np.asarray(values, dtype=block.dtype).reshape(n, block.width)
             size = block.dtype.itemsize
             for a, b, off in block.runs:
-                out[:, off:off + size * (b - a)] = \
-                    np.ascontiguousarray(m[:, a:b]).view(np.uint8)
+                np.ndarray((n, b - a), block.dtype, out, off, (self.size, size))[:] = m[:, a:b]
         return out
 
     def _encode_one(self, ns: int, blocks: Sequence[tuple[Block, np.ndarray]]) -> np.ndarray:
