@@ -230,15 +230,16 @@ class McapFile:
         """The records of N samples stamped ``ns`` (int64, nondecreasing), each with one
         message on every (channel id, (N, size) uint8 payload rows) of ``topics`` (distinct
         channels; their row layout ``lay``), in that order within a sample: each record's
-        header, stamps and payload written as byte columns of one (N, row bytes) array
-        (four copies per topic)."""
+        header, stamps and payload written as columns of one (N, row bytes) array (four
+        copies per topic)."""
         ns = np.ascontiguousarray(ns, dtype="<i8")
-        out = np.empty((ns.shape[0], lay.width), dtype=np.uint8)
-        stamps = ns.view(np.uint8).reshape(-1, 8)
+        n, width = ns.shape[0], lay.width
+        out = np.empty((n, width), dtype=np.uint8)
         for (_, rows), head, at in zip(topics, lay.heads, lay.columns.tolist(), strict=True):
             out[:, at:at + 15] = head
-            out[:, at + 15:at + 23] = stamps  # log time
-            out[:, at + 23:at + _HEAD] = stamps  # publish time
+            # log time and publish time: one u64 a row, through a strided view
+            np.ndarray((n,), "<i8", out, at + 15, (width,))[:] = ns
+            np.ndarray((n,), "<i8", out, at + 23, (width,))[:] = ns
             out[:, at + _HEAD:at + _HEAD + rows.shape[1]] = rows
         return RecordBatch(ns, out, lay.channels, lay.offsets)
 
