@@ -121,10 +121,11 @@ class MarkerEncoder:
         self.links = [(self.index.get(v.frame), self.index.get(v.to_frame or ""))
                       for v in self.visuals if v.kind == "link"]
         self.trails = [self.index[v.frame] for v in self.visuals if v.kind == "trail"]
-        #: The frames whose world origins the moving markers draw, and their ancestors,
-        #: every parent before its children (the other frames' origins are not computed).
-        self.order = self._order(self._ancestry([k for pair in self.links for k in pair
-                                                 if k is not None] + self.trails))
+        #: The frames whose world origins the moving markers draw, and their ancestors, by
+        #: generation: the world-rooted ones, then their children, and so on (the other
+        #: frames' origins are not computed).
+        self.generations = self._generations(self._ancestry(
+            [k for pair in self.links for k in pair if k is not None] + self.trails))
         self.time_scale = float(model.time_scale())
         #: The ids (indices in ``visuals``) of the frame-locked visuals and of the moving ones.
         self.fixed_ids = [i for i, v in enumerate(self.visuals) if v.kind not in MOVING]
@@ -176,19 +177,19 @@ class MarkerEncoder:
                 at = self.parent[at]
         return found
 
-    def _order(self, frames: set[int]) -> list[int]:
-        """The indices ``frames`` (closed under parents), every parent before its
-        children."""
-        order: list[int] = []
+    def _generations(self, frames: set[int]) -> list[list[int]]:
+        """The indices ``frames`` (closed under parents) by generation: those without a
+        parent, then the children of those, and so on."""
+        generations: list[list[int]] = []
         placed: set[int] = set()
-        while len(order) < len(frames):
+        while len(placed) < len(frames):
             ready = [k for k in sorted(frames) if k not in placed
                      and (self.parent[k] is None or self.parent[k] in placed)]
             if not ready:
                 raise ValueError("the model's frames form a cycle")
-            order += ready
+            generations.append(ready)
             placed.update(ready)
-        return order
+        return generations
 
     def _marker(self, i: int, v: Visual) -> Marker:
         """The marker of visual ``v`` (``i``: its id), with the moving points at the origin."""
@@ -236,21 +237,24 @@ class MarkerEncoder:
         return "world" if frame == "world" else f"{self.name}/{frame}"
 
     def world_origins(self, placed: np.ndarray) -> np.ndarray:
-        """(samples, frames, 3): the origin in "world" of each frame of ``order`` (the
+        """(samples, frames, 3): the origin in "world" of each frame of ``generations`` (the
         others' are zero), from the frames as published (``MessageFactory.placed``: relative
         to their parents, world-rooted ones moved by the origin)."""
         n, count = placed.shape[0], len(self.specs)
-        pos = np.zeros((n, count, 3))
-        rot = np.zeros((n, count, 4))
-        for k in self.order:
-            t, q, p = placed[:, k, :3], placed[:, k, 3:], self.parent[k]
-            if p is None:
-                pos[:, k], rot[:, k] = t, q
+        # Component-major (component, frame, sample): each component of a generation is one
+        # contiguous block, and the arithmetic element-wise, as frame by frame.
+        frames = np.ascontiguousarray(placed.transpose(2, 1, 0))
+        pos = np.zeros((3, count, n))
+        rot = np.zeros((4, count, n))
+        for k in self.generations:
+            p = [self.parent[j] for j in k]
+            if p[0] is None:  # the first generation: the frames without a parent
+                pos[:, k], rot[:, k] = frames[:3, k], frames[3:, k]
                 continue
-            qp = rot[:, p].T
-            pos[:, k] = pos[:, p] + np.stack(rotate(qp, t.T), axis=-1)
-            rot[:, k] = np.stack(quat_product(qp, q.T), axis=-1)
-        return pos
+            qp = rot[:, p]
+            pos[:, k] = pos[:, p] + np.stack(rotate(qp, frames[:3, k]))
+            rot[:, k] = np.stack(quat_product(qp, frames[3:, k]))
+        return pos.transpose(2, 1, 0)
 
     def _at(self, pos: np.ndarray, k: int | None) -> np.ndarray:
         return np.broadcast_to(self.origin, pos[:, 0].shape) if k is None else pos[:, k]
