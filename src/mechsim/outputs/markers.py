@@ -247,10 +247,11 @@ class MarkerEncoder:
         pos = np.zeros((3, count, n))
         rot = np.zeros((4, count, n))
         for k in self.generations:
-            p = [self.parent[j] for j in k]
-            if p[0] is None:  # the first generation: the frames without a parent
+            parents = [self.parent[j] for j in k]
+            if parents[0] is None:  # the first generation: the frames without a parent
                 pos[:, k], rot[:, k] = frames[:3, k], frames[3:, k]
                 continue
+            p = np.asarray(parents, dtype=np.int64)
             qp = rot[:, p]
             pos[:, k] = pos[:, p] + np.stack(rotate(qp, frames[:3, k]))
             rot[:, k] = np.stack(quat_product(qp, frames[3:, k]))
