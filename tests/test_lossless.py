@@ -95,3 +95,88 @@ def test_a_lossless_fast_run_reaches_a_live_subscriber_with_every_sample(
         if counter.poll() is None:
             counter.kill()
         counter.wait()
+
+
+_REPORTS = """
+import time
+from mechsim.environment import import_rclpy
+rclpy = import_rclpy()
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from diagnostic_msgs.msg import DiagnosticArray
+rclpy.init()
+n = rclpy.create_node("report_counter")
+qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
+                 reliability=ReliabilityPolicy.RELIABLE)
+got = []
+n.create_subscription(DiagnosticArray, "/diagnostics", got.append, qos)
+print("ready", flush=True)
+quiet, end = 0, time.monotonic() + 120.0
+while (quiet < 50 or not got) and time.monotonic() < end:  # 5 s without a report: done
+    before = len(got)
+    rclpy.spin_once(n, timeout_sec=0.1)
+    quiet = 0 if len(got) != before else quiet + 1
+print(len(got), flush=True)
+"""
+
+
+def test_lossless_reports_wait_for_a_stopped_subscriber(
+        ros_context: Any, ros_env: dict[str, str], monkeypatch: Any) -> None:
+    """A subscriber of /diagnostics in another process is stopped (SIGSTOP) before the first
+    report, and continued only when the run waits for its acknowledgments: a lossless run
+    publishes no more reports than the history holds without them, so the subscriber gets
+    every report. (A run that did not wait would publish its hundreds of reports into the
+    stopped subscriber's buffers, where most are lost; it is continued at the end.)"""
+    import os
+    import signal
+
+    from mechsim.ros.outlet import DIAGNOSTICS_QOS, Outlet
+    from mechsim.testing import wait_until
+
+    counter = subprocess.Popen([sys.executable, "-c", _REPORTS], env=ros_env,
+                               stdout=subprocess.PIPE, text=True)
+    stopped = [False]
+    published = [0]
+    try:
+        assert _line(counter) == "ready"
+        scene = parse_scene({"name": "lossless", "pacing": "fast", "publish_rate": 10.0,
+                             "systems": [{"system": "pendulum", "name": "swing"}]})
+
+        def matched(node: Any) -> None:
+            """Before the first report: /diagnostics matched, then the subscriber stopped."""
+            from rclpy.executors import SingleThreadedExecutor
+
+            ex = SingleThreadedExecutor(context=ros_context)
+            try:
+                assert wait_until(ex, lambda: node.count_subscribers("/diagnostics") > 0,
+                                  120.0), "the subscriber never matched"
+            finally:
+                ex.shutdown()
+            os.kill(counter.pid, signal.SIGSTOP)
+            stopped[0] = True
+
+        original_publish, original_wait = Outlet.publish_serialized, Outlet.acknowledged
+
+        def publish(self: Outlet, topic: str, *args: Any) -> None:
+            original_publish(self, topic, *args)
+            published[0] += topic == "/diagnostics"
+
+        def acknowledged(self: Outlet, topic: str) -> None:
+            if stopped[0] and published[0] >= DIAGNOSTICS_QOS.depth:
+                os.kill(counter.pid, signal.SIGCONT)  # the run waits now: let it answer
+                stopped[0] = False
+            original_wait(self, topic)
+
+        monkeypatch.setattr(Outlet, "publish_serialized", publish)
+        monkeypatch.setattr(Outlet, "acknowledged", acknowledged)
+        run = run_scene(scene, fast=True, duration=600.0, context=ros_context, lossless=True,
+                        before_first_message=matched)
+        if stopped[0]:
+            os.kill(counter.pid, signal.SIGCONT)
+        assert not run.failures
+        assert run.messages["/diagnostics"] == published[0] > 20 * DIAGNOSTICS_QOS.depth
+        assert int(_line(counter)) == published[0]
+    finally:
+        if counter.poll() is None:
+            os.kill(counter.pid, signal.SIGCONT)
+            counter.kill()
+        counter.wait()
