@@ -125,7 +125,7 @@ def test_lossless_reports_wait_for_a_stopped_subscriber(
     report, and continued only when the run waits for its acknowledgments: a lossless run
     publishes no more reports than the history holds without them, so the subscriber gets
     every report. (A run that did not wait would publish its hundreds of reports into the
-    stopped subscriber's buffers, where most are lost; it is continued at the end.)"""
+    stopped subscriber's buffers, where many are lost; it is continued at the end.)"""
     import os
     import signal
 
