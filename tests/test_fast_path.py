@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 import mechsim
-from mechsim.integrators import make_stepper
-from mechsim.simulate import OUTPUTS, evaluate, output_times, simulate
+from mechsim.integrators import StiffnessError, make_stepper
+from mechsim.integrators.runs import plan_run
+from mechsim.integrators.state import Status
+from mechsim.simulate import OUTPUTS, OutputShape, evaluate, output_buffers, output_times, simulate
 from mechsim.systems import system_ids
 
 METHODS = ("dop853", "dopri5", "radau15", "auto")
@@ -96,6 +98,51 @@ def test_bad_settings_are_refused_as_before() -> None:
         simulate(model, 1.0, tolerance=2.0, method="dop853")
     with pytest.raises(mechsim.ParameterError, match="^method"):
         simulate(model, 1.0, method="rk4")
+
+
+def test_a_run_the_loop_stops_short_of_is_left_to_the_stepper() -> None:
+    """A stiff phase stops the compiled loop with that status (a ``Status`` value, as an int);
+    ``simulate`` then runs the stepper, which raises what the solver contract says."""
+    model = mechsim.load_system("damped_oscillator", damping=1e6)
+    plan = plan_run(model, "dop853", 1e-10, OUTPUTS, horizon=10.0)
+    assert plan is not None
+    t, y = output_times(10.0, 0.01), model.initial_y()
+    status, rows, *_ = plan.run(model, y, model.parameter_vector(), t,
+                                np.empty((t.size, y.size)),
+                                *output_buffers(OutputShape.of(model), OUTPUTS, t.size))
+    assert status == Status.STIFF and rows < t.size
+    with pytest.raises(StiffnessError, match="^damped_oscillator: dop853 stopped"):
+        simulate(model, 10.0, 0.01, tolerance=1e-10, method="dop853")
+
+
+def test_a_repeated_call_is_set_up_once_and_returns_arrays_of_its_own() -> None:
+    """``simulate`` keeps what a call works out before it runs (settings, output times, plan)
+    per model and arguments: a repeated call gives what a model fresh from ``load_system``
+    gives, in arrays of its own (writing the first result's changes nothing); a call that
+    differs in any argument gets its own set-up; an argument that cannot be a key (an
+    array) is worked out afresh."""
+    def load() -> Any:
+        return mechsim.load_system("pendulum", tolerance=1e-9, publish_rate=20.0)
+
+    def same_run(a: Any, b: Any) -> bool:
+        return (_same(a.t, b.t) and _same(a.q, b.q) and _same(a.v, b.v)
+                and _same(a.work_external, b.work_external) and a.method == b.method
+                and (a.n_steps, a.n_evaluations, a.tolerance) == (b.n_steps, b.n_evaluations,
+                                                                  b.tolerance))
+
+    model = load()
+    first = simulate(model, 1.0)
+    first.t[:] = -1.0
+    first.q[:] = -1.0
+    again = simulate(model, 1.0)
+    assert same_run(again, simulate(load(), 1.0)) and again.t.flags.writeable
+    for change in ({"t_end": 1.5}, {"output_dt": 0.1}, {"tolerance": 1e-6},
+                   {"method": "radau15"}, {"publish_rate": 5.0}, {"outputs": ("energy",)},
+                   {"work_terms": False}, {"step": 0.01, "method": "yoshida6"},
+                   {"closed_form": True, "method": "auto"}):
+        given = {"t_end": 1.0, **change}
+        assert same_run(simulate(model, **given), simulate(load(), **given)), change
+    assert same_run(simulate(model, 1.0, np.array(0.05)), simulate(load(), 1.0, 0.05))
 
 
 def test_the_whole_run_loops_are_called_with_the_types_set_up_compiles() -> None:

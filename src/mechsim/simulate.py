@@ -11,7 +11,7 @@ import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.integrators import METHODS, Stepper, loops, make_stepper
-from mechsim.integrators.runs import Plan, plan_run
+from mechsim.integrators.runs import PLANS_PER_MODEL, Plan, plan_run
 from mechsim.integrators.state import Status
 from mechsim.params import PUBLISH_RATE, TOLERANCE, shown
 from mechsim.systems import load_system as _load_model
@@ -321,12 +321,9 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     leave them out of their arithmetic and step control. Wall time covers integration and
     output evaluation.
     """
-    tolerance, method, output_dt = resolve_settings(model, tolerance, method, outputs,
-                                                    output_dt, publish_rate)
-    t = output_times(t_end, output_dt)
     start = time.perf_counter()
-    plan = plan_run(model, method, tolerance, outputs, step=step, horizon=t_end,
-                    closed_form=closed_form, work_terms=work_terms)
+    tolerance, method, t, plan = _set_up(model, t_end, output_dt, tolerance, method, outputs,
+                                         step, closed_form, work_terms, publish_rate)
     if plan is not None:
         done = _run_planned(model, plan, tolerance, t, outputs, work_terms, start)
         if done is not None:
@@ -349,6 +346,60 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
                             modes=Y[:, at.modes], n_evaluations=stepper.n_evaluations,
                             n_rejected=stepper.n_rejected,
                             error_estimate=stepper.error_estimate)
+
+
+@dataclass(frozen=True)
+class _SetUp:
+    """What a call of ``simulate`` works out before it runs: the tolerance and method it
+    resolves, its output times and its run plan (None: the stepper runs it)."""
+
+    tolerance: float
+    method: str
+    t: np.ndarray
+    plan: Plan | None
+
+
+def _work_out(model: Model, t_end: float, output_dt: float | None, tolerance: float | None,
+              method: str | None, outputs: tuple[str, ...], step: float | None,
+              closed_form: bool, work_terms: bool, publish_rate: float | None) -> _SetUp:
+    tolerance, method, output_dt = resolve_settings(model, tolerance, method, outputs,
+                                                    output_dt, publish_rate)
+    return _SetUp(tolerance, method, output_times(t_end, output_dt),
+                  plan_run(model, method, tolerance, outputs, step=step, horizon=t_end,
+                           closed_form=closed_form, work_terms=work_terms))
+
+
+def _set_up(model: Model, *arguments: object) -> tuple[float, str, np.ndarray, Plan | None]:
+    """``_work_out`` for a call of ``simulate`` with these ``arguments`` (after ``model``, in
+    its order), the output times a fresh array. Kept per model and arguments (every argument
+    is in the key; a model and the run settings it was loaded with never change), at most
+    ``PLANS_PER_MODEL`` a model, for grids of at most ``SET_UP_SAMPLES`` samples (a longer
+    run's set-up costs little beside its steps); arguments that cannot be keyed (arrays) are
+    worked out afresh."""
+    kept = _SET_UPS.get(model)
+    try:
+        found = (kept or _NOTHING_KEPT).get(arguments)
+    except TypeError:  # unhashable
+        found = None
+        kept = _NOTHING_KEPT
+    if found is None:
+        found = _work_out(model, *arguments)  # type: ignore[arg-type]
+        if kept is _NOTHING_KEPT or found.t.size > SET_UP_SAMPLES:
+            return found.tolerance, found.method, found.t, found.plan
+        if kept is None:
+            kept = _SET_UPS[model] = {}
+        elif len(kept) >= PLANS_PER_MODEL:  # a sweep over horizons or tolerances
+            kept.clear()
+        kept[arguments] = found
+        found.t.flags.writeable = False  # (each run gets a copy)
+    return found.tolerance, found.method, found.t.copy(), found.plan
+
+
+#: The longest output grid whose set-up ``simulate`` keeps (``_set_up``).
+SET_UP_SAMPLES = 1024
+_SET_UPS: weakref.WeakKeyDictionary[Model, dict[tuple[object, ...], _SetUp]] = \
+    weakref.WeakKeyDictionary()
+_NOTHING_KEPT: dict[tuple[object, ...], _SetUp] = {}
 
 
 def _run_planned(model: Model, plan: Plan, tolerance: float, t: np.ndarray,

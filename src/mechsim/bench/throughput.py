@@ -109,18 +109,24 @@ def _compiled_loop(model: Any, dt: float) -> tuple[Callable[[], Any], Callable[[
     assert isinstance(plan, RunPlan) and not plan.radau
     t = output_times(dt, dt)
     y, p = model.initial_y(), model.parameter_vector()
-    state, start = np.zeros(1, plan.dtype), np.zeros(1, plan.dtype)
+    state = np.zeros(1, plan.dtype)
+    # Reset as raw bytes: assigning a record array goes through numpy's structured cast,
+    # which would cost more than the loop it resets.
+    raw, start = state.view(np.uint8), np.zeros(plan.dtype.itemsize, np.uint8)
+    y0 = y.copy()  # (the loop steps y in place)
     args = (plan.ks, *plan.fixed, state, y, p, t, np.empty((t.size, y.size)),
             *plan.tail, *plan.want, *output_buffers(OutputShape.of(model), OUTPUTS, t.size))
     plan.loop(*args)
-    entry = next(iter(plan.loop.overloads.values())).entry_point
+    entry = plan.loop.overloads[tuple(map(plan.loop.typeof_pyval, args))].entry_point
 
     def dispatched() -> Any:
-        state[:] = start  # every call starts the method afresh, as simulate's does
+        raw[:] = start  # every call starts the method afresh, as simulate's does
+        y[:] = y0
         return plan.loop(*args)
 
     def direct() -> Any:
-        state[:] = start
+        raw[:] = start
+        y[:] = y0
         return entry(*args)
 
     return dispatched, direct

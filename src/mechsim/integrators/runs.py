@@ -53,10 +53,11 @@ class RunPlan:
 
     def run(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray, Y: np.ndarray,
             E: np.ndarray, I: np.ndarray, O: np.ndarray, F: np.ndarray  # noqa: E741
-            ) -> tuple[Status, int, int, int, int, float, float]:
+            ) -> tuple[int, int, int, int, int, float, float]:
         """Integrate ``model`` from (0, y) to the times ``t`` into ``Y`` and evaluate the
         outputs wanted into E, I, O, F: (status, rows written, steps, evaluations,
-        rejections, error estimate, time reached)."""
+        rejections, error estimate, time reached); the status is a ``Status`` value, as an
+        int."""
         state = np.zeros(1, self.dtype)
         we, wi, wo, wf = self.want
         if self.radau:
@@ -81,7 +82,7 @@ class ClosedFormPlan:
 
     def run(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray, Y: np.ndarray,
             E: np.ndarray, I: np.ndarray, O: np.ndarray, F: np.ndarray  # noqa: E741
-            ) -> tuple[Status, int, int, int, int, float, float]:
+            ) -> tuple[int, int, int, int, int, float, float]:
         """As ``RunPlan.run``: one evaluation of the closed form, no steps; a status other
         than OK where there is none from this state or it is not finite (the stepper then
         raises what the solver contract says)."""

@@ -4,7 +4,9 @@ named fields of each stepper's state record.
 A stepper keeps its state in a one-element structured array of one of the dtypes below; the
 compiled loops read and write it as a record (``s = state[0]; s.n_steps += 1``) and Python
 reads the same fields by name (``stepper.state["n_steps"][0]``), so no field has a magic
-index. The loops return a ``Status`` member, which arrives in Python as that member.
+index. The stepping loops return a ``Status`` member, which arrives in Python as that member;
+the whole-run loops (``compiled.runs``) return its value, a plain int that compares equal to
+it (boxing a member goes through the Python enum class on every call).
 """
 
 from __future__ import annotations

@@ -59,8 +59,9 @@ def radau15_restart(ks, state, y, p, dy, b, g, e, comp, g_old, tau, tau2, floor,
 
 @njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
 def _counters(state, status, k):
+    """What a run returns, its status as a plain int (``state.Status``)."""
     s = state[0]
-    return status, k, s.n_steps, s.n_evaluations, s.n_rejected, s.error_estimate, s.t
+    return status.value, k, s.n_steps, s.n_evaluations, s.n_rejected, s.error_estimate, s.t
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
