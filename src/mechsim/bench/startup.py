@@ -218,8 +218,9 @@ def processes_mode(n: int = PROCESSES_MODE) -> dict[str, Any]:
 
     t0 = time.monotonic()
     run, _, status = run_processes(replace(pendulums(n, prefix="m"), duration=0.02))
-    if status != 0:
-        raise RuntimeError(f"the scene of one process per node failed (exit {status})")
+    if status != 0:  # (said in the report; the other figures stand)
+        return {"instances": n, "failed": f"exit status {status} after "
+                f"{time.monotonic() - t0:.0f} s"}
     return {"instances": n, "call_to_end_s": time.monotonic() - t0,
             "slowest_process_startup_s": run.startup_time}
 
@@ -265,7 +266,8 @@ def startup(sizes: tuple[int, ...] = SIZES) -> dict[str, Any]:
     print(f"  {largest} pendulums as {SPLIT} processes: "
           f"{split['launch_to_first_sample_s']:.2f} s from launch", file=sys.stderr)
     per_node = processes_mode()
-    print(f"  {per_node['instances']} pendulums, one process per node: "
-          f"{per_node['call_to_end_s']:.2f} s from the call to the end", file=sys.stderr)
+    print(f"  {per_node['instances']} pendulums, one process per node: " + (
+        f"failed ({per_node['failed']})" if "failed" in per_node else
+        f"{per_node['call_to_end_s']:.2f} s from the call to the end"), file=sys.stderr)
     return {"one_process": rows, "profile": profiled, "bare": bare, "split": split,
             "processes_mode": per_node, "publishers_per_node": publishers}

@@ -180,7 +180,10 @@ def _startup_lines(r: dict[str, Any]) -> list[str]:
               f"last one's first sample, Python, rclpy and the models' start included: "
               f"{sp['launch_to_first_sample_s']:.2f} s."]
     pm = st.get("processes_mode")
-    if pm is not None:
+    if pm is not None and "failed" in pm:
+        lines += ["", f"One process per node (`mechsim run --processes`, graph check included), "
+                  f"{pm['instances']} pendulums: the run failed ({pm['failed']})."]
+    elif pm is not None:
         lines += ["", f"One process per node (`mechsim run --processes`, graph check included), "
                   f"{pm['instances']} pendulums: {pm['call_to_end_s']:.2f} s from the call to "
                   f"the last process ended; the slowest process's own start-up (its imports "

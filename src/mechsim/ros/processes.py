@@ -119,7 +119,10 @@ class _Children:
 
     def watch(self) -> None:
         """Until every simulator ended, or a child failed otherwise than its system (a refused
-        start, an error: the rest are stopped)."""
+        start, an error: the rest are stopped), or a simulator did not start stepping within
+        ``START_DEADLINE`` seconds of its launch (a process hung in its start-up, e.g. in the
+        DDS library: the rest are stopped, status 1)."""
+        launched = time.monotonic()
         while True:
             codes = [p.returncode for p in [*self.sims, *self.consumers]
                      if p.poll() not in (None, 0)]
@@ -129,7 +132,22 @@ class _Children:
                     return
             if all(p.returncode is not None for p in self.sims):
                 return
+            if time.monotonic() - launched > START_DEADLINE and self._hung():
+                return
             time.sleep(0.1)
+
+    def _hung(self) -> bool:
+        """Whether a simulator still running has not said it started (``started_file``):
+        said on stderr, status 1."""
+        hung = [self.scene.systems[i].name for i, p in enumerate(self.sims)
+                if p.returncode is None and not os.path.exists(
+                    started_file(os.path.join(self.workdir, f"system{i}.json")))]
+        if hung:
+            print(f"mechsim: {', '.join(hung)}: the simulator process did not start within "
+                  f"{START_DEADLINE:g} s (hung in its start-up); stopping the run",
+                  file=sys.stderr)
+            self.status = 1
+        return bool(hung)
 
     def stop(self) -> None:
         """Simulators first (they let their readers acknowledge), then the consumers drain
@@ -157,6 +175,16 @@ class _Children:
             except FileNotFoundError:
                 continue
         return got
+
+
+#: Seconds from a multi-process run's launch within which every simulator process must
+#: start stepping (its node made, its consumers waited for).
+START_DEADLINE = 300.0
+
+
+def started_file(report: str) -> str:
+    """The file a simulator process makes beside its ``report`` once it steps."""
+    return os.path.splitext(report)[0] + ".started"
 
 
 def _published_any(reports: str) -> bool:
@@ -318,6 +346,8 @@ def simulator_process(scene: Scene, name: str, *, readers: int = 0, recorder: bo
     try:
         sim.start(window)
         sim.startup = time.monotonic() - start
+        if report is not None:
+            open(started_file(report), "x").close()  # (in the parent's own work directory)
         sim.step()
     except KeyboardInterrupt:
         pass
