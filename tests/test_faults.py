@@ -607,19 +607,28 @@ from mechsim.ros.process import bounded_teardown
 with bounded_teardown("the test's teardown", lambda: 7, limit=float(sys.argv[1])):
     if sys.argv[2] == "stuck":
         threading.Event().wait()  # what a DDS deadlock looks like from Python: never returns
+    elif sys.argv[2] == "stuck holding the lock":
+        # a C call that never returns and keeps the interpreter lock (as rclpy's destruction
+        # of a publisher in a Fast DDS deadlock): pause(2) called through ctypes.PyDLL
+        import ctypes
+        ctypes.PyDLL(None).pause()
 print("went on", flush=True)
 sys.exit(3)
 """
 
 
-@pytest.mark.parametrize("block", ["stuck", "returns"])
+@pytest.mark.parametrize("block", ["stuck", "stuck holding the lock", "returns"])
 def test_a_stuck_teardown_ends_the_process(block: str) -> None:
     """A node process whose DDS teardown never returns (Fast DDS can deadlock there) ends
-    with the status it was given and one line saying why; a teardown that returns goes on."""
-    limit = "0.5" if block == "stuck" else "600"
+    with the status it was given and one line saying why; stuck in a call that holds the
+    interpreter lock (no Python thread can run), it ends with status 1 and nothing on stderr;
+    a teardown that returns goes on."""
+    limit = "600" if block == "returns" else "0.5"
     r = subprocess.run([sys.executable, "-c", _STUCK_TEARDOWN, limit, block],
                        capture_output=True, text=True, timeout=300)
-    if block == "stuck":
+    if block == "stuck holding the lock":
+        assert (r.returncode, r.stdout, r.stderr) == (1, "", "")
+    elif block == "stuck":
         assert r.returncode == 7 and "went on" not in r.stdout
         assert r.stderr.strip().splitlines() == [
             "mechsim: the test's teardown did not return within 0.5 s (DDS teardown stuck); "

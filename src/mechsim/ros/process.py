@@ -5,13 +5,15 @@ parent: ``mechsim.runcore.stops``.) Standard library only (and the project's ato
 from __future__ import annotations
 
 import contextlib
+import faulthandler
+import functools
 import json
 import os
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import IO, Any
 
 #: A consumer process stops once nothing arrived for this long after its stop signal (the
 #: simulators waited for every reader's acknowledgment before they exited).
@@ -49,7 +51,10 @@ def bounded_teardown(what: str, code: Callable[[], int],
                      limit: float = TEARDOWN_LIMIT) -> Iterator[None]:
     """Run the block (DDS teardown); if it has not returned within ``limit`` s, say so in one
     line on stderr and end the process with ``code()`` (exit handlers not run: a thread of
-    the interpreter is stuck in DDS)."""
+    the interpreter is stuck in DDS). If the stuck call holds the interpreter lock (as
+    rclpy's destruction of a publisher does), no Python thread can run: ``HELD_LOCK_GRACE``
+    s later the interpreter's fault handler, which needs no lock, ends the process with
+    status 1 (its traceback dump sent to the null device)."""
     done = threading.Event()
 
     def expire() -> None:
@@ -59,10 +64,24 @@ def bounded_teardown(what: str, code: Callable[[], int],
             os._exit(code())
 
     threading.Thread(target=expire, name="teardown-limit", daemon=True).start()
+    faulthandler.dump_traceback_later(limit + HELD_LOCK_GRACE, exit=True, file=_null_device())
     try:
         yield
     finally:
         done.set()
+        faulthandler.cancel_dump_traceback_later()
+
+
+#: Seconds after ``TEARDOWN_LIMIT`` at which a teardown stuck holding the interpreter lock
+#: ends the process (``bounded_teardown``).
+HELD_LOCK_GRACE = 5.0
+
+
+@functools.cache
+def _null_device() -> IO[str]:
+    """The null device, open for the fault handler's dump (kept open: it writes there
+    from its own thread)."""
+    return open(os.devnull, "w")  # noqa: SIM115 - open for the life of the process
 
 
 def write_report(path: str | None, data: dict[str, Any]) -> None:
