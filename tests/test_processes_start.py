@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 import threading
+from pathlib import Path
 from typing import Any
 
 from mechsim.ros import processes
@@ -58,3 +59,23 @@ def test_started_simulators_are_waited_for(monkeypatch: Any, tmp_path: Any) -> N
     p.stdin.close()  # the child ends (as a run that reached its duration)
     children.watch()
     assert children.status == 0 and p.wait() == 0
+
+
+def test_a_simulator_process_says_it_started(ros_env: dict[str, str], tmp_path: Any) -> None:
+    """A simulator process of a scene makes the file beside its report (``started_file``) once
+    it steps, which is what the parent's start deadline looks for."""
+    import json
+
+    from mechsim.scene import scene_data
+
+    scene = parse_scene({"name": "one", "pacing": "fast", "duration": 0.1,
+                         "systems": [{"system": "pendulum", "name": "a"}]})
+    scene_file = tmp_path / "scene.json"
+    scene_file.write_text(json.dumps(scene_data(scene)))
+    report = str(tmp_path / "system0.json")
+    r = subprocess.run([sys.executable, "-m", "mechsim.cli", "simulator", "--scene",
+                        str(scene_file), "--instance", "a", "--report", report],
+                       env=ros_env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert os.path.exists(processes.started_file(report))
+    assert json.loads(Path(report).read_text())["samples"] == 11
