@@ -7,6 +7,7 @@ before the next."""
 
 from __future__ import annotations
 
+import json
 import select
 import subprocess
 import sys
@@ -16,29 +17,31 @@ from mechsim.ros.launch import run_scene
 from mechsim.scene import parse_scene
 
 _COUNTER = """
-import sys
+import json, sys, time
 from mechsim.environment import import_rclpy
 rclpy = import_rclpy()
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from diagnostic_msgs.msg import DiagnosticArray
 from mechsim_msgs.msg import Energy
 from sensor_msgs.msg import JointState
+types = {"/swing/state": JointState, "/swing/energy": Energy,
+         "/diagnostics": DiagnosticArray}
 rclpy.init()
 n = rclpy.create_node("lossless_counter")
 qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
                  reliability=ReliabilityPolicy.RELIABLE)
-got = {"/swing/state": [], "/swing/energy": [], "/diagnostics": []}
+got = {topic: [] for topic in json.loads(sys.argv[1])}
 def keep(topic):
     return lambda m: got[topic].append((m.header.stamp.sec, m.header.stamp.nanosec))
-n.create_subscription(JointState, "/swing/state", keep("/swing/state"), qos)
-n.create_subscription(Energy, "/swing/energy", keep("/swing/energy"), qos)
-n.create_subscription(DiagnosticArray, "/diagnostics", keep("/diagnostics"), qos)
+for topic in got:
+    n.create_subscription(types[topic], topic, keep(topic), qos)
 print("ready", flush=True)
-quiet = 0
-while quiet < 50 or sum(map(len, got.values())) == 0:  # 5 s without a message: done
-    before = sum(map(len, got.values()))
+quiet, end = 0, time.monotonic() + 120.0
+total = lambda: sum(map(len, got.values()))
+while (quiet < 50 or total() == 0) and time.monotonic() < end:  # 5 s without a message
+    before = total()
     rclpy.spin_once(n, timeout_sec=0.1)
-    quiet = 0 if sum(map(len, got.values())) != before else quiet + 1
+    quiet = 0 if total() != before else quiet + 1
 for topic, stamps in got.items():
     print(topic, len(stamps), len(set(stamps)), flush=True)
 """
@@ -55,7 +58,8 @@ def test_a_lossless_fast_run_reaches_a_live_subscriber_with_every_sample(
         ros_context: Any, ros_env: dict[str, str]) -> None:
     from mechsim.testing import wait_until
 
-    counter = subprocess.Popen([sys.executable, "-c", _COUNTER], env=ros_env,
+    counter = subprocess.Popen([sys.executable, "-c", _COUNTER, json.dumps(
+        ["/swing/state", "/swing/energy", "/diagnostics"])], env=ros_env,
                                stdout=subprocess.PIPE, text=True)
     try:
         assert _line(counter) == "ready"
@@ -97,28 +101,6 @@ def test_a_lossless_fast_run_reaches_a_live_subscriber_with_every_sample(
         counter.wait()
 
 
-_REPORTS = """
-import time
-from mechsim.environment import import_rclpy
-rclpy = import_rclpy()
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from diagnostic_msgs.msg import DiagnosticArray
-rclpy.init()
-n = rclpy.create_node("report_counter")
-qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL,
-                 reliability=ReliabilityPolicy.RELIABLE)
-got = []
-n.create_subscription(DiagnosticArray, "/diagnostics", got.append, qos)
-print("ready", flush=True)
-quiet, end = 0, time.monotonic() + 120.0
-while (quiet < 50 or not got) and time.monotonic() < end:  # 5 s without a report: done
-    before = len(got)
-    rclpy.spin_once(n, timeout_sec=0.1)
-    quiet = 0 if len(got) != before else quiet + 1
-print(len(got), flush=True)
-"""
-
-
 def test_lossless_reports_wait_for_a_stopped_subscriber(
         ros_context: Any, ros_env: dict[str, str], monkeypatch: Any) -> None:
     """A subscriber of /diagnostics in another process is stopped (SIGSTOP) before the first
@@ -132,8 +114,8 @@ def test_lossless_reports_wait_for_a_stopped_subscriber(
     from mechsim.ros.outlet import DIAGNOSTICS_QOS, Outlet
     from mechsim.testing import wait_until
 
-    counter = subprocess.Popen([sys.executable, "-c", _REPORTS], env=ros_env,
-                               stdout=subprocess.PIPE, text=True)
+    counter = subprocess.Popen([sys.executable, "-c", _COUNTER, json.dumps(["/diagnostics"])],
+                               env=ros_env, stdout=subprocess.PIPE, text=True)
     stopped = [False]
     published = [0]
     try:
@@ -174,7 +156,8 @@ def test_lossless_reports_wait_for_a_stopped_subscriber(
             os.kill(counter.pid, signal.SIGCONT)
         assert not run.failures
         assert run.messages["/diagnostics"] == published[0] > 20 * DIAGNOSTICS_QOS.depth
-        assert int(_line(counter)) == published[0]
+        topic, received, _ = _line(counter).split()
+        assert (topic, int(received)) == ("/diagnostics", published[0])
     finally:
         if counter.poll() is None:
             os.kill(counter.pid, signal.SIGCONT)

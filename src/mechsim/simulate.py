@@ -6,12 +6,13 @@ import math
 import time
 import weakref
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.integrators import METHODS, Stepper, loops, make_stepper
-from mechsim.integrators.runs import PLANS_PER_MODEL, Plan, plan_run
+from mechsim.integrators.runs import NOT_KEPT, Plan, keep_for, kept_for, plan_run
 from mechsim.integrators.state import Status
 from mechsim.params import PUBLISH_RATE, TOLERANCE, shown
 from mechsim.systems import load_system as _load_model
@@ -372,34 +373,29 @@ def _work_out(model: Model, t_end: float, output_dt: float | None, tolerance: fl
 def _set_up(model: Model, *arguments: object) -> tuple[float, str, np.ndarray, Plan | None]:
     """``_work_out`` for a call of ``simulate`` with these ``arguments`` (after ``model``, in
     its order), the output times a fresh array. Kept per model and arguments (every argument
-    is in the key; a model and the run settings it was loaded with never change), at most
-    ``PLANS_PER_MODEL`` a model, for grids of at most ``SET_UP_SAMPLES`` samples (a longer
+    is in the key; a model and the run settings it was loaded with never change; at most
+    ``PLANS_PER_MODEL`` a model) for grids of at most ``SET_UP_SAMPLES`` samples (a longer
     run's set-up costs little beside its steps); arguments that cannot be keyed (arrays) are
     worked out afresh."""
-    kept = _SET_UPS.get(model)
     try:
-        found = (kept or _NOTHING_KEPT).get(arguments)
+        found = kept_for(_SET_UPS, model, arguments)
     except TypeError:  # unhashable
-        found = None
-        kept = _NOTHING_KEPT
-    if found is None:
+        found = NOT_KEPT
+    if found is NOT_KEPT:
         found = _work_out(model, *arguments)  # type: ignore[arg-type]
-        if kept is _NOTHING_KEPT or found.t.size > SET_UP_SAMPLES:
+        if found.t.size > SET_UP_SAMPLES:
             return found.tolerance, found.method, found.t, found.plan
-        if kept is None:
-            kept = _SET_UPS[model] = {}
-        elif len(kept) >= PLANS_PER_MODEL:  # a sweep over horizons or tolerances
-            kept.clear()
-        kept[arguments] = found
+        try:
+            keep_for(_SET_UPS, model, arguments, found)
+        except TypeError:  # unhashable
+            return found.tolerance, found.method, found.t, found.plan
         found.t.flags.writeable = False  # (each run gets a copy)
     return found.tolerance, found.method, found.t.copy(), found.plan
 
 
 #: The longest output grid whose set-up ``simulate`` keeps (``_set_up``).
 SET_UP_SAMPLES = 1024
-_SET_UPS: weakref.WeakKeyDictionary[Model, dict[tuple[object, ...], _SetUp]] = \
-    weakref.WeakKeyDictionary()
-_NOTHING_KEPT: dict[tuple[object, ...], _SetUp] = {}
+_SET_UPS: weakref.WeakKeyDictionary[Model, dict[Any, Any]] = weakref.WeakKeyDictionary()
 
 
 def _run_planned(model: Model, plan: Plan, tolerance: float, t: np.ndarray,

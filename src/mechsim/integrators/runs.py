@@ -119,21 +119,40 @@ def plan_run(model: Model, method: str, tolerance: float, which: tuple[str, ...]
     the stepper must run it (events, the other methods). Kept per model and inputs
     (``_PLANS``, at most ``PLANS_PER_MODEL`` a model): a model's parameters never change."""
     key = (method, tolerance, which, step, horizon, closed_form, work_terms)
-    plans = _PLANS.get(model)
-    if plans is None:
-        plans = _PLANS[model] = {}
-    elif key in plans:
-        return plans[key]
-    plan = _make_plan(model, method, tolerance,
-                      Request(step=step, horizon=horizon, closed_form=closed_form,
-                              work_terms=work_terms), which)
-    if len(plans) >= PLANS_PER_MODEL:  # a sweep over horizons or tolerances
-        plans.clear()
-    plans[key] = plan
-    return plan
+    plan = kept_for(_PLANS, model, key)
+    if plan is NOT_KEPT:
+        plan = _make_plan(model, method, tolerance,
+                          Request(step=step, horizon=horizon, closed_form=closed_form,
+                                  work_terms=work_terms), which)
+        keep_for(_PLANS, model, key, plan)
+    return plan  # type: ignore[return-value]
 
 
-#: Plans kept per model.
+#: What ``kept_for`` returns for a key it does not keep.
+NOT_KEPT: Any = object()
+
+
+def kept_for(store: weakref.WeakKeyDictionary[Any, dict[Any, Any]], model: object,
+             key: Any) -> Any:
+    """What ``store`` keeps for ``model`` under ``key``, else ``NOT_KEPT`` (TypeError for a
+    key that cannot be hashed, where ``model`` has a store)."""
+    kept = store.get(model)
+    return NOT_KEPT if kept is None else kept.get(key, NOT_KEPT)
+
+
+def keep_for(store: weakref.WeakKeyDictionary[Any, dict[Any, Any]], model: object,
+             key: Any, value: Any) -> None:
+    """Keep ``value`` for ``model`` under ``key``: at most ``PLANS_PER_MODEL`` a model (all
+    forgotten when full: a sweep over horizons or tolerances)."""
+    kept = store.get(model)
+    if kept is None:
+        kept = store[model] = {}
+    elif len(kept) >= PLANS_PER_MODEL:
+        kept.clear()
+    kept[key] = value
+
+
+#: Plans (and other per-run set-ups) kept per model.
 PLANS_PER_MODEL = 64
 _PLANS: weakref.WeakKeyDictionary[Model, dict[tuple[Any, ...], Plan | None]] = (
     weakref.WeakKeyDictionary())
