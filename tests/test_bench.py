@@ -389,8 +389,11 @@ def test_the_compiled_call_floor_does_a_whole_run() -> None:
 
     model = mechsim.load_system("pendulum")
     res = mechsim.simulate(model, 0.01, 0.01, tolerance=TOLERANCE, method="dop853")
-    for call in _compiled_loop(model, 0.01):
+    for prepared in _compiled_loop(model, 0.01):
         for _ in range(3):
-            status, rows, n_steps, n_evaluations, *_ = call()
+            status, buf = prepared.run()
+            rows, n_steps, n_evaluations = prepared.layout.counters(buf)[:3]
             assert (Status(status), rows, n_steps, n_evaluations) == (
                 Status.OK, 2, res.n_steps, res.n_evaluations)
+            assert np.array_equal(prepared.layout.rows(buf)[:, :2],
+                                  np.column_stack([res.q, res.v]))

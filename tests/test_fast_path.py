@@ -14,7 +14,7 @@ import mechsim
 from mechsim.integrators import StiffnessError, make_stepper
 from mechsim.integrators.runs import plan_run
 from mechsim.integrators.state import Status
-from mechsim.simulate import OUTPUTS, OutputShape, evaluate, output_buffers, output_times, simulate
+from mechsim.simulate import OUTPUTS, evaluate, output_times, simulate
 from mechsim.systems import system_ids
 
 METHODS = ("dop853", "dopri5", "radau15", "auto")
@@ -106,11 +106,11 @@ def test_a_run_the_loop_stops_short_of_is_left_to_the_stepper() -> None:
     model = mechsim.load_system("damped_oscillator", damping=1e6)
     plan = plan_run(model, "dop853", 1e-10, OUTPUTS, horizon=10.0)
     assert plan is not None
-    t, y = output_times(10.0, 0.01), model.initial_y()
-    status, rows, *_ = plan.run(model, y, model.parameter_vector(), t,
-                                np.empty((t.size, y.size)),
-                                *output_buffers(OutputShape.of(model), OUTPUTS, t.size))
-    assert status == Status.STIFF and rows < t.size
+    t = output_times(10.0, 0.01)
+    run = plan.prepare(model, model.initial_y(), model.parameter_vector(), t, None,
+                       entry=True)
+    status, buf = run.run()
+    assert status == Status.STIFF and run.layout.counters(buf)[0] < t.size
     with pytest.raises(StiffnessError, match="^damped_oscillator: dop853 stopped"):
         simulate(model, 10.0, 0.01, tolerance=1e-10, method="dop853")
 

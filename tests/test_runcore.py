@@ -280,6 +280,7 @@ def _blocks_ahead(monkeypatch: pytest.MonkeyPatch) -> type[_Counted]:
 
     Counted.__wrapped__ = run_module.NextBlock  # type: ignore[attr-defined]
     monkeypatch.setattr(run_module, "NextBlock", Counted)
+    monkeypatch.setattr(SystemRun, "integrates_ahead", True)  # (off by default)
     return Counted
 
 

@@ -5,14 +5,23 @@ from __future__ import annotations
 import math
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Generic, TypeVar, overload
 
 import numpy as np
 
 from mechsim.errors import ParameterError
 from mechsim.integrators import METHODS, Stepper, loops, make_stepper
-from mechsim.integrators.runs import NOT_KEPT, Plan, keep_for, kept_for, plan_run
+from mechsim.integrators.runs import (
+    NOT_KEPT,
+    Plan,
+    PreparedRun,
+    RunLayout,
+    keep_for,
+    kept_for,
+    plan_run,
+)
 from mechsim.integrators.state import Status
 from mechsim.params import PUBLISH_RATE, TOLERANCE, shown
 from mechsim.systems import load_system as _load_model
@@ -150,35 +159,111 @@ class OutputViews:
         return self.outputs.observables
 
 
-@dataclass
+T = TypeVar("T")
+
+
+_Run = tuple[Model, RunLayout, np.ndarray, tuple[str, ...]]  # (model, layout, buffer, outputs)
+
+
+def _rows(result: SimulationResult) -> np.ndarray:
+    """The rows Y of a prepared run's result (``SimulationResult.of_run``), made once."""
+    found = result.__dict__.get("_rows")
+    if found is None:
+        _, layout, buf, _ = result.__dict__["_run"]
+        found = result.__dict__["_rows"] = layout.rows(buf)
+    return found  # type: ignore[no-any-return]
+
+
+class _FromRun(Generic[T]):
+    """An attribute of a result made from its prepared run's buffer (``_Run``) when first
+    read, then kept in the result's ``__dict__``: a non-data descriptor, so that a value set
+    on the instance (a result made by ``SimulationResult(...)``) shadows it."""
+
+    def __init__(self, make: Callable[[SimulationResult, _Run], T]) -> None:
+        self.make = make
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    @overload
+    def __get__(self, result: None, owner: type) -> _FromRun[T]: ...
+    @overload
+    def __get__(self, result: object, owner: type | None = None) -> T: ...
+
+    def __get__(self, result: object, owner: type | None = None) -> T | _FromRun[T]:
+        if result is None:
+            return self
+        value = result.__dict__[self.name] = self.make(result,  # type: ignore[arg-type]
+                                                       result.__dict__["_run"])
+        return value
+
+
 class SimulationResult(OutputViews):
     """Arrays at the output times. ``total = kinetic + potential``; the work terms close
-    ``total - total[0] = work_external - work_dissipated``."""
+    ``total - total[0] = work_external - work_dissipated``.
+
+    A run ``simulate`` finishes in one compiled call leaves its arrays in one buffer; each
+    attribute is made from it (a view) when it is first read."""
 
     model: Model
     method: str
     tolerance: float
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    work_external: np.ndarray
-    work_dissipated: np.ndarray
-    outputs: Outputs
     wall_time: float
-    n_steps: int
-    # Events met on the way, as (time, event name); the discrete mode entries at each sample.
-    events: list[tuple[float, str]] = field(default_factory=list)
-    modes: np.ndarray | None = None
-    # What the run cost: right-hand-side (or force) evaluations and rejected steps.
-    n_evaluations: int = 0
-    n_rejected: int = 0
+    t: _FromRun[np.ndarray] = _FromRun(lambda r, run: run[1].times(run[2]))
+    q: _FromRun[np.ndarray] = _FromRun(lambda r, run: _rows(r)[:, run[0].layout.q])
+    v: _FromRun[np.ndarray] = _FromRun(lambda r, run: run[0].rates(
+        run[1].times(run[2]), _rows(r), run[1].parameters(run[2])))
+    work_external: _FromRun[np.ndarray] = _FromRun(
+        lambda r, run: _rows(r)[:, run[0].layout.work_external])
+    work_dissipated: _FromRun[np.ndarray] = _FromRun(
+        lambda r, run: _rows(r)[:, run[0].layout.work_dissipated])
+    outputs: _FromRun[Outputs] = _FromRun(
+        lambda r, run: assemble(OutputShape.of(run[0]), run[3], *run[1].outputs(run[2]))
+        if run[3] else Outputs())
+    n_steps: _FromRun[int] = _FromRun(lambda r, run: int(run[1].counters(run[2])[1]))
+    #: Events met on the way, as (time, event name); the discrete mode entries at each sample.
+    events: _FromRun[list[tuple[float, str]]] = _FromRun(lambda r, run: [])
+    modes: _FromRun[np.ndarray | None] = _FromRun(
+        lambda r, run: _rows(r)[:, run[0].layout.modes])
+    #: What the run cost: right-hand-side (or force) evaluations and rejected steps.
+    n_evaluations: _FromRun[int] = _FromRun(lambda r, run: int(run[1].counters(run[2])[2]))
+    n_rejected: _FromRun[int] = _FromRun(lambda r, run: int(run[1].counters(run[2])[3]))
     #: The integrator's own estimate of the error it committed: the sum over its steps of
     #: the local error estimates, relative to the state's scale (1e-9: about a billionth of a
     #: typical coordinate or rate). It assumes the errors add up: a chaotic system can
     #: amplify them beyond it, and a symplectic method's energy error stays far below it;
     #: the closed forms report 0. A diagnostic, not a bound: the contract is ``tolerance``
     #: (see ``mechsim.integrators``; tests/test_tolerance.py checks it against references).
-    error_estimate: float = 0.0
+    error_estimate: _FromRun[float] = _FromRun(
+        lambda r, run: float(run[1].counters(run[2])[4]))
+
+    def __init__(self, model: Model, method: str, tolerance: float, t: np.ndarray,
+                 q: np.ndarray, v: np.ndarray, work_external: np.ndarray,
+                 work_dissipated: np.ndarray, outputs: Outputs, wall_time: float, n_steps: int,
+                 events: list[tuple[float, str]] | None = None, modes: np.ndarray | None = None,
+                 n_evaluations: int = 0, n_rejected: int = 0, error_estimate: float = 0.0
+                 ) -> None:
+        self.model, self.method, self.tolerance = model, method, tolerance
+        self.t, self.q, self.v, self.modes = t, q, v, modes
+        self.work_external, self.work_dissipated = work_external, work_dissipated
+        self.outputs, self.wall_time, self.n_steps = outputs, wall_time, n_steps
+        self.events = [] if events is None else events
+        self.n_evaluations, self.n_rejected = n_evaluations, n_rejected
+        self.error_estimate = error_estimate
+
+    @classmethod
+    def of_run(cls, model: Model, method: str, tolerance: float, wall_time: float,
+               layout: RunLayout, buf: np.ndarray, which: tuple[str, ...]) -> SimulationResult:
+        """The result of a prepared run (``integrators.runs.PreparedRun``) that wrote
+        ``buf``; its arrays are made when first read (``_FromRun``)."""
+        result = cls.__new__(cls)
+        result.__dict__ = {"model": model, "method": method, "tolerance": tolerance,
+                           "wall_time": wall_time, "_run": (model, layout, buf, which)}
+        return result
+
+    def __repr__(self) -> str:
+        return (f"SimulationResult({self.model.id}, method={self.method!r}, "
+                f"tolerance={self.tolerance:g}, samples={self.t.size})")
 
     @property
     def balance_residual(self) -> np.ndarray:
@@ -323,12 +408,18 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     output evaluation.
     """
     start = time.perf_counter()
-    tolerance, method, t, plan = _set_up(model, t_end, output_dt, tolerance, method, outputs,
-                                         step, closed_form, work_terms, publish_rate)
-    if plan is not None:
-        done = _run_planned(model, plan, tolerance, t, outputs, work_terms, start)
-        if done is not None:
-            return done
+    set_up = _set_up(model, t_end, output_dt, tolerance, method, outputs, step, closed_form,
+                     work_terms, publish_rate)
+    tolerance, method = set_up.tolerance, set_up.method
+    if set_up.prepared is not None:
+        status, buf = set_up.prepared.run()
+        if status == _OK:
+            return SimulationResult.of_run(model, set_up.plan.method,  # type: ignore[union-attr]
+                                           tolerance, time.perf_counter() - start,
+                                           set_up.prepared.layout, buf, outputs)
+        # (stopped short: an event, the step budget, a stiff phase, a failure: the stepper
+        # runs it from the start, to go on or raise as the solver contract says)
+    t = set_up.t.copy()
     stepper: Stepper = make_stepper(model, method, tolerance, step=step,
                                     closed_form=closed_form, horizon=t_end,
                                     work_terms=work_terms)
@@ -352,76 +443,60 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
 @dataclass(frozen=True)
 class _SetUp:
     """What a call of ``simulate`` works out before it runs: the tolerance and method it
-    resolves, its output times and its run plan (None: the stepper runs it)."""
+    resolves, its output times, its run plan (None: the stepper runs it) and that plan's
+    run prepared (``integrators.runs.PreparedRun``)."""
 
     tolerance: float
     method: str
     t: np.ndarray
     plan: Plan | None
+    prepared: PreparedRun | None
+
+
+_OK = int(Status.OK)
 
 
 def _work_out(model: Model, t_end: float, output_dt: float | None, tolerance: float | None,
               method: str | None, outputs: tuple[str, ...], step: float | None,
-              closed_form: bool, work_terms: bool, publish_rate: float | None) -> _SetUp:
+              closed_form: bool, work_terms: bool, publish_rate: float | None,
+              kept: bool = False) -> _SetUp:
+    """The set-up of a call; ``kept``: it will serve many calls if its grid is short enough
+    (``SET_UP_SAMPLES``): its run may then go through the compiled loop's entry point
+    (``PreparedRun``)."""
     tolerance, method, output_dt = resolve_settings(model, tolerance, method, outputs,
                                                     output_dt, publish_rate)
-    return _SetUp(tolerance, method, output_times(t_end, output_dt),
-                  plan_run(model, method, tolerance, outputs, step=step, horizon=t_end,
-                           closed_form=closed_form, work_terms=work_terms))
+    t = output_times(t_end, output_dt)
+    plan = plan_run(model, method, tolerance, outputs, step=step, horizon=t_end,
+                    closed_form=closed_form, work_terms=work_terms)
+    prepared = None
+    if plan is not None:
+        at = model.layout
+        prepared = plan.prepare(model, model.initial_y(), model.parameter_vector(), t,
+                                None if work_terms else (at.work_external, at.work_dissipated),
+                                entry=kept and t.size <= SET_UP_SAMPLES)
+    return _SetUp(tolerance, method, t, plan, prepared)
 
 
-def _set_up(model: Model, *arguments: object) -> tuple[float, str, np.ndarray, Plan | None]:
+def _set_up(model: Model, *arguments: object) -> _SetUp:
     """``_work_out`` for a call of ``simulate`` with these ``arguments`` (after ``model``, in
-    its order), the output times a fresh array. Kept per model and arguments (every argument
-    is in the key; a model and the run settings it was loaded with never change; at most
-    ``PLANS_PER_MODEL`` a model) for grids of at most ``SET_UP_SAMPLES`` samples (a longer
-    run's set-up costs little beside its steps); arguments that cannot be keyed (arrays) are
-    worked out afresh."""
+    its order). Kept per model and arguments (every argument is in the key; a model and the
+    run settings it was loaded with never change; at most ``PLANS_PER_MODEL`` a model) for
+    grids of at most ``SET_UP_SAMPLES`` samples (a longer run's set-up costs little beside its
+    steps); arguments that cannot be keyed (arrays) are worked out afresh. Its output times
+    are read-only: a run copies them."""
     try:
         found = kept_for(_SET_UPS, model, arguments)
     except TypeError:  # unhashable
-        found = NOT_KEPT
+        return _work_out(model, *arguments)  # type: ignore[arg-type]
     if found is NOT_KEPT:
-        found = _work_out(model, *arguments)  # type: ignore[arg-type]
+        found = _work_out(model, *arguments, kept=True)  # type: ignore[arg-type,misc]
         if found.t.size > SET_UP_SAMPLES:
-            return found.tolerance, found.method, found.t, found.plan
-        try:
-            keep_for(_SET_UPS, model, arguments, found)
-        except TypeError:  # unhashable
-            return found.tolerance, found.method, found.t, found.plan
-        found.t.flags.writeable = False  # (each run gets a copy)
-    return found.tolerance, found.method, found.t.copy(), found.plan
+            return found  # type: ignore[no-any-return]
+        found.t.flags.writeable = False
+        keep_for(_SET_UPS, model, arguments, found)
+    return found  # type: ignore[no-any-return]
 
 
 #: The longest output grid whose set-up ``simulate`` keeps (``_set_up``).
 SET_UP_SAMPLES = 1024
 _SET_UPS: weakref.WeakKeyDictionary[Model, dict[Any, Any]] = weakref.WeakKeyDictionary()
-
-
-def _run_planned(model: Model, plan: Plan, tolerance: float, t: np.ndarray,
-                 outputs: tuple[str, ...], work_terms: bool, start: float
-                 ) -> SimulationResult | None:
-    """The run of ``simulate`` in one compiled call (``integrators.runs``), its rows and
-    counters those of the stepper bit for bit; None where the loop stopped short (an event,
-    the step budget, a stiff phase, a failure), which the stepper then runs from the start
-    to go on or raise as the solver contract says."""
-    y = model.initial_y()
-    p = model.parameter_vector()
-    Y = np.empty((t.size, y.size))
-    shape = OutputShape.of(model)
-    arrays = output_buffers(shape, outputs, t.size)
-    status, _, n_steps, n_evaluations, n_rejected, error_estimate, _ = plan.run(
-        model, y, p, t, Y, *arrays)
-    if status != Status.OK:
-        return None
-    at = model.layout
-    if not work_terms:
-        Y[:, at.work_external] = Y[:, at.work_dissipated] = np.nan
-    out = assemble(shape, outputs, *arrays) if outputs else Outputs()
-    return SimulationResult(model=model, method=plan.method, tolerance=tolerance, t=t,
-                            q=Y[:, at.q], v=model.rates(t, Y, p),
-                            work_external=Y[:, at.work_external],
-                            work_dissipated=Y[:, at.work_dissipated], outputs=out,
-                            wall_time=time.perf_counter() - start, n_steps=n_steps,
-                            modes=Y[:, at.modes], n_evaluations=n_evaluations,
-                            n_rejected=n_rejected, error_estimate=error_estimate)

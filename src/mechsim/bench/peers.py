@@ -68,6 +68,9 @@ class Contestant:
     # Maps the runner's states to the problem's compared states (not timed); None: the runner
     # returns problem states.
     convert: Callable[[Problem, np.ndarray], np.ndarray] | None = None
+    # What the runner returns -> (its states, its counters), after the timing; None: the
+    # runner returns them.
+    unpack: Callable[[Any, dict[str, Any]], tuple[np.ndarray, dict[str, Any]]] | None = None
 
 
 def available(family: str) -> tuple[bool, str]:

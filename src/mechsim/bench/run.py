@@ -122,18 +122,24 @@ def _mechsim(method: str) -> Any:
         choose_method(model, method)  # ParameterError when the method does not fit
         dt = pb.t_end / pb.n_samples  # simulate's times are then ``pb.times()``
 
-        def run() -> tuple[np.ndarray, dict[str, Any]]:
-            # What a user calls; the state is all that is compared (and all a peer
-            # integrates): no outputs, no work terms.
+        def run() -> tuple[Any, dict[str, Any]]:
+            # What a user calls and reads: the state is all that is compared (and all a peer
+            # integrates): no outputs, no work terms. Laid out as rows by ``_mechsim_rows``,
+            # after the timing (as a peer's loop returns its rows).
             r = simulate(model, pb.t_end, dt, tolerance=tol, method=method, outputs=(),
                          work_terms=False)
-            assert r.modes is not None  # every run has its (maybe empty) modes
-            Y = np.column_stack([r.q, r.v, r.work_external, r.work_dissipated, r.modes])
-            return Y, {"n_steps": r.n_steps,
-                       "n_rhs": 0 if r.method == "exact" else r.n_evaluations,
-                       "method": r.method}
+            return (r, r.q, r.v), {}
         return run
     return prepare
+
+
+def _mechsim_rows(ran: Any, stats: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
+    """A mechsim run's rows [q, v, work terms, modes] and counters (``Contestant.unpack``)."""
+    r, q, v = ran
+    assert r.modes is not None  # every run has its (maybe empty) modes
+    return np.column_stack([q, v, r.work_external, r.work_dissipated, r.modes]), {
+        "n_steps": r.n_steps, "n_rhs": 0 if r.method == "exact" else r.n_evaluations,
+        "method": r.method}
 
 
 def _mechsim_convert(pb: Problem, rows: np.ndarray) -> np.ndarray:
@@ -151,7 +157,8 @@ def mechsim_methods() -> list[str]:
 def mechsim_contestants(quick: bool) -> list[Contestant]:
     tols = peers_mod._tolerances(quick, loosest=MECHSIM_LOOSEST)
     return [Contestant(f"mechsim:{m}", "mechsim", "tolerance", tols, _mechsim(m),
-                       convert=_mechsim_convert) for m in mechsim_methods()]
+                       convert=_mechsim_convert, unpack=_mechsim_rows)
+            for m in mechsim_methods()]
 
 
 # --- timing -----------------------------------------------------------------------------------
@@ -167,13 +174,16 @@ Shortcut = Callable[[np.ndarray, dict[str, Any]], "Timing | None"]
 
 
 def measure(run: Runner, repeats: int, budget_s: float, same: Shortcut | None = None,
-            steady_s: float = 0.3) -> Timing:
+            steady_s: float = 0.3, unpack: Any = None) -> Timing:
     """Warm-up run, then the timed repeats; ``same`` may answer from the warm-up's result
     (a run already timed under another name) and skip the repeats. Runs under 0.1 s are
-    repeated more, up to about ``steady_s`` in all (at most 21 runs)."""
+    repeated more, up to about ``steady_s`` in all (at most 21 runs). ``unpack``: the
+    contestant's (``Contestant.unpack``), applied outside the timing."""
     t0 = time.perf_counter()
     Y, stats = run()
     warm = time.perf_counter() - t0
+    if unpack is not None:
+        Y, stats = unpack(Y, stats)
     if same is not None:
         hit = same(Y, stats)
         if hit is not None:
@@ -188,6 +198,8 @@ def measure(run: Runner, repeats: int, budget_s: float, same: Shortcut | None = 
             t0 = time.perf_counter()
             Y, stats = run()
             times.append(time.perf_counter() - t0)
+        if unpack is not None:
+            Y, stats = unpack(Y, stats)
     return Timing(warm, times, Y, stats)
 
 
@@ -241,7 +253,7 @@ def sweep(pb: Problem, c: Contestant, repeats: int, budget_s: float,
                     return hit[1]
                 return None
         try:
-            m = measure(run, repeats, budget_s, same, steady_s)
+            m = measure(run, repeats, budget_s, same, steady_s, c.unpack)
         except Exception as e:  # noqa: BLE001 - a failed run is a data point, not a crash
             row["status"] = f"failed: {type(e).__name__}: {str(e).splitlines()[0][:120]}"
             continue

@@ -73,14 +73,15 @@ VARIANT_REPEATS = 2
 
 
 def recording_variants(systems: list[str], duration: float) -> list[dict[str, Any]]:
-    """``recording_rtf`` of each system as recorded (the next block integrated meanwhile)
-    and with its blocks integrated one after the other (``SystemRun.integrates_ahead``
-    off), made in turn: the median real-time factor of each and every run's."""
+    """``recording_rtf`` of each system with the next block integrated meanwhile
+    (``SystemRun.integrates_ahead`` on) and with its blocks integrated one after the other
+    (off, as recorded), made in turn: the median real-time factor of each and every run's."""
     import statistics
 
     from mechsim.runcore.run import SystemRun
 
     rows = []
+    default = SystemRun.integrates_ahead
     for s in systems:
         got: dict[bool, list[float]] = {True: [], False: []}
         for _ in range(VARIANT_REPEATS):
@@ -89,7 +90,7 @@ def recording_variants(systems: list[str], duration: float) -> list[dict[str, An
                 try:
                     got[ahead].append(recording_rtf(s, duration)["rtf"])
                 finally:
-                    SystemRun.integrates_ahead = True
+                    SystemRun.integrates_ahead = default
         row = {"system": s, "ahead": statistics.median(got[True]), "ahead_runs": got[True],
                "one_after_the_other": statistics.median(got[False]),
                "one_after_the_other_runs": got[False]}

@@ -102,10 +102,11 @@ def _recording_lines(r: dict[str, Any], duration: float) -> list[str]:
                      + f" | {x['messages']} |")
     variants = r.get("recording_variants") or []
     if variants:
-        lines += ["", "The slowest systems without events (a model with events integrates its "
-                  "blocks one after the other) recorded again, each block's successor integrated "
-                  "while the block is released (as above) and the blocks integrated one after the "
-                  "other, in turn (median real-time factor; every run's in brackets):", "",
+        lines += ["", "The slowest systems without events recorded again, each block's "
+                  "successor integrated on a thread of its own while the block is released "
+                  "(`SystemRun.integrates_ahead`) and the blocks integrated one after the other "
+                  "(as recorded above), in turn (median real-time factor; every run's in "
+                  "brackets):", "",
                   "| system | next block integrated meanwhile | one after the other |",
                   "|---|---|---|"]
         for v in variants:

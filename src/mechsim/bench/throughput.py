@@ -2,10 +2,11 @@
 ensembles (``simulate_many``) against what a user would write instead, in one run.
 
 - Per call: ``simulate`` of a pendulum for one output interval (two samples), with every
-  output and with the state only; ``make_stepper`` and its ``advance``; ``advance`` of a
-  running stepper by one sample; the compiled loop ``simulate`` calls (its arguments
-  prepared once), through numba's dispatcher and through its compiled entry point: the floor
-  of a call that passes the loop's arguments one by one; scipy's ``solve_ivp`` and a
+  output (and with reading its end state: a result makes its arrays when they are first
+  read) and with the state only; ``make_stepper`` and its ``advance``; ``advance`` of a
+  running stepper by one sample; the compiled call ``simulate`` makes (its arguments
+  prepared once, its buffer made each call), through numba's dispatcher and through its
+  compiled entry point, as ``simulate`` calls it: the floor of a call; scipy's ``solve_ivp`` and a
   hand-written numba RK4 loop for the same interval. Median of many calls, in µs.
 - Ensembles: ``ENSEMBLE`` pendulums released from rest at random amplitudes, ten
   small-oscillation periods, ``SAMPLES`` samples, tolerance 1e-10: ``simulate_many`` (all
@@ -77,6 +78,9 @@ def per_call(n: int = 4000) -> dict[str, float]:
             lambda: mechsim.simulate(model, dt, dt, tolerance=TOLERANCE), n),
         "simulate, every output (dop853)": _median_us(
             lambda: mechsim.simulate(model, dt, dt, tolerance=TOLERANCE, method="dop853"), n),
+        "simulate, every output (dop853), then reading q[-1] and v[-1]": _median_us(
+            lambda: _end_state(mechsim.simulate(model, dt, dt, tolerance=TOLERANCE,
+                                                method="dop853")), n),
         "simulate, state only (dop853)": _median_us(
             lambda: mechsim.simulate(model, dt, dt, tolerance=TOLERANCE, method="dop853",
                                      outputs=(), work_terms=False), n),
@@ -85,10 +89,10 @@ def per_call(n: int = 4000) -> dict[str, float]:
         "make_stepper + advance (dop853)": _median_us(
             lambda: make_stepper(model, "dop853", TOLERANCE).advance(t1), n),
         "advance of a running stepper by one sample": _median_us(advance, n),
-        "the compiled loop alone (dop853, every output), numba's dispatcher": _median_us(
-            dispatched, n),
-        "the same loop through its compiled entry point (no type dispatch)": _median_us(
-            entry, n),
+        "the compiled call alone (dop853, every output), numba's dispatcher": _median_us(
+            dispatched.run, n),
+        "the same call through its compiled entry point (as simulate calls it)": _median_us(
+            entry.run, n),
         "hand-written numba RK4 loop (one call, 4 steps)": _median_us(
             lambda: loop(g, y0, dt, 4), n),
         "scipy solve_ivp (DOP853)": _median_us(
@@ -98,38 +102,23 @@ def per_call(n: int = 4000) -> dict[str, float]:
     }
 
 
-def _compiled_loop(model: Any, dt: float) -> tuple[Callable[[], Any], Callable[[], Any]]:
+def _end_state(result: Any) -> tuple[np.ndarray, np.ndarray]:
+    return result.q[-1], result.v[-1]
+
+
+def _compiled_loop(model: Any, dt: float) -> tuple[Any, Any]:
     """The one compiled call of ``simulate(model, dt, dt, tolerance=TOLERANCE,
-    method="dop853")`` with its arguments made once: through the dispatcher, and through the
-    entry point of the overload it picks (what is left of a call: unboxing the arguments)."""
+    method="dop853")`` with its arguments made once and its buffer made each call: through
+    numba's dispatcher, and through the entry point of the overload it picks (as ``simulate``
+    calls it: what is left of a call is unboxing the arguments): two ``PreparedRun``."""
     from mechsim.integrators.runs import RunPlan, plan_run
-    from mechsim.simulate import OUTPUTS, OutputShape, output_buffers, output_times
+    from mechsim.simulate import OUTPUTS, output_times
 
     plan = plan_run(model, "dop853", TOLERANCE, OUTPUTS, horizon=dt)
-    assert isinstance(plan, RunPlan) and not plan.radau
-    t = output_times(dt, dt)
-    y, p = model.initial_y(), model.parameter_vector()
-    state = np.zeros(1, plan.dtype)
-    # Reset as raw bytes: assigning a record array goes through numpy's structured cast,
-    # which would cost more than the loop it resets.
-    raw, start = state.view(np.uint8), np.zeros(plan.dtype.itemsize, np.uint8)
-    y0 = y.copy()  # (the loop steps y in place)
-    args = (plan.ks, *plan.fixed, state, y, p, t, np.empty((t.size, y.size)),
-            *plan.tail, *plan.want, *output_buffers(OutputShape.of(model), OUTPUTS, t.size))
-    plan.loop(*args)
-    entry = plan.loop.overloads[tuple(map(plan.loop.typeof_pyval, args))].entry_point
-
-    def dispatched() -> Any:
-        raw[:] = start  # every call starts the method afresh, as simulate's does
-        y[:] = y0
-        return plan.loop(*args)
-
-    def direct() -> Any:
-        raw[:] = start
-        y[:] = y0
-        return entry(*args)
-
-    return dispatched, direct
+    assert isinstance(plan, RunPlan)
+    y, p, t = model.initial_y(), model.parameter_vector(), output_times(dt, dt)
+    return (plan.prepare(model, y, p, t, None, entry=False),
+            plan.prepare(model, y, p, t, None, entry=True))
 
 
 @functools.cache

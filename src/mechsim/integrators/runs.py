@@ -3,21 +3,23 @@ radau15 and the closed forms on a model without events, without a Python stepper
 
 ``plan_run`` decides once per model and set of inputs what ``make_stepper`` would make (the
 method, ``auto``'s choice included, its tolerance and options) and keeps it as a
-``RunPlan``: the compiled loop (``compiled.runs``), the kernel set with the outputs asked
-for, and every argument that does not change from call to call. ``RunPlan.run`` then costs
-one call into compiled code, which starts the method as its stepper does, steps, and
-evaluates the outputs; its rows equal the stepper's bit for bit (``tests/test_fast_path.py``).
-A run the loop cannot finish (an event, a step limit, a stiff phase: any status but OK) is
-left to the stepper, which goes on or raises as the solver contract says. ``exact`` has a plan
-of its own (``ClosedFormPlan``): the model's closed form at the output times, then the outputs
-in one compiled call, as its stepper and ``evaluate`` do.
+``RunPlan``: the compiled call (``compiled.runs.erk_call``, ``radau15_call``), the kernel
+set with the outputs asked for, and every option. ``RunPlan.prepare`` adds an initial state
+and output times and makes every argument of the call once (``PreparedRun``), whose ``run``
+then costs one buffer and one call into compiled code, which starts the method as its
+stepper does, steps, and evaluates the outputs into that buffer (``RunLayout``); its rows
+equal the stepper's bit for bit (``tests/test_fast_path.py``). A run the loop cannot finish
+(an event, a step limit, a stiff phase: any status but OK) is left to the stepper, which goes
+on or raises as the solver contract says. ``exact`` has a plan of its own
+(``ClosedFormPlan``): the model's closed form at the output times, then the outputs in one
+compiled call, as its stepper and ``evaluate`` do.
 """
 
 from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -39,32 +41,141 @@ _OUTPUT_KERNELS = {"energy": "energy", "invariants": "invariants",
 
 
 @dataclass(frozen=True)
+class RunLayout:
+    """Where a prepared run (``PreparedRun``) writes into its one buffer: the output times,
+    the rows Y, the outputs E, I, O, F (``widths``: their columns, 0 for one not wanted;
+    ``columns``: the columns of each, what the compiled call is told), the parameters and the
+    counters, one after the other (``compiled.runs._laid_out``)."""
+
+    samples: int
+    n_y: int
+    n_p: int
+    widths: tuple[int, int, int, int]  # energy terms, invariants, observables, frames
+    columns: tuple[int, int, int, int]  # the same, wanted or not
+    _parts: tuple[slice, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        m = self.samples
+        ce, ci, co, cf = self.widths
+        sizes = (m, m * self.n_y, m * ce, m * ci, m * co, m * cf * 7, self.n_p, COUNTERS)
+        ends = np.cumsum(sizes).tolist()
+        object.__setattr__(self, "_parts", tuple(
+            slice(end - size, end) for end, size in zip(ends, sizes, strict=True)))
+
+    @property
+    def size(self) -> int:
+        return int(self._parts[-1].stop)
+
+    def _cut(self, buf: np.ndarray, part: int) -> np.ndarray:
+        """Part ``part`` of ``buf`` (0 t, 1 Y, 2 E, 3 I, 4 O, 5 F, 6 p, 7 counters), flat."""
+        return buf[self._parts[part]]
+
+    def times(self, buf: np.ndarray) -> np.ndarray:
+        return self._cut(buf, 0)
+
+    def rows(self, buf: np.ndarray) -> np.ndarray:
+        return self._cut(buf, 1).reshape(self.samples, self.n_y)
+
+    def outputs(self, buf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """E, I, O, F as ``evaluate_arrays`` makes them (the ones not wanted without columns)."""
+        m = self.samples
+        ce, ci, co, cf = self.widths
+        return (self._cut(buf, 2).reshape(m, ce), self._cut(buf, 3).reshape(m, ci),
+                self._cut(buf, 4).reshape(m, co), self._cut(buf, 5).reshape(m, cf, 7))
+
+    def parameters(self, buf: np.ndarray) -> np.ndarray:
+        return self._cut(buf, 6)
+
+    def counters(self, buf: np.ndarray) -> np.ndarray:
+        """Rows written, steps, evaluations, rejections, error estimate, time reached."""
+        return self._cut(buf, 7)
+
+
+#: The counters at the end of a prepared run's buffer.
+COUNTERS = 6
+
+
+@dataclass(frozen=True)
+class PreparedRun:
+    """A plan's run from one initial state to fixed output times, every argument of its
+    compiled call made once (``RunPlan.prepare``): ``run`` costs one buffer and one call.
+
+    The arguments are this object's own (never handed out; the call copies the state, the
+    times and the parameters into the buffer before it writes), so their types never change:
+    ``call`` may be the entry point of the compiled overload for exactly these types, checked
+    when it was prepared, which spares numba's type dispatch."""
+
+    layout: RunLayout
+    call: Any
+    arguments: tuple[Any, ...]
+    _size: int = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_size", self.layout.size)
+
+    def run(self) -> tuple[int, np.ndarray]:
+        """(status, buffer): the status a ``Status`` value as an int."""
+        buf = np.empty(self._size)
+        return self.call(*self.arguments, buf), buf
+
+
+@dataclass(frozen=True)
 class RunPlan:
-    """What one ``RunPlan.run`` passes to the compiled loop (see the module docstring)."""
+    """What a run's compiled call (``compiled.runs.erk_call``, ``radau15_call``: ``loop``)
+    gets besides the initial state, the output times and its buffer: the kernel set, the
+    state record's type, the events' directions, its integer options (max_steps, then for the
+    explicit pairs the pair, its stages and the entries integrated) and its float options
+    (``compiled.runs``), and the outputs wanted."""
 
     method: str
-    radau: bool
     ks: Any
     dtype: np.dtype
-    fixed: tuple[Any, ...]  # the loop's arguments before y (the erk loop's)
-    tail: tuple[Any, ...]  # its arguments between Y and the output flags
+    ev_dir: np.ndarray
+    options: tuple[int, int, int, int]
+    floats: tuple[float, ...]
     want: tuple[bool, bool, bool, bool]
     loop: Any
 
-    def run(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray, Y: np.ndarray,
-            E: np.ndarray, I: np.ndarray, O: np.ndarray, F: np.ndarray  # noqa: E741
-            ) -> tuple[int, int, int, int, int, float, float]:
-        """Integrate ``model`` from (0, y) to the times ``t`` into ``Y`` and evaluate the
-        outputs wanted into E, I, O, F: (status, rows written, steps, evaluations,
-        rejections, error estimate, time reached); the status is a ``Status`` value, as an
-        int."""
-        state = np.zeros(1, self.dtype)
-        we, wi, wo, wf = self.want
-        if self.radau:
-            return self.loop(self.ks, state, y, p, t, Y, *self.tail,  # type: ignore[no-any-return]
-                             we, wi, wo, wf, E, I, O, F)
-        return self.loop(self.ks, *self.fixed, state, y, p, t, Y,  # type: ignore[no-any-return]
-                         *self.tail, we, wi, wo, wf, E, I, O, F)
+    def prepare(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray,
+                work_columns: tuple[int, int] | None, entry: bool) -> PreparedRun:
+        """The run of ``model`` from ``y`` to the times ``t``; ``work_columns``: the columns
+        of Y to set NaN after the run (the work terms not wanted). With ``entry``, the call
+        goes through the compiled entry point where the arguments' types are the ones the
+        loop was compiled for."""
+        layout = _layout(model, y, p, t, self.want)
+        ints = np.array([*map(int, self.want), *layout.columns[1:], *(work_columns or (-1, -1)),
+                         *self.options], np.int64)
+        arguments = (self.ks, np.zeros(1, self.dtype), np.array(y, np.float64),
+                     np.array(p, np.float64), np.array(t, np.float64), self.ev_dir, ints,
+                     np.array(self.floats, np.float64))
+        return PreparedRun(layout, _entry(self.loop, arguments) if entry else self.loop,
+                           arguments)
+
+
+def _layout(model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray,
+            want: tuple[bool, bool, bool, bool]) -> RunLayout:
+    """The layout of a run of ``model``: the outputs' columns as many as its kernels write
+    (at least one, as ``simulate.output_buffers``), none for an output not wanted."""
+    sizes = model.kernels.sizes
+    columns = (3, max(sizes["N_INV"], 1), max(sizes["N_OBS"], 1), max(sizes["N_FRAMES"], 1))
+    return RunLayout(t.size, y.size, p.size,
+                     tuple(c if w else 0  # type: ignore[arg-type]
+                           for c, w in zip(columns, want, strict=True)), columns)
+
+
+def _entry(loop: Any, arguments: tuple[Any, ...]) -> Any:
+    """The entry point of ``loop``'s compiled overload for ``arguments`` and a float64
+    buffer, if it has one for exactly their types; else ``loop`` (numba dispatches)."""
+    from numba import typeof
+
+    signature = tuple(map(typeof, (*arguments, np.empty(1))))
+    overloads = getattr(loop, "overloads", None)
+    if overloads is None:
+        return loop
+    if signature not in overloads:
+        loop.compile(signature)
+    overload = overloads.get(signature)
+    return loop if overload is None else getattr(overload, "entry_point", loop)
 
 
 @dataclass(frozen=True)
@@ -95,6 +206,25 @@ class ClosedFormPlan:
         if any(self.want):
             load().evaluate_outputs(self.ks, t, Y, p, *self.want, E, I, O, F)
         return Status.OK, t.size, 0, 1, 0, 0.0, float(t[-1])
+
+    def prepare(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray,
+                work_columns: tuple[int, int] | None, entry: bool) -> PreparedRun:
+        """As ``RunPlan.prepare``: ``run`` into the buffer of its layout."""
+        layout = _layout(model, y, p, t, self.want)
+        return PreparedRun(layout, self._into, (model, layout, y.copy(), p.copy(), t.copy(),
+                                                work_columns))
+
+    def _into(self, model: Model, layout: RunLayout, y: np.ndarray, p: np.ndarray,
+              t: np.ndarray, work_columns: tuple[int, int] | None, buf: np.ndarray) -> int:
+        times, parameters, Y = layout.times(buf), layout.parameters(buf), layout.rows(buf)
+        times[:] = t
+        parameters[:] = p
+        status, *counters = self.run(model, y.copy(), parameters, times, Y,
+                                     *layout.outputs(buf))
+        layout.counters(buf)[:] = counters
+        if work_columns is not None:
+            Y[:, list(work_columns)] = np.nan
+        return status
 
 
 Plan = RunPlan | ClosedFormPlan
@@ -186,16 +316,16 @@ def _make_plan(model: Model, method: str, tolerance: float, request: Request,
         work = options.get("work_terms", True)
         n_y = model.initial_y().size
         tol = max(local * cls.LOCAL_FACTOR, cls.LOCAL_FLOOR)
-        return RunPlan(cls.method, False, ks, DOP853_STATE,
-                       (int(cls.PAIR), cls.N_STAGES, n_y if work else 2 * model.kernels.n_q),
-                       (tol, tol, math.inf, max_steps, event_directions(model)),
-                       want, loops.erk_run)  # type: ignore[arg-type]
+        return RunPlan(cls.method, ks, DOP853_STATE, event_directions(model),
+                       (max_steps, int(cls.PAIR), cls.N_STAGES,
+                        n_y if work else 2 * model.kernels.n_q),
+                       (tol, tol, math.inf), want, loops.erk_call)  # type: ignore[arg-type]
     if cls is Radau15 and set(options) <= {"eps"}:
         lo, hi = Radau15.EPS_RANGE
         eps = options.get("eps", min(max(0.01 * math.sqrt(local), lo), hi))
         tau = float(model.time_scale())
-        return RunPlan(Radau15.method, True, ks, RADAU_STATE, (),
-                       (eps, max_steps, event_directions(model), tau, tau**2, Radau15.FLOOR,
-                        float(local), float(local)),
-                       want, loops.radau15_run)  # type: ignore[arg-type]
+        return RunPlan(Radau15.method, ks, RADAU_STATE, event_directions(model),
+                       (max_steps, 0, 0, 0),
+                       (eps, tau, tau**2, Radau15.FLOOR, float(local), float(local)),
+                       want, loops.radau15_call)  # type: ignore[arg-type]
     return None

@@ -35,8 +35,8 @@ if TYPE_CHECKING:
 FAST_CHUNK = 1000
 #: A scene of fewer nodes than this steps each of them by this many chunks at a time divided
 #: by the number of nodes (so its chunk holds no more samples than a four-node scene's): a
-#: run releases several blocks in one go and integrates each one's successor meanwhile
-#: (``SystemRun.advance_to``).
+#: run releases several blocks in one go (``SystemRun.advance_to``), fewer trips through the
+#: loop and its serving.
 FAST_CHUNKS = 4
 #: Nodes whose parameter services a paced scene makes per tick once its samples flow (a
 #: scene as fast as possible makes every node's after its first chunk).

@@ -38,7 +38,7 @@ from mechsim.ros.graph_check import (
 )
 from mechsim.ros.launch import FAST_CHUNK, SceneRun, _warm
 from mechsim.ros.process import NOTHING_PUBLISHED, bounded_teardown, drain, write_report
-from mechsim.runcore.stops import stop_on_sigterm
+from mechsim.runcore.stops import stop_on_sigterm, stopping
 
 if TYPE_CHECKING:
     from mechsim.scene import Scene
@@ -301,7 +301,7 @@ def diagnostics_process(scene: Scene | None, report: str | None = None) -> int:
         node = DiagnosticsNode(context=context) if scene is None else DiagnosticsNode(
             context=context, warn_drift=scene.warn_drift, error_drift=scene.error_drift)
         executor.add_node(node)
-        while True:
+        while not stopping.is_set():
             executor.spin_once(timeout_sec=0.1)
     except KeyboardInterrupt:
         pass
@@ -439,7 +439,7 @@ class _Simulator:
             chunk = min(ch.qos.depth for ch in node.outlet.channels.values()
                         if ch.qos.reliability == ReliabilityPolicy.RELIABLE
                         and ch.qos.durability == DurabilityPolicy.VOLATILE)
-        while not node.finished:
+        while not node.finished and not stopping.is_set():
             if node.stepped and not node.paused:
                 node.advance_to(node.t + chunk / node.publish_rate)
                 if self.recorder:

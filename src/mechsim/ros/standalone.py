@@ -24,6 +24,7 @@ from typing import Any
 from mechsim.errors import ParameterError, UnknownSystemError
 from mechsim.ros.graph_check import GraphCheck, discovery_window, start_context
 from mechsim.ros.parameters import overrides
+from mechsim.runcore.stops import stopping
 
 #: The system of a simulator started without a ``system`` parameter.
 DEFAULT_SYSTEM = "pendulum"
@@ -119,7 +120,7 @@ def simulator_alone() -> int:
                              before_first_message=_recorder_listens if wait else None)
         _refuse_unknown(node)
         executor.add_node(node)
-        while not node.finished:
+        while not node.finished and not stopping.is_set():
             executor.spin_once(timeout_sec=0.1)
     except KeyboardInterrupt:
         pass

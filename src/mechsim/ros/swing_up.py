@@ -89,6 +89,7 @@ def controller_alone() -> int:
     from rclpy.executors import SingleThreadedExecutor
 
     from mechsim.ros.graph_check import start_context
+    from mechsim.runcore.stops import stopping
 
     context = start_context()
     executor = SingleThreadedExecutor(context=context)
@@ -96,7 +97,7 @@ def controller_alone() -> int:
     try:
         node = SwingUpController(context=context)
         executor.add_node(node)
-        while True:
+        while not stopping.is_set():
             executor.spin_once(timeout_sec=0.1)
     except KeyboardInterrupt:
         pass

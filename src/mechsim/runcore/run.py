@@ -143,9 +143,10 @@ class SystemRun:
     ``reset`` restarts at t = 0; ``offer`` takes an effort command. ``start()`` releases the
     first sample (t = 0): call it once the observer is ready."""
 
-    #: Unpaced, integrate each block's successor while the block is released (False: one
-    #: after the other, as ``mechsim bench --streaming`` measures beside it).
-    integrates_ahead = True
+    #: Unpaced, integrate each block's successor while the block is released (``NextBlock``);
+    #: off: one after the other, which ``mechsim bench --streaming`` measures faster beside it
+    #: on two cores (the thread's hand-offs cost more than the overlap gains).
+    integrates_ahead = False
 
     def __init__(self, model: Model, method: str, settings: Settings, observer: Observer, *,
                  stepped: bool, end_time: float | None = None,

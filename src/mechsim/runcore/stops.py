@@ -39,9 +39,12 @@ def die_with_parent(parent_pid: int) -> None:
 
 def stop_on_sigterm() -> None:
     """SIGTERM raises KeyboardInterrupt from now on (main thread only), so every stop takes the
-    same clean path as Ctrl-C: outputs completed, nodes destroyed."""
+    same clean path as Ctrl-C: outputs completed, nodes destroyed. Both also set ``stopping``:
+    a stop whose KeyboardInterrupt lands in a finalizer (``__del__``, where Python prints and
+    drops it) still ends a loop that checks it."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _interrupt)
+        signal.signal(signal.SIGINT, _interrupt)
 
 
 def _interrupt(signum: int, frame: Any) -> None:
@@ -106,4 +109,5 @@ class held_signals:  # noqa: N801 - used like the function it was: ``with held_s
         for s, handler in self._previous.items():
             _signal.signal(s, handler)
         if self._got and exc_type is None:
+            stopping.set()
             raise KeyboardInterrupt

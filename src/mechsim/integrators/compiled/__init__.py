@@ -136,7 +136,7 @@ def loop_signatures() -> dict[Any, tuple[Any, ...]]:
 
 
 #: The whole-run loops (``runs``) each half of ``precompile`` compiles after its shared loops.
-PRECOMPILE_RUNS = (("erk_run", "erk_many"), ("radau15_run", "radau15_many", "outputs_many"))
+PRECOMPILE_RUNS = (("erk_call", "erk_many"), ("radau15_call", "radau15_many", "outputs_many"))
 
 
 def run_signatures() -> dict[Any, tuple[Any, ...]]:
@@ -151,11 +151,9 @@ def run_signatures() -> dict[Any, tuple[Any, ...]]:
     m4 = np.zeros((2, 2, 2, 2))
     iv = np.zeros(1, dtype=np.int64)
     dop, radau = np.zeros(1, DOP853_STATE), np.zeros(1, RADAU_STATE)
-    outputs = (True, True, True, True, m2, m2, m2, m3)
     signatures = {
-        R.erk_run: (KERNEL_SET, 0, 0, 0, dop, v, v, v, m2, 0.0, 0.0, 0.0, 0, iv, *outputs),
-        R.radau15_run: (KERNEL_SET, radau, v, v, v, m2, 0.0, 0, iv, 0.0, 0.0, 0.0, 0.0, 0.0,
-                        *outputs),
+        R.erk_call: (KERNEL_SET, dop, v, v, v, iv, iv, v, v),
+        R.radau15_call: (KERNEL_SET, radau, v, v, v, iv, iv, v, v),
         R.erk_many: (KERNEL_SET, 0, iv, dop, m2, m2, m3, m3, m2, v, iv, m3, v, v, 0.0, 0, m2,
                      iv, m2, iv, iv),
         R.radau15_many: (KERNEL_SET, iv, radau, m2, m2, v, iv, m3, v, 0, m2, m3, m3, m3, m2, m2,

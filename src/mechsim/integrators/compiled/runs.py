@@ -113,6 +113,87 @@ def radau15_run(ks, state, y, p, t_out, Y_out, eps, max_steps, ev_dir, tau, tau2
     return _counters(state, status, k)
 
 
+# A call (``erk_call``, ``radau15_call``): a whole run from a fixed initial state to fixed
+# output times, its rows, outputs and counters written into one buffer the caller made
+# (``integrators.runs.RunLayout``: t | Y | E | I | O | F | p | counters). ``ints`` holds the
+# layout and the options that are integers (``CALL_INTS``), ``floats`` the others.
+CALL_INTS = ("want_e", "want_i", "want_o", "want_f", "cols_i", "cols_o", "frames",
+             "work_external", "work_dissipated", "max_steps", "pair", "n_stages",
+             "n_integrated")
+COUNTERS = 6  # rows written, steps, evaluations, rejections, error estimate, time reached
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _laid_out(buf, t0, p0, n, ints):
+    """The views of ``buf`` (t, Y, E, I, O, F, p, counters) for ``t0.size`` rows of ``n``
+    entries, with the output times and parameters copied in."""
+    m = t0.size
+    o = 0
+    t = buf[o:o + m]
+    t[:] = t0
+    o += m
+    Y = buf[o:o + m * n].reshape((m, n))
+    o += m * n
+    ce = 3 if ints[0] else 0
+    E = buf[o:o + m * ce].reshape((m, ce))
+    o += m * ce
+    ci = ints[4] if ints[1] else 0
+    I = buf[o:o + m * ci].reshape((m, ci))  # noqa: E741
+    o += m * ci
+    co = ints[5] if ints[2] else 0
+    O = buf[o:o + m * co].reshape((m, co))  # noqa: E741
+    o += m * co
+    cf = ints[6] if ints[3] else 0
+    F = buf[o:o + m * cf * 7].reshape((m, cf, 7))
+    o += m * cf * 7
+    p = buf[o:o + p0.size]
+    p[:] = p0
+    o += p0.size
+    return t, Y, E, I, O, F, p, buf[o:o + 6]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _finish(counters, Y, ints, status, k, n_steps, n_evaluations, n_rejected, error_estimate,
+            t_reached):
+    """The counters into their place; the work columns NaN where they are not wanted
+    (``ints[7]``, ``ints[8]`` ≥ 0), after the outputs, as ``simulate`` does; the status."""
+    counters[0] = k
+    counters[1] = n_steps
+    counters[2] = n_evaluations
+    counters[3] = n_rejected
+    counters[4] = error_estimate
+    counters[5] = t_reached
+    if ints[7] >= 0:
+        for i in range(Y.shape[0]):
+            Y[i, ints[7]] = np.nan
+            Y[i, ints[8]] = np.nan
+    return status
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def erk_call(ks, state0, y0, p0, t0, ev_dir, ints, floats, buf):
+    """``erk_run`` from a copy of ``state0`` and ``y0`` into ``buf`` (see above; ``floats``:
+    rtol, atol, h_max); returns the status."""
+    t, Y, E, I, O, F, p, counters = _laid_out(buf, t0, p0, y0.size, ints)  # noqa: E741
+    status, k, n_steps, n_ev, n_rej, err, t_reached = erk_run(
+        ks, ints[10], ints[11], ints[12], state0.copy(), y0.copy(), p, t, Y, floats[0],
+        floats[1], floats[2], ints[9], ev_dir, ints[0] != 0, ints[1] != 0, ints[2] != 0,
+        ints[3] != 0, E, I, O, F)
+    return _finish(counters, Y, ints, status, k, n_steps, n_ev, n_rej, err, t_reached)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def radau15_call(ks, state0, y0, p0, t0, ev_dir, ints, floats, buf):
+    """``radau15_run`` as ``erk_call`` (``floats``: eps, τ, τ², floor, tolerance, dense
+    tolerance)."""
+    t, Y, E, I, O, F, p, counters = _laid_out(buf, t0, p0, y0.size, ints)  # noqa: E741
+    status, k, n_steps, n_ev, n_rej, err, t_reached = radau15_run(
+        ks, state0.copy(), y0.copy(), p, t, Y, floats[0], ints[9], ev_dir, floats[1],
+        floats[2], floats[3], floats[4], floats[5], ints[0] != 0, ints[1] != 0, ints[2] != 0,
+        ints[3] != 0, E, I, O, F)
+    return _finish(counters, Y, ints, status, k, n_steps, n_ev, n_rej, err, t_reached)
+
+
 @njit(cache=True, error_model="numpy", parallel=True)
 def erk_many(ks, pair, active, state, y, y_old, K, F, P, t_out, done, Y_out, rtol, atol, h_max,
              max_steps, g_old, ev_dir, comp, restart, status):
