@@ -211,8 +211,9 @@ class SimulationResult(OutputViews):
     wall_time: float
     t: _FromRun[np.ndarray] = _FromRun(lambda r, run: run[1].times(run[2]))
     q: _FromRun[np.ndarray] = _FromRun(lambda r, run: _rows(r)[:, run[0].layout.q])
-    v: _FromRun[np.ndarray] = _FromRun(lambda r, run: run[0].rates(
-        run[1].times(run[2]), _rows(r), run[1].parameters(run[2])))
+    v: _FromRun[np.ndarray] = _FromRun(
+        lambda r, run: _rows(r)[:, run[0].layout.v] if run[0].rates_in_state()
+        else run[0].rates(run[1].times(run[2]), _rows(r), run[1].parameters(run[2])))
     work_external: _FromRun[np.ndarray] = _FromRun(
         lambda r, run: _rows(r)[:, run[0].layout.work_external])
     work_dissipated: _FromRun[np.ndarray] = _FromRun(

@@ -397,6 +397,11 @@ class Model(ABC):
         except for a model whose state holds momenta instead (a Hamiltonian formulation)."""
         return Y[..., self.layout.v]
 
+    def rates_in_state(self) -> bool:
+        """Whether ``rates`` are the state's ``v`` entries (not a Hamiltonian formulation's
+        momenta turned into rates)."""
+        return True
+
     def has_canonical_form(self) -> bool:
         """Whether the kernels provide Hamilton's equations in z = [q, p] (conservative,
         unconstrained, event-free Lagrangian systems): what Gauss–Legendre integrates."""

@@ -220,6 +220,9 @@ class LagrangianModel(Model):
         self.kernels.to_momenta(0.0, y, self.parameter_vector(), z)
         return z
 
+    def rates_in_state(self) -> bool:
+        return not self.hamiltonian
+
     def rates(self, t: np.ndarray, Y: np.ndarray, p: np.ndarray) -> np.ndarray:
         if not self.hamiltonian:
             return super().rates(t, Y, p)
