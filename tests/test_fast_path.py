@@ -178,3 +178,16 @@ def test_autos_choice_never_costs_more_at_a_looser_tolerance(system: str,
     # (radau15 at its finest ε takes the tolerance only for its first step and its dense
     # outputs: its count moves by a few evaluations in ten thousand)
     assert all(b[2] <= 1.01 * a[2] for a, b in zip(costs, costs[1:], strict=False)), costs
+
+
+def test_a_results_arrays_are_those_of_the_run_whatever_is_written_into_another() -> None:
+    """A result makes its arrays from its run's buffer when first read: writing into one
+    (q) changes none read after it, the rates of a Hamiltonian formulation included (the
+    double pendulum's q̇ = M(q)⁻¹ p, made from the rows as run)."""
+    for model in (mechsim.load_system("pendulum"),
+                  mechsim.load_system("double_pendulum", formulation="hamiltonian")):
+        untouched = simulate(model, 1.0, 0.1, method="dop853")
+        written = simulate(model, 1.0, 0.1, method="dop853")
+        written.q[:] = 0.0
+        assert _same(written.v, untouched.v) and _same(written.kinetic, untouched.kinetic)
+        assert _same(written.t, untouched.t) and not _same(written.q, untouched.q)

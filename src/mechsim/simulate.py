@@ -415,9 +415,13 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     if set_up.prepared is not None:
         status, buf = set_up.prepared.run()
         if status == _OK:
-            return SimulationResult.of_run(model, set_up.plan.method,  # type: ignore[union-attr]
-                                           tolerance, time.perf_counter() - start,
-                                           set_up.prepared.layout, buf, outputs)
+            result = SimulationResult.of_run(
+                model, set_up.plan.method, tolerance,  # type: ignore[union-attr]
+                time.perf_counter() - start, set_up.prepared.layout, buf, outputs)
+            if not model.rates_in_state():
+                result.v  # noqa: B018 - made now: from the rows as run, whatever a caller
+                # later writes into them (a view of the rows otherwise)
+            return result
         # (stopped short: an event, the step budget, a stiff phase, a failure: the stepper
         # runs it from the start, to go on or raise as the solver contract says)
     t = set_up.t.copy()
