@@ -260,6 +260,9 @@ class SimulationResult(OutputViews):
         result = cls.__new__(cls)
         result.__dict__ = {"model": model, "method": method, "tolerance": tolerance,
                            "wall_time": wall_time, "_run": (model, layout, buf, which)}
+        if not model.rates_in_state():
+            result.v  # noqa: B018 - made now: from the rows as run, whatever a caller later
+            # writes into them (elsewhere a view of the rows)
         return result
 
     def __repr__(self) -> str:
@@ -415,13 +418,9 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     if set_up.prepared is not None:
         status, buf = set_up.prepared.run()
         if status == _OK:
-            result = SimulationResult.of_run(
+            return SimulationResult.of_run(
                 model, set_up.plan.method, tolerance,  # type: ignore[union-attr]
                 time.perf_counter() - start, set_up.prepared.layout, buf, outputs)
-            if not model.rates_in_state():
-                result.v  # noqa: B018 - made now: from the rows as run, whatever a caller
-                # later writes into them (a view of the rows otherwise)
-            return result
         # (stopped short: an event, the step budget, a stiff phase, a failure: the stepper
         # runs it from the start, to go on or raise as the solver contract says)
     t = set_up.t.copy()
