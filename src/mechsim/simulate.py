@@ -7,7 +7,7 @@ import time
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar, overload
+from typing import Any, Generic, NamedTuple, TypeVar, overload
 
 import numpy as np
 
@@ -165,13 +165,22 @@ T = TypeVar("T")
 _Run = tuple[Model, RunLayout, np.ndarray, tuple[str, ...]]  # (model, layout, buffer, outputs)
 
 
+class StateColumns(NamedTuple):
+    """The columns of a model's rows holding q, and v where the state holds the rates (None:
+    a Hamiltonian formulation's momenta, turned into rates by ``Model.rates``)."""
+
+    q: slice
+    v: slice | None
+
+    @classmethod
+    def of(cls, model: Model) -> StateColumns:
+        at = model.layout
+        return cls(at.q, at.v if model.rates_in_state() else None)
+
+
 def _rows(result: SimulationResult) -> np.ndarray:
-    """The rows Y of a prepared run's result (``SimulationResult.of_run``), made once."""
-    found = result.__dict__.get("_rows")
-    if found is None:
-        _, layout, buf, _ = result.__dict__["_run"]
-        found = result.__dict__["_rows"] = layout.rows(buf)
-    return found  # type: ignore[no-any-return]
+    """The rows Y of a prepared run's result (made by ``SimulationResult.of_run``)."""
+    return result.__dict__["_rows"]  # type: ignore[no-any-return]
 
 
 class _FromRun(Generic[T]):
@@ -202,18 +211,17 @@ class SimulationResult(OutputViews):
     """Arrays at the output times. ``total = kinetic + potential``; the work terms close
     ``total - total[0] = work_external - work_dissipated``.
 
-    A run ``simulate`` finishes in one compiled call leaves its arrays in one buffer; each
-    attribute is made from it (a view) when it is first read."""
+    A run ``simulate`` finishes in one compiled call leaves its arrays in one buffer: ``q``
+    and ``v`` are made from it (views) with the result, every other attribute when it is
+    first read."""
 
     model: Model
     method: str
     tolerance: float
     wall_time: float
+    q: np.ndarray
+    v: np.ndarray
     t: _FromRun[np.ndarray] = _FromRun(lambda r, run: run[1].times(run[2]))
-    q: _FromRun[np.ndarray] = _FromRun(lambda r, run: _rows(r)[:, run[0].layout.q])
-    v: _FromRun[np.ndarray] = _FromRun(
-        lambda r, run: _rows(r)[:, run[0].layout.v] if run[0].rates_in_state()
-        else run[0].rates(run[1].times(run[2]), _rows(r), run[1].parameters(run[2])))
     work_external: _FromRun[np.ndarray] = _FromRun(
         lambda r, run: _rows(r)[:, run[0].layout.work_external])
     work_dissipated: _FromRun[np.ndarray] = _FromRun(
@@ -254,15 +262,19 @@ class SimulationResult(OutputViews):
 
     @classmethod
     def of_run(cls, model: Model, method: str, tolerance: float, wall_time: float,
-               layout: RunLayout, buf: np.ndarray, which: tuple[str, ...]) -> SimulationResult:
+               layout: RunLayout, buf: np.ndarray, which: tuple[str, ...],
+               state: StateColumns) -> SimulationResult:
         """The result of a prepared run (``integrators.runs.PreparedRun``) that wrote
-        ``buf``; its arrays are made when first read (``_FromRun``)."""
+        ``buf``: q and v now, the other arrays when first read (``_FromRun``)."""
         result = cls.__new__(cls)
-        result.__dict__ = {"model": model, "method": method, "tolerance": tolerance,
-                           "wall_time": wall_time, "_run": (model, layout, buf, which)}
-        if not model.rates_in_state():
-            result.v  # noqa: B018 - made now: from the rows as run, whatever a caller later
-            # writes into them (elsewhere a view of the rows)
+        Y = layout.rows(buf)
+        # q and v with the result (what nearly every caller reads; v from the rows as run,
+        # whatever a caller later writes into them), the rest when first read
+        result.__dict__ = {
+            "model": model, "method": method, "tolerance": tolerance, "wall_time": wall_time,
+            "_run": (model, layout, buf, which), "_rows": Y, "q": Y[:, state.q],
+            "v": Y[:, state.v] if state.v is not None
+            else model.rates(layout.times(buf), Y, layout.parameters(buf))}
         return result
 
     def __repr__(self) -> str:
@@ -420,7 +432,8 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
         if status == _OK:
             return SimulationResult.of_run(
                 model, set_up.plan.method, tolerance,  # type: ignore[union-attr]
-                time.perf_counter() - start, set_up.prepared.layout, buf, outputs)
+                time.perf_counter() - start, set_up.prepared.layout, buf, outputs,
+                set_up.state)
         # (stopped short: an event, the step budget, a stiff phase, a failure: the stepper
         # runs it from the start, to go on or raise as the solver contract says)
     t = set_up.t.copy()
@@ -455,6 +468,7 @@ class _SetUp:
     t: np.ndarray
     plan: Plan | None
     prepared: PreparedRun | None
+    state: StateColumns
 
 
 _OK = int(Status.OK)
@@ -478,7 +492,7 @@ def _work_out(model: Model, t_end: float, output_dt: float | None, tolerance: fl
         prepared = plan.prepare(model, model.initial_y(), model.parameter_vector(), t,
                                 None if work_terms else (at.work_external, at.work_dissipated),
                                 entry=kept and t.size <= SET_UP_SAMPLES)
-    return _SetUp(tolerance, method, t, plan, prepared)
+    return _SetUp(tolerance, method, t, plan, prepared, StateColumns.of(model))
 
 
 def _set_up(model: Model, *arguments: object) -> _SetUp:

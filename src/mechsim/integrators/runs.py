@@ -74,7 +74,7 @@ class RunLayout:
         return self._cut(buf, 0)
 
     def rows(self, buf: np.ndarray) -> np.ndarray:
-        return self._cut(buf, 1).reshape(self.samples, self.n_y)
+        return buf[self._parts[1]].reshape(self.samples, self.n_y)
 
     def outputs(self, buf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """E, I, O, F as ``evaluate_arrays`` makes them (the ones not wanted without columns)."""
