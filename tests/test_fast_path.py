@@ -65,6 +65,31 @@ def test_without_work_terms_and_with_fewer_outputs() -> None:
     assert _same(res.kinetic, out.kinetic) and res.invariants == {}
 
 
+@pytest.mark.parametrize("formulation", ["symmetric", "landau"])
+@pytest.mark.parametrize("work_terms", [True, False])
+def test_a_compiled_closed_form_equals_its_stepper_bit_for_bit(formulation: str,
+                                                               work_terms: bool) -> None:
+    """The charged particle's Cartesian closed form runs in one compiled call
+    (``Model.closed_form_kernel``): rows, outputs and counters as the ``exact`` stepper's,
+    which calls ``propagate``, with fields along every axis."""
+    model = mechsim.load_system("charged_particle", formulation=formulation,
+                                **{"electric_field.x": 0.3, "electric_field.y": -0.2,
+                                   "electric_field.z": 0.1})
+    assert model.closed_form_kernel() is not None
+    tau = model.time_scale()
+    res = simulate(model, 3.0 * tau, 0.05 * tau, method="exact", work_terms=work_terms)
+    Y, out, st = _by_stepper(model, "exact", 1e-10, 3.0 * tau, 0.05 * tau, work_terms)
+    if not work_terms:
+        Y[:, [model.layout.work_external, model.layout.work_dissipated]] = np.nan
+    assert _same(res.q, Y[:, model.layout.q]) and _same(res.v, Y[:, model.layout.v])
+    assert _same(res.work_external, Y[:, model.layout.work_external])
+    assert (res.n_steps, res.n_evaluations) == (st.n_steps, st.n_evaluations) == (0, 1)
+    assert _same(res.kinetic, out.kinetic) and _same(res.potential, out.potential)
+    for name, v in out.observables.items():
+        assert _same(res.observables[name], v), name
+    assert out.frames is not None and _same(res.outputs.frames, out.frames)
+
+
 @pytest.mark.parametrize("system", ["driven_oscillator", "periodic_drive", "charged_particle"])
 def test_a_closed_form_without_work_terms_has_the_same_motion(system: str) -> None:
     """Without the work terms a closed form may skip them (the driven oscillators' ∫ b ẋ²):
@@ -152,6 +177,8 @@ def test_the_whole_run_loops_are_called_with_the_types_set_up_compiles() -> None
     for method in ("dop853", "radau15"):
         simulate(model, 1.0, 0.1, method=method)
         mechsim.simulate_many(model, 1.0, 0.1, states=[[1.0, 0.0], [0.5, 0.0]], method=method)
+    simulate(mechsim.load_system("charged_particle", formulation="symmetric"), 1.0, 0.1,
+             method="exact")  # a compiled closed form
     for loop, types in run_signatures().items():
         assert [tuple(s) for s in loop.overloads] == [types], loop.__name__
 

@@ -137,3 +137,44 @@ def make_kernel_set(functions: dict[str, object], sizes: dict[str, int]) -> Kern
         warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
         return _new_kernel_set(  # type: ignore[no-any-return]
             tuple(chosen), tuple(int(sizes[s]) for s in SIZES))
+
+
+# --- closed forms ---------------------------------------------------------------------------
+#: A model's compiled closed form, ``motion(t0, y0, t, c, rows) -> bool``: the states at the
+#: times ``t`` from the state ``y0`` at ``t0`` into ``rows`` (one per time), ``c`` the
+#: constants it takes from the model's parameters; False where there is none from ``y0``.
+CLOSED_FORM_SIGNATURE = types.boolean(F8, VEC, VEC, VEC, MAT)
+
+
+@njit(CLOSED_FORM_SIGNATURE, cache=True)
+def _no_motion(t0, y0, t, c, rows):  # type: ignore[no-untyped-def]
+    return False
+
+
+@structref.register
+class MotionType(types.StructRef):
+    def preprocess_fields(self, fields):  # type: ignore[no-untyped-def]
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class Motion(structref.StructRefProxy):
+    """A closed form as one compiled value (``make_motion``), passed to the whole-run loops
+    as the kernel set is; its field is read inside compiled code only."""
+
+
+structref.define_proxy(Motion, MotionType, ["rows"])
+#: The numba type of a closed form: what the closed-form run is compiled for.
+MOTION = MotionType([("rows", types.FunctionType(CLOSED_FORM_SIGNATURE))])
+
+
+@njit(MOTION(types.FunctionType(CLOSED_FORM_SIGNATURE)), cache=True)
+def _new_motion(rows):  # type: ignore[no-untyped-def]
+    return Motion(rows)
+
+
+def make_motion(rows: object = _no_motion) -> Motion:
+    """The compiled value of a closed form ``rows`` (a numba function compiled for
+    ``CLOSED_FORM_SIGNATURE``; the default has none)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+        return _new_motion(rows)  # type: ignore[no-any-return]

@@ -17,6 +17,7 @@ compiled call, as its stepper and ``evaluate`` do.
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 from dataclasses import dataclass, field
@@ -163,6 +164,14 @@ def _layout(model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray,
                            for c, w in zip(columns, want, strict=True)), columns)
 
 
+@functools.cache
+def _motion(rows: Any) -> Any:
+    """The compiled value of a model's closed form ``rows`` (made once per function)."""
+    from mechsim.codegen.contract import make_motion
+
+    return make_motion(rows)
+
+
 def _entry(loop: Any, arguments: tuple[Any, ...]) -> Any:
     """The entry point of ``loop``'s compiled overload for ``arguments`` and a float64
     buffer, if it has one for exactly their types; else ``loop`` (numba dispatches)."""
@@ -209,10 +218,22 @@ class ClosedFormPlan:
 
     def prepare(self, model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray,
                 work_columns: tuple[int, int] | None, entry: bool) -> PreparedRun:
-        """As ``RunPlan.prepare``: ``run`` into the buffer of its layout."""
+        """As ``RunPlan.prepare``: where the model's closed form is compiled
+        (``Model.closed_form_kernel``), one call of ``compiled.runs.closed_call``, which does
+        what ``run`` does; else ``run`` into the buffer of its layout."""
         layout = _layout(model, y, p, t, self.want)
-        return PreparedRun(layout, self._into, (model, layout, y.copy(), p.copy(), t.copy(),
-                                                work_columns))
+        kernel = model.closed_form_kernel()
+        if kernel is None:
+            return PreparedRun(layout, self._into, (model, layout, y.copy(), p.copy(),
+                                                    t.copy(), work_columns))
+        rows, constants = kernel
+        ints = np.array([*map(int, self.want), *layout.columns[1:],
+                         *(work_columns or (-1, -1)), self.n_finite], np.int64)
+        arguments = (_motion(rows), self.ks, np.array(constants, np.float64),
+                     np.array(y, np.float64), np.array(p, np.float64),
+                     np.array(t, np.float64), ints)
+        loop = load_runs().closed_call
+        return PreparedRun(layout, _entry(loop, arguments) if entry else loop, arguments)
 
     def _into(self, model: Model, layout: RunLayout, y: np.ndarray, p: np.ndarray,
               t: np.ndarray, work_columns: tuple[int, int] | None, buf: np.ndarray) -> int:

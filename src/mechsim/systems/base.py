@@ -385,6 +385,13 @@ class Model(ABC):
         work terms cost more than its motion may leave them NaN."""
         return None
 
+    def closed_form_kernel(self) -> tuple[Any, np.ndarray] | None:
+        """``propagate`` compiled, where the model has it so: a numba function of
+        ``codegen.contract.CLOSED_FORM_SIGNATURE`` that writes the rows ``propagate`` returns
+        (it is what ``propagate`` calls), and the constants it takes from the parameters.
+        Default: None (``propagate`` alone)."""
+        return None
+
     def curves(self) -> tuple[Any, ...]:
         """Curves of one variable the model defines for its parameters, with the levels read
         against them (``mechsim.systems.curves``: an effective potential with the orbit's

@@ -41,11 +41,13 @@ field the instantaneous Biot–Savart picture leaves out (``induction_forces``).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
 from scipy.constants import epsilon_0, mu_0
 
+from mechsim.codegen.contract import CLOSED_FORM_SIGNATURE
 from mechsim.errors import ParameterError
 from mechsim.params import number, positive
 from mechsim.systems._symbolic import sympy as sp
@@ -69,6 +71,19 @@ def _gyrate(x0: float, y0: float, z0: float, ux: float, uy: float, vz: float, vd
         v[i, 0] = vdx + ux * c - uy * s
         v[i, 1] = vdy + ux * s + uy * c
         v[i, 2] = vz + az * ti
+
+@njit(CLOSED_FORM_SIGNATURE, cache=True)
+def _cartesian_rows(t0: float, y0: np.ndarray, t: np.ndarray, c: np.ndarray,
+                    rows: np.ndarray) -> bool:
+    """The Cartesian formulations' closed form (``ChargedParticle.propagate``): rows [r, v,
+    rest of y0] at the times t from y0 at t0; c = [q E_z / m, v_d (x, y), Ω]."""
+    _gyrate(y0[0], y0[1], y0[2], y0[3] - c[1], y0[4] - c[2], y0[5], c[1], c[2], c[0], c[3],
+            t - t0, rows[:, 0:3], rows[:, 3:6])
+    for i in range(t.size):
+        for j in range(6, y0.size):
+            rows[i, j] = y0[j]
+    return True
+
 
 class ChargedParticle(LagrangianModel):
     id = "charged_particle"
@@ -204,9 +219,9 @@ class ChargedParticle(LagrangianModel):
         interval is halved); None if the path meets the axis (where φ is undefined)."""
         t = np.asarray(t, dtype=float)
         if self.formulation != "cylindrical":
-            r, v = self.cartesian_motion(y0[0:3], y0[3:6], t - t0)
             rows = np.empty((t.size, len(y0)))
-            rows[:, 0:3], rows[:, 3:6], rows[:, 6:] = r, v, np.asarray(y0, dtype=float)[6:]
+            _cartesian_rows(float(t0), np.ascontiguousarray(y0, dtype=float),
+                            np.ascontiguousarray(t), self._motion_constants(), rows)
             return rows
         rho0, phi0, z0, drho0, dphi0, dz0 = (float(x) for x in y0[:6])
         c0, s0 = math.cos(phi0), math.sin(phi0)
@@ -223,6 +238,18 @@ class ChargedParticle(LagrangianModel):
         rows[:, 4] = (r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0]) / rho**2
         rows[:, 5] = v[:, 2]
         return rows
+
+    def closed_form_kernel(self) -> tuple[Any, np.ndarray] | None:
+        """``_cartesian_rows`` in the Cartesian formulations (cylindrical: ``propagate``)."""
+        if self.formulation == "cylindrical":
+            return None
+        return _cartesian_rows, self._motion_constants()
+
+    def _motion_constants(self) -> np.ndarray:
+        """[q E_z / m, v_d (x, y), Ω] of ``_cartesian_rows``, as ``cartesian_motion`` has them."""
+        vd = self.drift_velocity()
+        return np.array([self.value("charge") * self.value("electric_field.z")
+                         / self.value("mass"), vd[0], vd[1], self.gyration_rate()])
 
     def _swept_angle(self, r0: np.ndarray, v0: np.ndarray, t: np.ndarray) -> np.ndarray | None:
         """Angle swept about the z axis by the path from time 0 to each t (increasing, ≥ 0)."""

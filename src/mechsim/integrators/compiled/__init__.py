@@ -136,7 +136,8 @@ def loop_signatures() -> dict[Any, tuple[Any, ...]]:
 
 
 #: The whole-run loops (``runs``) each half of ``precompile`` compiles after its shared loops.
-PRECOMPILE_RUNS = (("erk_call", "erk_many"), ("radau15_call", "radau15_many", "outputs_many"))
+PRECOMPILE_RUNS = (("erk_call", "erk_many", "closed_call"),
+                   ("radau15_call", "radau15_many", "outputs_many"))
 
 
 def run_signatures() -> dict[Any, tuple[Any, ...]]:
@@ -144,7 +145,7 @@ def run_signatures() -> dict[Any, tuple[Any, ...]]:
     ``integrators.runs`` and ``integrators.ensemble`` pass them (see ``loop_signatures``)."""
     from numba import typeof
 
-    from mechsim.codegen.contract import KERNEL_SET
+    from mechsim.codegen.contract import KERNEL_SET, MOTION
 
     R = load_runs()
     v, m2, m3 = np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2, 2))
@@ -154,13 +155,14 @@ def run_signatures() -> dict[Any, tuple[Any, ...]]:
     signatures = {
         R.erk_call: (KERNEL_SET, dop, v, v, v, iv, iv, v, v),
         R.radau15_call: (KERNEL_SET, radau, v, v, v, iv, iv, v, v),
+        R.closed_call: (MOTION, KERNEL_SET, v, v, v, v, iv, v),
         R.erk_many: (KERNEL_SET, 0, iv, dop, m2, m2, m3, m3, m2, v, iv, m3, v, v, 0.0, 0, m2,
                      iv, m2, iv, iv),
         R.radau15_many: (KERNEL_SET, iv, radau, m2, m2, v, iv, m3, v, 0, m2, m3, m3, m3, m2, m2,
                          m2, iv, m2, v, v, 0.0, v, v, iv, iv),
         R.outputs_many: (KERNEL_SET, v, m3, m2, True, True, True, True, m3, m3, m3, m4),
     }
-    return {loop: tuple(a if a is KERNEL_SET else typeof(a) for a in args)
+    return {loop: tuple(a if a in (KERNEL_SET, MOTION) else typeof(a) for a in args)
             for loop, args in signatures.items()}
 
 

@@ -16,12 +16,15 @@ The ensembles' members are independent (``prange``): their rows do not depend on
 of threads or on numba's threading layer.
 """
 
+import math
+
 import numpy as np
 from numba import njit, prange
 
 from mechsim.integrators.compiled.erk import dop853_advance, dopri5_advance, erk_initial_step
 from mechsim.integrators.compiled.outputs import evaluate_outputs
 from mechsim.integrators.compiled.radau import radau15_advance
+from mechsim.integrators.state import Status
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
@@ -192,6 +195,27 @@ def radau15_call(ks, state0, y0, p0, t0, ev_dir, ints, floats, buf):
         floats[2], floats[3], floats[4], floats[5], ints[0] != 0, ints[1] != 0, ints[2] != 0,
         ints[3] != 0, E, I, O, F)
     return _finish(counters, Y, ints, status, k, n_steps, n_ev, n_rej, err, t_reached)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
+def closed_call(motion, ks, c, y0, p0, t0, ints, buf):
+    """``exact`` as ``integrators.runs.ClosedFormPlan.run`` does it, into ``buf``: the
+    closed form ``motion`` (``codegen.contract.Motion``, with its constants ``c``) from
+    ``y0`` at 0 to the output times, then the outputs wanted; ``ints`` as ``erk_call``'s up to
+    the work columns, then the entries of each row that must be finite. Returns the status:
+    NOT_CONVERGED where there is no closed form from ``y0``, NOT_FINITE where a row is not."""
+    t, Y, E, I, O, F, p, counters = _laid_out(buf, t0, p0, y0.size, ints)  # noqa: E741
+    if not motion.rows(0.0, y0, t, c, Y):
+        return _finish(counters, Y, ints, Status.NOT_CONVERGED.value, 0, 0, 0, 0, 0.0, 0.0)
+    for i in range(t.size):
+        for j in range(ints[9]):
+            if not math.isfinite(Y[i, j]):
+                return _finish(counters, Y, ints, Status.NOT_FINITE.value, 0, 0, 0, 0, 0.0,
+                               0.0)
+    if ints[0] != 0 or ints[1] != 0 or ints[2] != 0 or ints[3] != 0:
+        evaluate_outputs(ks, t, Y, p, ints[0] != 0, ints[1] != 0, ints[2] != 0, ints[3] != 0,
+                         E, I, O, F)
+    return _finish(counters, Y, ints, Status.OK.value, t.size, 0, 1, 0, 0.0, t[t.size - 1])
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
