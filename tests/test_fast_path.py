@@ -65,17 +65,21 @@ def test_without_work_terms_and_with_fewer_outputs() -> None:
     assert _same(res.kinetic, out.kinetic) and res.invariants == {}
 
 
-@pytest.mark.parametrize("formulation", ["symmetric", "landau"])
+_FIELDS = {"electric_field.x": 0.3, "electric_field.y": -0.2, "electric_field.z": 0.1}
+
+
+@pytest.mark.parametrize("system, values", [
+    ("charged_particle", {"formulation": "symmetric", **_FIELDS}),
+    ("charged_particle", {"formulation": "landau", **_FIELDS}),
+    ("rigid_body", {})])
 @pytest.mark.parametrize("work_terms", [True, False])
-def test_a_compiled_closed_form_equals_its_stepper_bit_for_bit(formulation: str,
-                                                               work_terms: bool) -> None:
-    """The charged particle's Cartesian closed form runs in one compiled call
-    (``Model.closed_form_kernel``): rows, outputs and counters as the ``exact`` stepper's,
-    which calls ``propagate``, with fields along every axis."""
-    model = mechsim.load_system("charged_particle", formulation=formulation,
-                                **{"electric_field.x": 0.3, "electric_field.y": -0.2,
-                                   "electric_field.z": 0.1})
-    assert model.closed_form_kernel() is not None
+def test_a_compiled_closed_form_equals_its_stepper_bit_for_bit(
+        system: str, values: dict[str, Any], work_terms: bool) -> None:
+    """A closed form compiled (``Model.closed_form_kernel``: the charged particle's Cartesian
+    formulations, the free rigid body off its principal axes) runs in one compiled call:
+    rows, outputs and counters as the ``exact`` stepper's, which calls ``propagate``."""
+    model = mechsim.load_system(system, **values)
+    assert model.closed_form_kernel(model.initial_y()) is not None
     tau = model.time_scale()
     res = simulate(model, 3.0 * tau, 0.05 * tau, method="exact", work_terms=work_terms)
     Y, out, st = _by_stepper(model, "exact", 1e-10, 3.0 * tau, 0.05 * tau, work_terms)

@@ -142,7 +142,7 @@ def make_kernel_set(functions: dict[str, object], sizes: dict[str, int]) -> Kern
 # --- closed forms ---------------------------------------------------------------------------
 #: A model's compiled closed form, ``motion(t0, y0, t, c, rows) -> bool``: the states at the
 #: times ``t`` from the state ``y0`` at ``t0`` into ``rows`` (one per time), ``c`` the
-#: constants it takes from the model's parameters; False where there is none from ``y0``.
+#: constants it takes (``Model.closed_form_kernel``); False where there is none from ``y0``.
 CLOSED_FORM_SIGNATURE = types.boolean(F8, VEC, VEC, VEC, MAT)
 
 

@@ -11,8 +11,10 @@ stepper does, steps, and evaluates the outputs into that buffer (``RunLayout``);
 equal the stepper's bit for bit (``tests/test_fast_path.py``). A run the loop cannot finish
 (an event, a step limit, a stiff phase: any status but OK) is left to the stepper, which goes
 on or raises as the solver contract says. ``exact`` has a plan of its own
-(``ClosedFormPlan``): the model's closed form at the output times, then the outputs in one
-compiled call, as its stepper and ``evaluate`` do.
+(``ClosedFormPlan``): the model's closed form at the output times, then the outputs, as its
+stepper and ``evaluate`` do: all in one compiled call (``compiled.runs.closed_call``) where
+the model's closed form is compiled (``Model.closed_form_kernel``), else ``propagate`` and
+then the outputs in one compiled call.
 """
 
 from __future__ import annotations
@@ -222,7 +224,7 @@ class ClosedFormPlan:
         (``Model.closed_form_kernel``), one call of ``compiled.runs.closed_call``, which does
         what ``run`` does; else ``run`` into the buffer of its layout."""
         layout = _layout(model, y, p, t, self.want)
-        kernel = model.closed_form_kernel()
+        kernel = model.closed_form_kernel(y)
         if kernel is None:
             return PreparedRun(layout, self._into, (model, layout, y.copy(), p.copy(),
                                                     t.copy(), work_columns))

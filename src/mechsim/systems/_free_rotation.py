@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from mechsim.codegen.contract import CLOSED_FORM_SIGNATURE
 from mechsim.systems._elliptic import (
     _amplitudes,
     agm_ratios,
@@ -259,6 +260,31 @@ def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndar
             if W.shape[0]:
                 for r in range(3):
                     W[row, r] = work[_OMEGA + r, k]
+
+
+@njit(CLOSED_FORM_SIGNATURE, cache=True)
+def packed_motion_rows(t0: float, y0: np.ndarray, t: np.ndarray, c: np.ndarray,
+                       rows: np.ndarray) -> bool:
+    """``_torque_free_motion`` from the ``EllipticMotion`` ``pack`` laid out in ``c`` (each
+    of its arrays copied out as the one it was, so the motion is computed as from the
+    tuple)."""
+    o = 8
+    parts = []
+    for k in range(8):
+        n = int(c[k])
+        parts.append(c[o:o + n].copy())
+        o += n
+    frame = parts[4].reshape((4, 4))
+    coefs = parts[6].reshape((3, parts[6].size // 3))
+    _torque_free_motion(t, t0, parts[0], parts[1], parts[2].astype(np.int64), parts[3], frame,
+                        parts[5], coefs, parts[7].astype(np.int64), y0, rows, np.empty((0, 3)))
+    return True
+
+
+def pack(motion: EllipticMotion) -> np.ndarray:
+    """``motion``'s arrays as one, for ``packed_motion_rows``: their sizes, then each flat."""
+    parts = [np.ravel(a).astype(np.float64) for a in motion]
+    return np.concatenate([np.array([p.size for p in parts], np.float64), *parts])
 
 
 def free_rotation(moments: tuple[float, float, float], q0: np.ndarray, w0: np.ndarray,

@@ -41,6 +41,8 @@ from mechsim.systems._free_rotation import (
     _torque_free_motion,
     free_motion,
     free_rotation_at,
+    pack,
+    packed_motion_rows,
 )
 from mechsim.systems._rotation import (
     ROTATION_KERNELS,
@@ -240,6 +242,14 @@ class QuaternionRigidBody(DirectModel):
         else:  # the work terms too, in the same pass
             _torque_free_motion(t, float(t0), *motion, y0, rows, _NONE)
         return rows
+
+    def closed_form_kernel(self, y0: np.ndarray) -> tuple[Any, np.ndarray] | None:
+        """``packed_motion_rows`` with the motion's constants from y0 (``motion_constants``)
+        off the principal axes; else None (``propagate``)."""
+        if not self.torque_free():
+            return None
+        motion = self._free_motion(np.ascontiguousarray(y0, dtype=float))
+        return None if isinstance(motion, UniformSpin) else (packed_motion_rows, pack(motion))
 
     #: Initial states whose closed-form constants are kept (``propagate``), per model.
     MOTION_CACHE_SIZE = 8

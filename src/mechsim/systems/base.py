@@ -385,11 +385,12 @@ class Model(ABC):
         work terms cost more than its motion may leave them NaN."""
         return None
 
-    def closed_form_kernel(self) -> tuple[Any, np.ndarray] | None:
-        """``propagate`` compiled, where the model has it so: a numba function of
-        ``codegen.contract.CLOSED_FORM_SIGNATURE`` that writes the rows ``propagate`` returns
-        (it is what ``propagate`` calls), and the constants it takes from the parameters.
-        Default: None (``propagate`` alone)."""
+    def closed_form_kernel(self, y0: np.ndarray) -> tuple[Any, np.ndarray] | None:
+        """``propagate`` from the state y0 compiled, where the model has it so: a numba
+        function of ``codegen.contract.CLOSED_FORM_SIGNATURE`` that writes the rows
+        ``propagate`` returns (what ``propagate`` calls), and its constants (from the
+        parameters, and from y0 where the model keeps them per state). Default: None
+        (``propagate`` alone)."""
         return None
 
     def curves(self) -> tuple[Any, ...]:

@@ -239,7 +239,7 @@ class ChargedParticle(LagrangianModel):
         rows[:, 5] = v[:, 2]
         return rows
 
-    def closed_form_kernel(self) -> tuple[Any, np.ndarray] | None:
+    def closed_form_kernel(self, y0: np.ndarray) -> tuple[Any, np.ndarray] | None:
         """``_cartesian_rows`` in the Cartesian formulations (cylindrical: ``propagate``)."""
         if self.formulation == "cylindrical":
             return None
