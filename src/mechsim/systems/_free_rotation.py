@@ -265,19 +265,17 @@ def _torque_free_motion(t: np.ndarray, t0: float, c: np.ndarray, ratios: np.ndar
 @njit(CLOSED_FORM_SIGNATURE, cache=True)
 def packed_motion_rows(t0: float, y0: np.ndarray, t: np.ndarray, c: np.ndarray,
                        rows: np.ndarray) -> bool:
-    """``_torque_free_motion`` from the ``EllipticMotion`` ``pack`` laid out in ``c`` (each
-    of its arrays copied out as the one it was, so the motion is computed as from the
-    tuple)."""
-    o = 8
-    parts = []
+    """``_torque_free_motion`` from the ``EllipticMotion`` ``pack`` laid out in ``c``: its
+    arrays as views of c (the integer ones as copies), of the types the tuple's own have."""
+    o = np.empty(9, np.int64)
+    o[0] = 8
     for k in range(8):
-        n = int(c[k])
-        parts.append(c[o:o + n].copy())
-        o += n
-    frame = parts[4].reshape((4, 4))
-    coefs = parts[6].reshape((3, parts[6].size // 3))
-    _torque_free_motion(t, t0, parts[0], parts[1], parts[2].astype(np.int64), parts[3], frame,
-                        parts[5], coefs, parts[7].astype(np.int64), y0, rows, np.empty((0, 3)))
+        o[k + 1] = o[k] + int(c[k])
+    coefs = c[o[6]:o[7]]
+    _torque_free_motion(t, t0, c[o[0]:o[1]], c[o[1]:o[2]], c[o[2]:o[3]].astype(np.int64),
+                        c[o[3]:o[4]], c[o[4]:o[5]].reshape((4, 4)), c[o[5]:o[6]],
+                        coefs.reshape((3, coefs.size // 3)), c[o[7]:o[8]].astype(np.int64),
+                        y0, rows, np.empty((0, 3)))
     return True
 
 
