@@ -71,12 +71,13 @@ _FIELDS = {"electric_field.x": 0.3, "electric_field.y": -0.2, "electric_field.z"
 @pytest.mark.parametrize("system, values", [
     ("charged_particle", {"formulation": "symmetric", **_FIELDS}),
     ("charged_particle", {"formulation": "landau", **_FIELDS}),
-    ("rigid_body", {})])
+    ("rigid_body", {}), ("pendulum", {}), ("pendulum", {"initial_rate.angle": 9.0})])
 @pytest.mark.parametrize("work_terms", [True, False])
 def test_a_compiled_closed_form_equals_its_stepper_bit_for_bit(
         system: str, values: dict[str, Any], work_terms: bool) -> None:
     """A closed form compiled (``Model.closed_form_kernel``: the charged particle's Cartesian
-    formulations, the free rigid body off its principal axes) runs in one compiled call:
+    formulations, the free rigid body off its principal axes, the pendulum's reduced form,
+    librating and rotating) runs in one compiled call:
     rows, outputs and counters as the ``exact`` stepper's, which calls ``propagate``."""
     model = mechsim.load_system(system, **values)
     assert model.closed_form_kernel(model.initial_y()) is not None

@@ -20,17 +20,24 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True)
 def agm_ratios(m: float, m1: float) -> tuple[np.ndarray, float]:
     """The ratios c_k/a_k of the arithmetic–geometric mean from a₀ = 1, b₀ = √m1, c₀ = √m
     (Abramowitz & Stegun 16.4) and 2^N a_N, which start the descending recursion for am u."""
     a, b, c = 1.0, math.sqrt(m1), math.sqrt(m)
-    ratios: list[float] = []
+    ratios = np.empty(_AGM_MAX)
+    n = 0
     # c_{k+1} ≈ c_k²/4a: once below 1e-15 a, the next ratio would change am by less than
     # round-off (a − b can stall at an ulp instead of reaching 0)
-    while c > 1e-15 * a and len(ratios) < 60:
+    while c > 1e-15 * a and n < _AGM_MAX:
         a, b, c = 0.5 * (a + b), math.sqrt(a * b), 0.5 * (a - b)
-        ratios.append(c / a)
-    return np.array(ratios[::-1]), (2.0 ** len(ratios)) * a
+        ratios[n] = c / a
+        n += 1
+    return ratios[:n][::-1].copy(), (2.0 ** n) * a
+
+
+#: The most AGM steps ``agm_ratios`` takes.
+_AGM_MAX = 60
 
 
 @njit(cache=True)
@@ -165,11 +172,14 @@ def complete_third_kind(n: float, m1: float) -> float:
     return float(rf + (n / 3.0) * rj)
 
 
+@njit(cache=True)
 def elliptic_f(phi: float, m1: float) -> float:
     """The incomplete integral F(φ | m) for φ ∈ [−π, π] from m1 = 1 − m: sin φ R_F(cos²φ,
     cos²φ + m1 sin²φ, 1) (Carlson), and F(φ) = 2K − F(π − φ) beyond π/2."""
     if abs(phi) > 0.5 * math.pi:
-        whole = 2.0 * float(carlson_rf(0.0, m1, 1.0))
-        return math.copysign(whole - elliptic_f(math.pi - abs(phi), m1), phi)
+        whole = 2.0 * carlson_rf(0.0, m1, 1.0)
+        rest = math.pi - abs(phi)
+        s, c = math.sin(rest), math.cos(rest)
+        return math.copysign(whole - s * carlson_rf(c * c, c * c + m1 * s * s, 1.0), phi)
     s, c = math.sin(phi), math.cos(phi)
-    return s * float(carlson_rf(c * c, c * c + m1 * s * s, 1.0))
+    return s * carlson_rf(c * c, c * c + m1 * s * s, 1.0)  # type: ignore[no-any-return]

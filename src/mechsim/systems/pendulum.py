@@ -28,14 +28,59 @@ Conventions (the document's are ambiguous or wrong here):
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+from numba import njit
 
+from mechsim.codegen.contract import CLOSED_FORM_SIGNATURE
 from mechsim.params import Parameter, nonnegative, positive
-from mechsim.systems._elliptic import elliptic_f, jacobi_amplitude
+from mechsim.systems._elliptic import agm_ratios, am_dn, elliptic_f
 from mechsim.systems._oscillator import free_solution, state_rows
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
+
+
+@njit(CLOSED_FORM_SIGNATURE, cache=True)
+def _reduced_rows(t0: float, y0: np.ndarray, t: np.ndarray, c: np.ndarray,
+                  rows: np.ndarray) -> bool:
+    """The reduced form's motion in closed form (see the module docstring) at the times t from
+    y0 at t0 into rows [φ, φ̇, rest of y0 unchanged (no work terms act)]; c = [g, R]."""
+    g, R = c[0], c[1]
+    phi0, rate0 = y0[0], y0[1]
+    turns = 2.0 * math.pi * round(phi0 / (2.0 * math.pi))
+    half0 = 0.5 * (phi0 - turns)  # in [−π/2, π/2]
+    for i in range(t.size):
+        for j in range(2, y0.size):
+            rows[i, j] = y0[j]
+    if g == 0.0:
+        for i in range(t.size):
+            rows[i, 0] = phi0 + rate0 * (t[i] - t0)
+            rows[i, 1] = rate0
+        return True
+    w0 = math.sqrt(g / R)
+    s0, c0, r0 = math.sin(half0), math.cos(half0), rate0 / (2.0 * w0)
+    k2 = s0 * s0 + r0 * r0
+    k = math.sqrt(k2)
+    if k2 <= 1.0:  # libration: sn u₀ = s0/k, cn u₀ = r0/k, dn u₀ = c0
+        m1 = (c0 - r0) * (c0 + r0)  # 1 − k², without its cancellation
+        u0 = elliptic_f(math.atan2(s0, r0), m1) if k > 0.0 else 0.0
+        ratios, scale = agm_ratios(k2, m1)
+        for i in range(t.size):
+            am, dn = am_dn(w0 * (t[i] - t0) + u0, ratios, scale, m1)
+            rows[i, 0] = turns + 2.0 * math.atan2(k * math.sin(am), dn)
+            rows[i, 1] = 2.0 * k * w0 * math.cos(am)
+        return True
+    # rotation in the sense of φ̇₀: φ/2 = am(±kω₀τ + u₀ | 1/k²)
+    sense = 1.0 if rate0 > 0.0 else -1.0
+    m1 = (r0 - c0) * (r0 + c0) / k2
+    u0 = elliptic_f(half0, m1)
+    ratios, scale = agm_ratios(1.0 / k2, m1)
+    for i in range(t.size):
+        am, dn = am_dn(sense * k * w0 * (t[i] - t0) + u0, ratios, scale, m1)
+        rows[i, 0] = turns + 2.0 * am
+        rows[i, 1] = 2.0 * sense * k * w0 * dn
+    return True
 
 
 class Pendulum(LagrangianModel):
@@ -122,31 +167,16 @@ class Pendulum(LagrangianModel):
         phi0, rate0 = float(y0[0]), float(y0[1])
         if self.formulation == "small_angle":
             return state_rows(y0, list(free_solution(tau, phi0, rate0, math.sqrt(g / R))))
-        turns = 2.0 * math.pi * round(phi0 / (2.0 * math.pi))
-        half0 = 0.5 * (phi0 - turns)  # in [−π/2, π/2]
-        if g == 0.0:
-            phi, rate = phi0 + rate0 * tau, np.full(tau.size, rate0)
-        else:
-            w0 = math.sqrt(g / R)
-            s0, c0, r0 = math.sin(half0), math.cos(half0), rate0 / (2.0 * w0)
-            k2 = s0 * s0 + r0 * r0
-            k = math.sqrt(k2)
-            if k2 <= 1.0:  # libration: sn u₀ = s0/k, cn u₀ = r0/k, dn u₀ = c0
-                m1 = (c0 - r0) * (c0 + r0)  # 1 − k², without its cancellation
-                u0 = elliptic_f(math.atan2(s0, r0), m1) if k > 0.0 else 0.0
-                am, dn = jacobi_amplitude(w0 * tau + u0, k2, m1)
-                phi = turns + 2.0 * np.arctan2(k * np.sin(am), dn)
-                rate = 2.0 * k * w0 * np.cos(am)
-            else:  # rotation in the sense of φ̇₀: φ/2 = am(±kω₀τ + u₀ | 1/k²)
-                sense = 1.0 if rate0 > 0.0 else -1.0
-                m1 = (r0 - c0) * (r0 + c0) / k2
-                u0 = elliptic_f(half0, m1)
-                am, dn = jacobi_amplitude(sense * k * w0 * tau + u0, 1.0 / k2, m1)
-                phi = turns + 2.0 * am
-                rate = 2.0 * sense * k * w0 * dn
-        rows = np.repeat(np.asarray(y0, dtype=float)[None, :], tau.size, axis=0)
-        rows[:, 0], rows[:, 1] = phi, rate
+        rows = np.empty((tau.size, len(y0)))
+        _reduced_rows(float(t0), np.ascontiguousarray(y0, dtype=float),
+                      np.ascontiguousarray(t, dtype=float), np.array([g, R]), rows)
         return rows
+
+    def closed_form_kernel(self, y0: np.ndarray) -> tuple[Any, np.ndarray] | None:
+        """``_reduced_rows`` in the reduced formulation (small angle: ``propagate``)."""
+        if self.formulation != "reduced":
+            return None
+        return _reduced_rows, np.array([self.value("gravity"), self.value("length")])
 
     # --- analytic oracles (tests/test_pendulum.py checks the integrated motion against them) -
     def amplitude(self) -> float:
