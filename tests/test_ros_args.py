@@ -13,7 +13,7 @@ from typing import Any
 import yaml
 
 from mechsim_msgs.msg import SystemInfo
-from rosuser import DEADLINE, Listener, finished, mechsim_command, process
+from rosuser import DEADLINE, Listener, finished, mechsim_command, output, process
 
 
 def _env(**extra: str) -> dict[str, str]:
@@ -68,7 +68,10 @@ def test_the_installed_executable_ends_at_its_duration(ros_context: Any) -> None
     try:
         with process([str(exe), "--ros-args", "-r", "__ns:=/orbit", "--params-file",
                       str(params)], _env()) as p:
-            info = _info(listener, "/orbit/system_info")
+            try:
+                info = _info(listener, "/orbit/system_info")
+            except AssertionError as e:  # what the node said, to tell a stall from a failure
+                raise AssertionError(f"{e}; the node wrote: {output(p)[-3000:]!r}") from None
             assert info["system"] == "kepler" and info["eccentricity"] == 0.3
             status, said = finished(p)
             assert status == 0, said
