@@ -146,11 +146,6 @@ def make_kernel_set(functions: dict[str, object], sizes: dict[str, int]) -> Kern
 CLOSED_FORM_SIGNATURE = types.boolean(F8, VEC, VEC, VEC, MAT)
 
 
-@njit(CLOSED_FORM_SIGNATURE, cache=True)
-def _no_motion(t0, y0, t, c, rows):  # type: ignore[no-untyped-def]
-    return False
-
-
 @structref.register
 class MotionType(types.StructRef):
     def preprocess_fields(self, fields):  # type: ignore[no-untyped-def]
@@ -172,9 +167,9 @@ def _new_motion(rows):  # type: ignore[no-untyped-def]
     return Motion(rows)
 
 
-def make_motion(rows: object = _no_motion) -> Motion:
+def make_motion(rows: object) -> Motion:
     """The compiled value of a closed form ``rows`` (a numba function compiled for
-    ``CLOSED_FORM_SIGNATURE``; the default has none)."""
+    ``CLOSED_FORM_SIGNATURE``)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
         return _new_motion(rows)  # type: ignore[no-any-return]

@@ -202,12 +202,11 @@ class ChargedParticle(LagrangianModel):
         Ω = −qB/m: u(t) = R_z(Ωt) u₀, r⊥(t) = r⊥₀ + v_d t + ∫₀ᵗ u (sin Ωt/Ω and 2 sin²(Ωt/2)/Ω,
         no cancellation at small Ωt)."""
         t = np.asarray(t, dtype=float)
-        az = self.value("charge") * self.value("electric_field.z") / self.value("mass")
-        vd = self.drift_velocity()
+        az, vdx, vdy, om = self._motion_constants()
         r, v = np.empty((t.size, 3)), np.empty((t.size, 3))
-        _gyrate(float(r0[0]), float(r0[1]), float(r0[2]), float(v0[0] - vd[0]),
-                float(v0[1] - vd[1]), float(v0[2]), float(vd[0]), float(vd[1]), az,
-                self.gyration_rate(), t, r, v)
+        _gyrate(float(r0[0]), float(r0[1]), float(r0[2]), float(v0[0] - vdx),
+                float(v0[1] - vdy), float(v0[2]), float(vdx), float(vdy), float(az), float(om),
+                t, r, v)
         return r, v
 
     def propagate(self, t0: float, y0: np.ndarray, t: np.ndarray,
@@ -246,7 +245,8 @@ class ChargedParticle(LagrangianModel):
         return _cartesian_rows, self._motion_constants()
 
     def _motion_constants(self) -> np.ndarray:
-        """[q E_z / m, v_d (x, y), Ω] of ``_cartesian_rows``, as ``cartesian_motion`` has them."""
+        """[q E_z / m, v_d (x, y), Ω]: the constants of ``cartesian_motion`` and
+        ``_cartesian_rows``."""
         vd = self.drift_velocity()
         return np.array([self.value("charge") * self.value("electric_field.z")
                          / self.value("mass"), vd[0], vd[1], self.gyration_rate()])
