@@ -137,6 +137,11 @@ def packages_to_fetch(status: Path | None = None) -> list[tuple[str, str]]:
     return found
 
 
+#: How the unpacked tree is described (bumped when ``chromium.json`` gains a field or a
+#: folder): part of the key, so a copy described the old way is unpacked again.
+CHROMIUM_LAYOUT = 2
+
+
 def chromium(force: bool) -> None:
     try:
         wanted = packages_to_fetch()
@@ -145,7 +150,7 @@ def chromium(force: bool) -> None:
             say("chromium: apt cannot be asked now; keeping the copy in .cache/test-tools")
             return
         raise
-    key = hashlib.sha256(json.dumps(wanted).encode()).hexdigest()
+    key = hashlib.sha256(json.dumps([CHROMIUM_LAYOUT, wanted]).encode()).hexdigest()
     if not force and CHROMIUM_INFO.is_file():
         try:
             if json.loads(CHROMIUM_INFO.read_text()).get("key") == key:
@@ -173,9 +178,13 @@ def chromium(force: bool) -> None:
     finally:
         shutil.rmtree(staging, ignore_errors=True)
         shutil.rmtree(debs, ignore_errors=True)
-    # Paths relative to the checkout's root (it may move).
-    libs = [CHROMIUM / d for d in ("usr/lib/x86_64-linux-gnu", "lib/x86_64-linux-gnu",
-                                   "usr/lib/chromium")]
+    # Paths relative to the checkout's root (it may move): the usual library folders first,
+    # then every other folder holding a shared object (libpulse0's libpulsecommon lives in
+    # usr/lib/x86_64-linux-gnu/pulseaudio, found through a RUNPATH the unpacked tree lacks).
+    usual = [CHROMIUM / d for d in ("usr/lib/x86_64-linux-gnu", "lib/x86_64-linux-gnu",
+                                    "usr/lib/chromium")]
+    others = sorted({f.parent for f in CHROMIUM.rglob("*.so*") if f.is_file()} - set(usual))
+    libs = [*usual, *others]
     info = {"key": key, "packages": [f"{n} {v}" for n, v in wanted],
             "executable": str((CHROMIUM / "usr/lib/chromium/chromium").relative_to(ROOT)),
             "library_path": [str(d.relative_to(ROOT)) for d in libs if d.is_dir()]}
