@@ -173,6 +173,29 @@ def test_a_repeated_call_is_set_up_once_and_returns_arrays_of_its_own() -> None:
         given = {"t_end": 1.0, **change}
         assert same_run(simulate(model, **given), simulate(load(), **given)), change
     assert same_run(simulate(model, 1.0, np.array(0.05)), simulate(load(), 1.0, 0.05))
+    # outputs as a list, first call on a model (nothing kept for it yet) and again
+    fresh = load()
+    for _ in range(2):
+        listed = simulate(fresh, 1.0, outputs=["energy"])
+        assert same_run(listed, simulate(load(), 1.0, outputs=("energy",)))
+        assert _same(listed.total, simulate(load(), 1.0, outputs=("energy",)).total)
+
+
+def test_what_is_kept_for_a_model_goes_with_it() -> None:
+    """The set-ups and plans kept per model are dropped when the model is, so a model made
+    later (maybe at the same address) never finds another's."""
+    import gc
+
+    from mechsim.integrators import runs
+    from mechsim.simulate import _SET_UPS
+
+    model = mechsim.load_system("pendulum")
+    simulate(model, 0.5)
+    key = id(model)
+    assert key in _SET_UPS._kept and key in runs._PLANS._kept
+    del model
+    gc.collect()
+    assert key not in _SET_UPS._kept and key not in runs._PLANS._kept
 
 
 def test_the_whole_run_loops_are_called_with_the_types_set_up_compiles() -> None:

@@ -7,7 +7,7 @@ import time
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Generic, NamedTuple, TypeVar, overload
+from typing import Generic, NamedTuple, TypeVar, overload
 
 import numpy as np
 
@@ -15,11 +15,10 @@ from mechsim.errors import ParameterError
 from mechsim.integrators import METHODS, Stepper, loops, make_stepper
 from mechsim.integrators.runs import (
     NOT_KEPT,
+    PerModel,
     Plan,
     PreparedRun,
     RunLayout,
-    keep_for,
-    kept_for,
     plan_run,
 )
 from mechsim.integrators.state import Status
@@ -424,16 +423,18 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     output evaluation.
     """
     start = time.perf_counter()
+    if type(outputs) is not tuple and not isinstance(outputs, str):
+        outputs = tuple(outputs)  # (a list given: the set-up keyed by its entries)
     set_up = _set_up(model, t_end, output_dt, tolerance, method, outputs, step, closed_form,
                      work_terms, publish_rate)
     tolerance, method = set_up.tolerance, set_up.method
-    if set_up.prepared is not None:
-        status, buf = set_up.prepared.run()
+    prepared = set_up.prepared
+    if prepared is not None:
+        status, buf = prepared.run()
         if status == _OK:
             return SimulationResult.of_run(
                 model, set_up.plan.method, tolerance,  # type: ignore[union-attr]
-                time.perf_counter() - start, set_up.prepared.layout, buf, outputs,
-                set_up.state)
+                time.perf_counter() - start, prepared.layout, buf, outputs, set_up.state)
         # (stopped short: an event, the step budget, a stiff phase, a failure: the stepper
         # runs it from the start, to go on or raise as the solver contract says)
     t = set_up.t.copy()
@@ -503,7 +504,7 @@ def _set_up(model: Model, *arguments: object) -> _SetUp:
     steps); arguments that cannot be keyed (arrays) are worked out afresh. Its output times
     are read-only: a run copies them."""
     try:
-        found = kept_for(_SET_UPS, model, arguments)
+        found = _SET_UPS.get(model, arguments)
     except TypeError:  # unhashable
         return _work_out(model, *arguments)  # type: ignore[arg-type]
     if found is NOT_KEPT:
@@ -511,10 +512,10 @@ def _set_up(model: Model, *arguments: object) -> _SetUp:
         if found.t.size > SET_UP_SAMPLES:
             return found  # type: ignore[no-any-return]
         found.t.flags.writeable = False
-        keep_for(_SET_UPS, model, arguments, found)
+        _SET_UPS.keep(model, arguments, found)
     return found  # type: ignore[no-any-return]
 
 
 #: The longest output grid whose set-up ``simulate`` keeps (``_set_up``).
 SET_UP_SAMPLES = 1024
-_SET_UPS: weakref.WeakKeyDictionary[Model, dict[Any, Any]] = weakref.WeakKeyDictionary()
+_SET_UPS = PerModel()

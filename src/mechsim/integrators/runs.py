@@ -272,12 +272,12 @@ def plan_run(model: Model, method: str, tolerance: float, which: tuple[str, ...]
     the stepper must run it (events, the other methods). Kept per model and inputs
     (``_PLANS``, at most ``PLANS_PER_MODEL`` a model): a model's parameters never change."""
     key = (method, tolerance, which, step, horizon, closed_form, work_terms)
-    plan = kept_for(_PLANS, model, key)
+    plan = _PLANS.get(model, key)
     if plan is NOT_KEPT:
         plan = _make_plan(model, method, tolerance,
                           Request(step=step, horizon=horizon, closed_form=closed_form,
                                   work_terms=work_terms), which)
-        keep_for(_PLANS, model, key, plan)
+        _PLANS.keep(model, key, plan)
     return plan  # type: ignore[return-value]
 
 
@@ -285,30 +285,38 @@ def plan_run(model: Model, method: str, tolerance: float, which: tuple[str, ...]
 NOT_KEPT: Any = object()
 
 
-def kept_for(store: weakref.WeakKeyDictionary[Any, dict[Any, Any]], model: object,
-             key: Any) -> Any:
-    """What ``store`` keeps for ``model`` under ``key``, else ``NOT_KEPT`` (TypeError for a
-    key that cannot be hashed, where ``model`` has a store)."""
-    kept = store.get(model)
-    return NOT_KEPT if kept is None else kept.get(key, NOT_KEPT)
+class PerModel:
+    """Values kept per model object and key, at most ``PLANS_PER_MODEL`` a model (all
+    forgotten when full: a sweep over horizons or tolerances), each model's gone with it.
+    Looked up by the model's ``id`` (a weak reference's ``finalize`` drops the entry before
+    the object's memory, and so its id, can be reused): a lookup costs two dict reads."""
 
+    def __init__(self) -> None:
+        self._kept: dict[int, dict[Any, Any]] = {}
 
-def keep_for(store: weakref.WeakKeyDictionary[Any, dict[Any, Any]], model: object,
-             key: Any, value: Any) -> None:
-    """Keep ``value`` for ``model`` under ``key``: at most ``PLANS_PER_MODEL`` a model (all
-    forgotten when full: a sweep over horizons or tolerances)."""
-    kept = store.get(model)
-    if kept is None:
-        kept = store[model] = {}
-    elif len(kept) >= PLANS_PER_MODEL:
-        kept.clear()
-    kept[key] = value
+    def get(self, model: object, key: Any) -> Any:
+        """What is kept for ``model`` under ``key``, else ``NOT_KEPT`` (TypeError for a key
+        that cannot be hashed)."""
+        kept = self._kept.get(id(model))
+        if kept is None:
+            hash(key)
+            return NOT_KEPT
+        return kept.get(key, NOT_KEPT)
+
+    def keep(self, model: object, key: Any, value: Any) -> None:
+        """Keep ``value`` for ``model`` under ``key``."""
+        kept = self._kept.get(id(model))
+        if kept is None:
+            kept = self._kept[id(model)] = {}
+            weakref.finalize(model, self._kept.pop, id(model), None)
+        elif len(kept) >= PLANS_PER_MODEL:
+            kept.clear()
+        kept[key] = value
 
 
 #: Plans (and other per-run set-ups) kept per model.
 PLANS_PER_MODEL = 64
-_PLANS: weakref.WeakKeyDictionary[Model, dict[tuple[Any, ...], Plan | None]] = (
-    weakref.WeakKeyDictionary())
+_PLANS = PerModel()
 
 
 def _make_plan(model: Model, method: str, tolerance: float, request: Request,
