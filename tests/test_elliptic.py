@@ -32,6 +32,27 @@ def test_jacobi_functions_against_mpmath() -> None:
     assert np.allclose(sn, np.tanh(u), rtol=1e-15) and np.allclose(cn, 1 / np.cosh(u))
 
 
+def test_landen_sn_cn_dn_against_mpmath() -> None:
+    """``sn_cn_dn`` (descending Landen, one sine and cosine a call) against mpmath, from the
+    circle to the separatrix, at the quarter periods too (dn = √m1 where cn = 0)."""
+    mpmath = pytest.importorskip("mpmath")
+    mpmath.mp.dps = 40
+    u = [0.3, -2.0, 7.5, 40.0]
+    for m1 in (1.0, 0.77, 0.5, 0.1, 1.9e-5, 1e-12, 0.0):
+        m = mpmath.mpf(1) - mpmath.mpf(m1)
+        ratios, scale = el.agm_ratios(float(m), m1)
+        a_n = scale * 0.5 ** ratios.size
+        points = u if m1 == 0.0 else [*u, float(mpmath.ellipk(m)), 3 * float(mpmath.ellipk(m))]
+        for x in points:
+            got = el.sn_cn_dn(x, ratios, a_n, m1)
+            for name, value in zip(("sn", "cn", "dn"), got, strict=True):
+                ref = float(mpmath.ellipfun(name, x, m=m))
+                assert abs(value - ref) < 3e-14 * max(1.0, abs(x)), (name, m1, x)
+        if m1 > 0.0:  # dn at u = K: √m1 to its own precision
+            K = float(mpmath.ellipk(m))
+            assert el.sn_cn_dn(K, ratios, a_n, m1)[2] == pytest.approx(np.sqrt(m1), rel=1e-12)
+
+
 def test_carlson_integrals_against_scipy() -> None:
     """R_F and R_J (joint duplication, p ≥ max(x, y, z)) against scipy's elliprf/elliprj."""
     from scipy.special import elliprf, elliprj

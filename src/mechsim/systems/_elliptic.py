@@ -53,6 +53,28 @@ def am_dn(u: float, ratios: np.ndarray, scale: float, m1: float) -> tuple[float,
 
 
 @njit(cache=True)
+def sn_cn_dn(u: float, ratios: np.ndarray, a_n: float, m1: float) -> tuple[float, float, float]:
+    """sn u, cn u and dn u from ``agm_ratios`` (ratios last-first; ``a_n`` = a_N, its scale
+    divided by 2^N) by the descending Landen transformation (A&S 16.12.2–4): with
+    √μ = c_k/a_k, sn(u | m) = (1 + √μ) sn(v | μ) / (1 + √μ sn²(v | μ)), cn(u | m) =
+    cn(v | μ) dn(v | μ) / (1 + √μ sn²), dn(v | μ) likewise with 1 − √μ sn², from
+    sn = sin(a_N u), cn = cos(a_N u), dn = 1 at the last parameter (below round-off); dn u at
+    the top as √(m1 + m cn²), as ``am_dn``. One sine and one cosine a call, where ``am_dn``
+    takes a sine and an arcsine at every level; the same values to a few ulps of 1. On the
+    separatrix (m1 = 0) sn u = tanh u, cn u = dn u = sech u."""
+    if m1 == 0.0:
+        sech = 1.0 / math.cosh(u)
+        return math.tanh(u), sech, sech
+    v = a_n * u
+    s, c, d = math.sin(v), math.cos(v), 1.0
+    for r in ratios:
+        s2 = s * s
+        inv = 1.0 / (1.0 + r * s2)
+        s, c, d = (1.0 + r) * s * inv, c * d * inv, (1.0 - r * s2) * inv
+    return s, c, math.sqrt(m1 + (1.0 - m1) * c * c)
+
+
+@njit(cache=True)
 def _amplitudes(u: np.ndarray, ratios: np.ndarray, scale: float, m1: float,
                 am: np.ndarray, dn: np.ndarray) -> None:
     for k in range(u.size):

@@ -35,7 +35,7 @@ from numba import njit
 
 from mechsim.codegen.contract import CLOSED_FORM_SIGNATURE
 from mechsim.params import Parameter, nonnegative, positive
-from mechsim.systems._elliptic import agm_ratios, am_dn, elliptic_f
+from mechsim.systems._elliptic import agm_ratios, am_dn, elliptic_f, sn_cn_dn
 from mechsim.systems._oscillator import free_solution, state_rows
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.lagrangian import LagrangianBuilder, LagrangianModel
@@ -66,10 +66,11 @@ def _reduced_rows(t0: float, y0: np.ndarray, t: np.ndarray, c: np.ndarray,
         m1 = (c0 - r0) * (c0 + r0)  # 1 − k², without its cancellation
         u0 = elliptic_f(math.atan2(s0, r0), m1) if k > 0.0 else 0.0
         ratios, scale = agm_ratios(k2, m1)
+        a_n = scale * 0.5 ** ratios.size
         for i in range(t.size):
-            am, dn = am_dn(w0 * (t[i] - t0) + u0, ratios, scale, m1)
-            rows[i, 0] = turns + 2.0 * math.atan2(k * math.sin(am), dn)
-            rows[i, 1] = 2.0 * k * w0 * math.cos(am)
+            sn, cn, dn = sn_cn_dn(w0 * (t[i] - t0) + u0, ratios, a_n, m1)
+            rows[i, 0] = turns + 2.0 * math.atan2(k * sn, dn)
+            rows[i, 1] = 2.0 * k * w0 * cn
         return True
     # rotation in the sense of φ̇₀: φ/2 = am(±kω₀τ + u₀ | 1/k²)
     sense = 1.0 if rate0 > 0.0 else -1.0
