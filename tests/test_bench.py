@@ -352,6 +352,7 @@ def test_all_runs_every_report_once_in_order(tmp_path: Path, monkeypatch: pytest
     import mechsim.bench.scene_cost as scene_cost
     import mechsim.bench.streaming as streaming
     import mechsim.bench.throughput as throughput
+    import mechsim.cli.bench as bench_cli
     from mechsim.bench.problems import SHORT_OF
 
     calls: list[tuple[str, Any]] = []
@@ -365,6 +366,10 @@ def test_all_runs_every_report_once_in_order(tmp_path: Path, monkeypatch: pytest
                         lambda scene, out: calls.append(("scene", scene)))
     monkeypatch.setattr(brouwer, "run_brouwer",
                         lambda out, n_steps, runs: calls.append(("brouwer", (n_steps, runs))))
+    # each section runs in a process of its own; here in this one, to see its calls
+    monkeypatch.setattr(bench_cli, "_run_apart",
+                        lambda name, out, options: bench_cli._run_section(name, out, options)
+                        or 0)
     monkeypatch.chdir(Path(__file__).resolve().parents[1])
     (tmp_path / "streaming.md").write_text("kept")
     assert main(["bench", "--all", "--out", str(tmp_path)]) != 0
@@ -377,6 +382,18 @@ def test_all_runs_every_report_once_in_order(tmp_path: Path, monkeypatch: pytest
     assert "pendulum" in long and not set(long) & set(short) and budget == 2.0
     assert (long_out, short_out) == (tmp_path, tmp_path / "short")
     assert calls[3][1] == 10_000 and calls[5][1] == "scenes/pendulum.yaml"
+
+
+def test_a_section_of_all_runs_in_a_new_process_and_its_failure_is_one_line(
+        tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    """A section of `bench --all` runs in a new interpreter; one that fails ends it with
+    the one line of any command and exit status 2."""
+    import mechsim.cli.bench as bench_cli
+
+    assert bench_cli._run_apart("no such section", tmp_path, {}) == 2
+    err = capfd.readouterr().err
+    assert "mechsim: error: bench --all: no section 'no such section'" in err
+    assert "Traceback" not in err
 
 
 def test_the_compiled_call_floor_does_a_whole_run() -> None:

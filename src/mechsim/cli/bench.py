@@ -150,17 +150,14 @@ ALL_SCENE = "scenes/pendulum.yaml"
 
 
 def _all(a: argparse.Namespace, out: Path) -> int:
-    """Every report, one after the other in this process (a quiet machine: nothing else)."""
+    """Every report, one after the other, each section in a new process (``_section``): a
+    section is measured as a user's process would run it, without the peers, kernels and
+    threads an earlier section left behind (a quiet machine: nothing else)."""
     import time
 
-    from mechsim.bench.brouwer import run_brouwer
-    from mechsim.bench.derive import run_derive
     from mechsim.bench.problems import SHORT_OF
-    from mechsim.bench.run import known_systems, run_bench
-    from mechsim.bench.scene_cost import run_scene_cost
-    from mechsim.bench.streaming import run_streaming
-    from mechsim.bench.throughput import run_throughput
-    from mechsim.errors import ParameterError
+    from mechsim.bench.run import known_systems
+    from mechsim.errors import MechsimError, ParameterError
 
     if a.systems:
         raise ParameterError("--all", "takes no PROBLEM arguments")
@@ -169,19 +166,73 @@ def _all(a: argparse.Namespace, out: Path) -> int:
     short = [f"{name}_short" for name in SHORT_OF]
     long = [name for name in known_systems() if name not in short]
     refuse_existing(a.out, _ALL_FILES, a.force)
-    steps = [
-        ("long problems", lambda: run_bench(long, out, budget_s=2.0, cold=False)),
-        ("short problems", lambda: run_bench(short, out / "short", budget_s=2.0, cold=False)),
-        ("streaming", lambda: run_streaming(out, [])),
-        ("throughput", lambda: run_throughput(out, members=a.members)),
-        ("derive", lambda: run_derive(out, [])),
-        ("scene cost", lambda: run_scene_cost(ALL_SCENE, out)),
-        ("brouwer", lambda: run_brouwer(out, n_steps=a.steps, runs=a.runs)),
-    ]
+    options = {"long": long, "short": short, "members": a.members, "steps": a.steps,
+               "runs": a.runs}
     start = time.monotonic()
-    for k, (name, step) in enumerate(steps, 1):
-        print(f"mechsim bench --all: [{k}/{len(steps)}] {name} "
+    for k, name in enumerate(_SECTIONS, 1):
+        print(f"mechsim bench --all: [{k}/{len(_SECTIONS)}] {name} "
               f"({time.monotonic() - start:.0f} s so far)", flush=True)
-        step()
+        status = _run_apart(name, out, options)
+        if status != 0:
+            raise MechsimError(f"bench --all: the {name} section failed (exit status "
+                               f"{status}); the sections before it are written")
     print(f"mechsim bench --all: done in {time.monotonic() - start:.0f} s", flush=True)
     return 0
+
+
+#: The sections of ``--all``, in their order.
+_SECTIONS = ("long problems", "short problems", "streaming", "throughput", "derive",
+             "scene cost", "brouwer")
+
+
+def _run_apart(name: str, out: Path, options: dict[str, Any]) -> int:
+    """Section ``name`` of ``--all`` in a new interpreter (multiprocessing's spawn); its exit
+    status."""
+    import multiprocessing
+
+    p = multiprocessing.get_context("spawn").Process(
+        target=_section, args=(name, out, options), name=f"bench {name}")
+    p.start()
+    p.join()
+    return p.exitcode if p.exitcode is not None else 1
+
+
+def _section(name: str, out: Path, options: dict[str, Any]) -> None:
+    """One section of ``--all``, in a process of its own (its error: one line, exit 2)."""
+    import sys
+
+    from mechsim.cli import report
+
+    try:
+        _run_section(name, out, options)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Exception as e:  # noqa: BLE001 - the one line of any other command
+        sys.exit(report(e))
+
+
+def _run_section(name: str, out: Path, options: dict[str, Any]) -> None:
+    from mechsim.bench.brouwer import run_brouwer
+    from mechsim.bench.derive import run_derive
+    from mechsim.bench.run import run_bench
+    from mechsim.bench.scene_cost import run_scene_cost
+    from mechsim.bench.streaming import run_streaming
+    from mechsim.bench.throughput import run_throughput
+    from mechsim.errors import MechsimError
+
+    if name == "long problems":
+        run_bench(options["long"], out, budget_s=2.0, cold=False)
+    elif name == "short problems":
+        run_bench(options["short"], out / "short", budget_s=2.0, cold=False)
+    elif name == "streaming":
+        run_streaming(out, [])
+    elif name == "throughput":
+        run_throughput(out, members=options["members"])
+    elif name == "derive":
+        run_derive(out, [])
+    elif name == "scene cost":
+        run_scene_cost(ALL_SCENE, out)
+    elif name == "brouwer":
+        run_brouwer(out, n_steps=options["steps"], runs=options["runs"])
+    else:
+        raise MechsimError(f"bench --all: no section {name!r} (one of {', '.join(_SECTIONS)})")
