@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import mechsim
+from mechsim.errors import ParameterError
 from mechsim.integrators import StiffnessError, make_stepper
 from mechsim.integrators.runs import plan_run
 from mechsim.integrators.state import Status
@@ -179,6 +180,9 @@ def test_a_repeated_call_is_set_up_once_and_returns_arrays_of_its_own() -> None:
         listed = simulate(fresh, 1.0, outputs=["energy"])
         assert same_run(listed, simulate(load(), 1.0, outputs=("energy",)))
         assert _same(listed.total, simulate(load(), 1.0, outputs=("energy",)).total)
+    for wrong in (None, "energy", 5):  # refused with the field named, not a TypeError
+        with pytest.raises(ParameterError, match="outputs: a tuple of output names"):
+            simulate(fresh, 1.0, outputs=wrong)  # type: ignore[arg-type]
 
 
 def test_what_is_kept_for_a_model_goes_with_it() -> None:

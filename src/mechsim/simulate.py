@@ -384,6 +384,9 @@ def resolve_settings(model: Model, tolerance: float | None, method: str | None,
     ``simulate_many``): those given, else those :func:`load_system` was given, else the
     defaults; the outputs checked."""
     if outputs != OUTPUTS:
+        if not isinstance(outputs, tuple | list):
+            raise ParameterError("outputs", f"a tuple of output names, some of "
+                                 f"{', '.join(OUTPUTS)} (got {shown(outputs)})")
         for o in outputs:
             if o not in OUTPUTS:
                 raise ParameterError("outputs",
@@ -423,8 +426,8 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
     output evaluation.
     """
     start = time.perf_counter()
-    if type(outputs) is not tuple and not isinstance(outputs, str):
-        outputs = tuple(outputs)  # (a list given: the set-up keyed by its entries)
+    if isinstance(outputs, list):
+        outputs = tuple(outputs)  # (the set-up keyed by its entries)
     set_up = _set_up(model, t_end, output_dt, tolerance, method, outputs, step, closed_form,
                      work_terms, publish_rate)
     tolerance, method = set_up.tolerance, set_up.method
