@@ -372,6 +372,8 @@ class _SceneLoop:
         try:
             self.feed.deliver()
             diag.publish_now()
+            if self.lossless:  # the last report acknowledged before the node goes
+                diag.outlet.acknowledged(diag.t_diag)
         except Exception:  # noqa: BLE001 - shutting down: the run's data matters more
             pass
         # The time of the last published sample (a stop may land inside a chunk).
