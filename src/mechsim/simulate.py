@@ -177,9 +177,9 @@ class StateColumns(NamedTuple):
         return cls(at.q, at.v if model.rates_in_state() else None)
 
 
-def _rows(result: SimulationResult) -> np.ndarray:
-    """The rows Y of a prepared run's result (made by ``SimulationResult.of_run``)."""
-    return result.__dict__["_rows"]  # type: ignore[no-any-return]
+def _rows(run: _Run) -> np.ndarray:
+    """The rows Y of a prepared run (``SimulationResult.of_run``): its buffer's first rows."""
+    return run[1].rows(run[2])
 
 
 class _FromRun(Generic[T]):
@@ -222,9 +222,9 @@ class SimulationResult(OutputViews):
     v: np.ndarray
     t: _FromRun[np.ndarray] = _FromRun(lambda r, run: run[1].times(run[2]))
     work_external: _FromRun[np.ndarray] = _FromRun(
-        lambda r, run: _rows(r)[:, run[0].layout.work_external])
+        lambda r, run: _rows(run)[:, run[0].layout.work_external])
     work_dissipated: _FromRun[np.ndarray] = _FromRun(
-        lambda r, run: _rows(r)[:, run[0].layout.work_dissipated])
+        lambda r, run: _rows(run)[:, run[0].layout.work_dissipated])
     outputs: _FromRun[Outputs] = _FromRun(
         lambda r, run: assemble(OutputShape.of(run[0]), run[3], *run[1].outputs(run[2]))
         if run[3] else Outputs())
@@ -232,7 +232,7 @@ class SimulationResult(OutputViews):
     #: Events met on the way, as (time, event name); the discrete mode entries at each sample.
     events: _FromRun[list[tuple[float, str]]] = _FromRun(lambda r, run: [])
     modes: _FromRun[np.ndarray | None] = _FromRun(
-        lambda r, run: _rows(r)[:, run[0].layout.modes])
+        lambda r, run: _rows(run)[:, run[0].layout.modes])
     #: What the run cost: right-hand-side (or force) evaluations and rejected steps.
     n_evaluations: _FromRun[int] = _FromRun(lambda r, run: int(run[1].counters(run[2])[2]))
     n_rejected: _FromRun[int] = _FromRun(lambda r, run: int(run[1].counters(run[2])[3]))
@@ -260,20 +260,21 @@ class SimulationResult(OutputViews):
         self.error_estimate = error_estimate
 
     @classmethod
-    def of_run(cls, model: Model, method: str, tolerance: float, wall_time: float,
-               layout: RunLayout, buf: np.ndarray, which: tuple[str, ...],
-               state: StateColumns) -> SimulationResult:
-        """The result of a prepared run (``integrators.runs.PreparedRun``) that wrote
-        ``buf``: q and v now, the other arrays when first read (``_FromRun``)."""
+    def of_run(cls, model: Model, set_up: _SetUp, buf: np.ndarray, wall_time: float
+               ) -> SimulationResult:
+        """The result of ``set_up``'s prepared run (``integrators.runs.PreparedRun``), which
+        wrote ``buf``: q and v now, the other arrays when first read (``_FromRun``)."""
         result = cls.__new__(cls)
-        Y = layout.rows(buf)
+        m, state = set_up.t.size, set_up.state
         # q and v with the result (what nearly every caller reads; v from the rows as run,
         # whatever a caller later writes into them), the rest when first read
         result.__dict__ = {
-            "model": model, "method": method, "tolerance": tolerance, "wall_time": wall_time,
-            "_run": (model, layout, buf, which), "_rows": Y, "q": Y[:, state.q],
-            "v": Y[:, state.v] if state.v is not None
-            else model.rates(layout.times(buf), Y, layout.parameters(buf))}
+            "model": model, "method": set_up.run_method, "tolerance": set_up.tolerance,
+            "wall_time": wall_time, "_run": (model, set_up.layout, buf, set_up.outputs),
+            "q": buf[:m, state.q],
+            "v": buf[:m, state.v] if state.v is not None
+            else model.rates(set_up.layout.times(buf), buf[:m],  # type: ignore[union-attr]
+                             set_up.layout.parameters(buf))}  # type: ignore[union-attr]
         return result
 
     def __repr__(self) -> str:
@@ -430,16 +431,14 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
         outputs = tuple(outputs)  # (the set-up keyed by its entries)
     set_up = _set_up(model, t_end, output_dt, tolerance, method, outputs, step, closed_form,
                      work_terms, publish_rate)
-    tolerance, method = set_up.tolerance, set_up.method
     prepared = set_up.prepared
     if prepared is not None:
-        status, buf = prepared.run()
-        if status == _OK:
-            return SimulationResult.of_run(
-                model, set_up.plan.method, tolerance,  # type: ignore[union-attr]
-                time.perf_counter() - start, prepared.layout, buf, outputs, set_up.state)
+        buf = np.empty(prepared.shape)
+        if prepared.call(*prepared.arguments, buf) == _OK:
+            return SimulationResult.of_run(model, set_up, buf, time.perf_counter() - start)
         # (stopped short: an event, the step budget, a stiff phase, a failure: the stepper
         # runs it from the start, to go on or raise as the solver contract says)
+    tolerance, method = set_up.tolerance, set_up.method
     t = set_up.t.copy()
     stepper: Stepper = make_stepper(model, method, tolerance, step=step,
                                     closed_form=closed_form, horizon=t_end,
@@ -465,7 +464,8 @@ def simulate(model: Model, t_end: float, output_dt: float | None = None,
 class _SetUp:
     """What a call of ``simulate`` works out before it runs: the tolerance and method it
     resolves, its output times, its run plan (None: the stepper runs it) and that plan's
-    run prepared (``integrators.runs.PreparedRun``)."""
+    run prepared (``integrators.runs.PreparedRun``), with what its result is made of: the
+    method the plan runs, the outputs asked for and the columns of q and v."""
 
     tolerance: float
     method: str
@@ -473,6 +473,9 @@ class _SetUp:
     plan: Plan | None
     prepared: PreparedRun | None
     state: StateColumns
+    outputs: tuple[str, ...]
+    run_method: str
+    layout: RunLayout | None
 
 
 _OK = int(Status.OK)
@@ -496,7 +499,9 @@ def _work_out(model: Model, t_end: float, output_dt: float | None, tolerance: fl
         prepared = plan.prepare(model, model.initial_y(), model.parameter_vector(), t,
                                 None if work_terms else (at.work_external, at.work_dissipated),
                                 entry=kept and t.size <= SET_UP_SAMPLES)
-    return _SetUp(tolerance, method, t, plan, prepared, StateColumns.of(model))
+    return _SetUp(tolerance, method, t, plan, prepared, StateColumns.of(model), outputs,
+                  method if plan is None else plan.method,
+                  None if prepared is None else prepared.layout)
 
 
 def _set_up(model: Model, *arguments: object) -> _SetUp:

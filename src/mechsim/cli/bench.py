@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -180,9 +181,28 @@ def _all(a: argparse.Namespace, out: Path) -> int:
     return 0
 
 
-#: The sections of ``--all``, in their order.
-_SECTIONS = ("long problems", "short problems", "streaming", "throughput", "derive",
-             "scene cost", "brouwer")
+def _bench(module: str) -> Any:
+    """A module of ``mechsim.bench``, imported when its section runs."""
+    import importlib
+
+    return importlib.import_module(f"mechsim.bench.{module}")
+
+
+#: The sections of ``--all``, in their order: each section's run, given the output folder
+#: and the options ``_all`` gathers.
+_SECTIONS: dict[str, Callable[[Path, dict[str, Any]], None]] = {
+    "long problems": lambda out, o: _bench("run").run_bench(o["long"], out, budget_s=2.0,
+                                                            cold=False),
+    "short problems": lambda out, o: _bench("run").run_bench(o["short"], out / "short",
+                                                             budget_s=2.0, cold=False),
+    "streaming": lambda out, o: _bench("streaming").run_streaming(out, []),
+    "throughput": lambda out, o: _bench("throughput").run_throughput(out,
+                                                                     members=o["members"]),
+    "derive": lambda out, o: _bench("derive").run_derive(out, []),
+    "scene cost": lambda out, o: _bench("scene_cost").run_scene_cost(ALL_SCENE, out),
+    "brouwer": lambda out, o: _bench("brouwer").run_brouwer(out, n_steps=o["steps"],
+                                                            runs=o["runs"]),
+}
 
 
 def _run_apart(name: str, out: Path, options: dict[str, Any]) -> int:
@@ -212,27 +232,9 @@ def _section(name: str, out: Path, options: dict[str, Any]) -> None:
 
 
 def _run_section(name: str, out: Path, options: dict[str, Any]) -> None:
-    from mechsim.bench.brouwer import run_brouwer
-    from mechsim.bench.derive import run_derive
-    from mechsim.bench.run import run_bench
-    from mechsim.bench.scene_cost import run_scene_cost
-    from mechsim.bench.streaming import run_streaming
-    from mechsim.bench.throughput import run_throughput
     from mechsim.errors import MechsimError
 
-    if name == "long problems":
-        run_bench(options["long"], out, budget_s=2.0, cold=False)
-    elif name == "short problems":
-        run_bench(options["short"], out / "short", budget_s=2.0, cold=False)
-    elif name == "streaming":
-        run_streaming(out, [])
-    elif name == "throughput":
-        run_throughput(out, members=options["members"])
-    elif name == "derive":
-        run_derive(out, [])
-    elif name == "scene cost":
-        run_scene_cost(ALL_SCENE, out)
-    elif name == "brouwer":
-        run_brouwer(out, n_steps=options["steps"], runs=options["runs"])
-    else:
+    run = _SECTIONS.get(name)
+    if run is None:
         raise MechsimError(f"bench --all: no section {name!r} (one of {', '.join(_SECTIONS)})")
+    run(out, options)

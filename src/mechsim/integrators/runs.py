@@ -36,7 +36,7 @@ from mechsim.integrators.dop853 import DOP853
 from mechsim.integrators.dopri5 import DOPRI5
 from mechsim.integrators.model import SteppableModel as Model
 from mechsim.integrators.radau15 import Radau15
-from mechsim.integrators.state import DOP853_STATE, RADAU_STATE, Status
+from mechsim.integrators.state import Status
 
 #: The kernel functions each output needs (``OUTPUTS`` of ``mechsim.simulate``).
 _OUTPUT_KERNELS = {"energy": "energy", "invariants": "invariants",
@@ -45,10 +45,12 @@ _OUTPUT_KERNELS = {"energy": "energy", "invariants": "invariants",
 
 @dataclass(frozen=True)
 class RunLayout:
-    """Where a prepared run (``PreparedRun``) writes into its one buffer: the output times,
-    the rows Y, the outputs E, I, O, F (``widths``: their columns, 0 for one not wanted;
-    ``columns``: the columns of each, what the compiled call is told), the parameters and the
-    counters, one after the other (``compiled.runs._laid_out``)."""
+    """Where a prepared run (``PreparedRun``) writes into its one buffer, a 2-D array of rows
+    as wide as the state (``shape``): the rows Y (its first ``samples`` rows), then, one
+    after the other in the flat buffer, the output times, the outputs E, I, O, F
+    (``widths``: their columns, 0 for one not wanted; ``columns``: the columns of each, what
+    the compiled call is told), the parameters and the counters
+    (``compiled.runs._laid_out``)."""
 
     samples: int
     n_y: int
@@ -60,24 +62,25 @@ class RunLayout:
     def __post_init__(self) -> None:
         m = self.samples
         ce, ci, co, cf = self.widths
-        sizes = (m, m * self.n_y, m * ce, m * ci, m * co, m * cf * 7, self.n_p, COUNTERS)
+        sizes = (m * self.n_y, m, m * ce, m * ci, m * co, m * cf * 7, self.n_p, COUNTERS)
         ends = np.cumsum(sizes).tolist()
         object.__setattr__(self, "_parts", tuple(
             slice(end - size, end) for end, size in zip(ends, sizes, strict=True)))
 
     @property
-    def size(self) -> int:
-        return int(self._parts[-1].stop)
+    def shape(self) -> tuple[int, int]:
+        """The buffer's shape: as many rows of Y's width as hold every part."""
+        return -(-int(self._parts[-1].stop) // self.n_y), self.n_y
 
     def _cut(self, buf: np.ndarray, part: int) -> np.ndarray:
-        """Part ``part`` of ``buf`` (0 t, 1 Y, 2 E, 3 I, 4 O, 5 F, 6 p, 7 counters), flat."""
-        return buf[self._parts[part]]
+        """Part ``part`` of ``buf`` (0 Y, 1 t, 2 E, 3 I, 4 O, 5 F, 6 p, 7 counters), flat."""
+        return buf.reshape(-1)[self._parts[part]]
 
     def times(self, buf: np.ndarray) -> np.ndarray:
-        return self._cut(buf, 0)
+        return self._cut(buf, 1)
 
     def rows(self, buf: np.ndarray) -> np.ndarray:
-        return buf[self._parts[1]].reshape(self.samples, self.n_y)
+        return buf[:self.samples]
 
     def outputs(self, buf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """E, I, O, F as ``evaluate_arrays`` makes them (the ones not wanted without columns)."""
@@ -111,14 +114,14 @@ class PreparedRun:
     layout: RunLayout
     call: Any
     arguments: tuple[Any, ...]
-    _size: int = field(init=False, repr=False, compare=False)
+    shape: tuple[int, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "_size", self.layout.size)
+        object.__setattr__(self, "shape", self.layout.shape)
 
     def run(self) -> tuple[int, np.ndarray]:
         """(status, buffer): the status a ``Status`` value as an int."""
-        buf = np.empty(self._size)
+        buf = np.empty(self.shape)
         return self.call(*self.arguments, buf), buf
 
 
@@ -126,13 +129,12 @@ class PreparedRun:
 class RunPlan:
     """What a run's compiled call (``compiled.runs.erk_call``, ``radau15_call``: ``loop``)
     gets besides the initial state, the output times and its buffer: the kernel set, the
-    state record's type, the events' directions, its integer options (max_steps, then for the
-    explicit pairs the pair, its stages and the entries integrated) and its float options
-    (``compiled.runs``), and the outputs wanted."""
+    events' directions, its integer options (max_steps, then for the explicit pairs the pair,
+    its stages and the entries integrated) and its float options (``compiled.runs``), and the
+    outputs wanted."""
 
     method: str
     ks: Any
-    dtype: np.dtype
     ev_dir: np.ndarray
     options: tuple[int, int, int, int]
     floats: tuple[float, ...]
@@ -146,13 +148,23 @@ class RunPlan:
         goes through the compiled entry point where the arguments' types are the ones the
         loop was compiled for."""
         layout = _layout(model, y, p, t, self.want)
-        ints = np.array([*map(int, self.want), *layout.columns[1:], *(work_columns or (-1, -1)),
-                         *self.options], np.int64)
-        arguments = (self.ks, np.zeros(1, self.dtype), np.array(y, np.float64),
-                     np.array(p, np.float64), np.array(t, np.float64), self.ev_dir, ints,
-                     np.array(self.floats, np.float64))
+        arguments = (self.ks, *_call_data(layout, work_columns, self.floats, y, p, t,
+                                          (*self.options, *self.ev_dir.tolist())))
         return PreparedRun(layout, _entry(self.loop, arguments) if entry else self.loop,
                            arguments)
+
+
+def _call_data(layout: RunLayout, work_columns: tuple[int, int] | None,
+               floats: tuple[float, ...], y: np.ndarray, p: np.ndarray, t: np.ndarray,
+               options: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The ``ints`` and ``data`` of a compiled call (``compiled.runs.CALL_INTS``), made once:
+    the call never writes them."""
+    ints = np.array([*map(int, (w > 0 for w in layout.widths)), *layout.columns[1:],
+                     *(work_columns or (-1, -1)), y.size, p.size, t.size, len(floats),
+                     *options], np.int64)
+    data = np.concatenate([np.array(floats, np.float64), np.asarray(y, np.float64).ravel(),
+                           np.asarray(p, np.float64).ravel(), np.asarray(t, np.float64)])
+    return ints, data
 
 
 def _layout(model: Model, y: np.ndarray, p: np.ndarray, t: np.ndarray,
@@ -175,11 +187,12 @@ def _motion(rows: Any) -> Any:
 
 
 def _entry(loop: Any, arguments: tuple[Any, ...]) -> Any:
-    """The entry point of ``loop``'s compiled overload for ``arguments`` and a float64
-    buffer, if it has one for exactly their types; else ``loop`` (numba dispatches)."""
+    """The entry point of ``loop``'s compiled overload for ``arguments`` and a buffer
+    (``RunLayout.shape``: 2-D float64), if it has one for exactly their types; else ``loop``
+    (numba dispatches)."""
     from numba import typeof
 
-    signature = tuple(map(typeof, (*arguments, np.empty(1))))
+    signature = tuple(map(typeof, (*arguments, np.empty((1, 1)))))
     overloads = getattr(loop, "overloads", None)
     if overloads is None:
         return loop
@@ -229,11 +242,9 @@ class ClosedFormPlan:
             return PreparedRun(layout, self._into, (model, layout, y.copy(), p.copy(),
                                                     t.copy(), work_columns))
         rows, constants = kernel
-        ints = np.array([*map(int, self.want), *layout.columns[1:],
-                         *(work_columns or (-1, -1)), self.n_finite], np.int64)
-        arguments = (_motion(rows), self.ks, np.array(constants, np.float64),
-                     np.array(y, np.float64), np.array(p, np.float64),
-                     np.array(t, np.float64), ints)
+        arguments = (_motion(rows), self.ks,
+                     *_call_data(layout, work_columns, tuple(map(float, constants)), y, p, t,
+                                 (self.n_finite,)))
         loop = load_runs().closed_call
         return PreparedRun(layout, _entry(loop, arguments) if entry else loop, arguments)
 
@@ -347,7 +358,7 @@ def _make_plan(model: Model, method: str, tolerance: float, request: Request,
         work = options.get("work_terms", True)
         n_y = model.initial_y().size
         tol = max(local * cls.LOCAL_FACTOR, cls.LOCAL_FLOOR)
-        return RunPlan(cls.method, ks, DOP853_STATE, event_directions(model),
+        return RunPlan(cls.method, ks, event_directions(model),
                        (max_steps, int(cls.PAIR), cls.N_STAGES,
                         n_y if work else 2 * model.kernels.n_q),
                        (tol, tol, math.inf), want, loops.erk_call)  # type: ignore[arg-type]
@@ -355,7 +366,7 @@ def _make_plan(model: Model, method: str, tolerance: float, request: Request,
         lo, hi = Radau15.EPS_RANGE
         eps = options.get("eps", min(max(0.01 * math.sqrt(local), lo), hi))
         tau = float(model.time_scale())
-        return RunPlan(Radau15.method, ks, RADAU_STATE, event_directions(model),
+        return RunPlan(Radau15.method, ks, event_directions(model),
                        (max_steps, 0, 0, 0),
                        (eps, tau, tau**2, Radau15.FLOOR, float(local), float(local)),
                        want, loops.radau15_call)  # type: ignore[arg-type]

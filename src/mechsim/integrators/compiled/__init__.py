@@ -153,9 +153,9 @@ def run_signatures() -> dict[Any, tuple[Any, ...]]:
     iv = np.zeros(1, dtype=np.int64)
     dop, radau = np.zeros(1, DOP853_STATE), np.zeros(1, RADAU_STATE)
     signatures = {
-        R.erk_call: (KERNEL_SET, dop, v, v, v, iv, iv, v, v),
-        R.radau15_call: (KERNEL_SET, radau, v, v, v, iv, iv, v, v),
-        R.closed_call: (MOTION, KERNEL_SET, v, v, v, v, iv, v),
+        R.erk_call: (KERNEL_SET, iv, v, m2),
+        R.radau15_call: (KERNEL_SET, iv, v, m2),
+        R.closed_call: (MOTION, KERNEL_SET, iv, v, m2),
         R.erk_many: (KERNEL_SET, 0, iv, dop, m2, m2, m3, m3, m2, v, iv, m3, v, v, 0.0, 0, m2,
                      iv, m2, iv, iv),
         R.radau15_many: (KERNEL_SET, iv, radau, m2, m2, v, iv, m3, v, 0, m2, m3, m3, m3, m2, m2,

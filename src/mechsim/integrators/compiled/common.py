@@ -30,6 +30,16 @@ def _row(typingctx, a, i):  # type: ignore[no-untyped-def]
 
 
 @intrinsic
+def _item(typingctx, a, i):  # type: ignore[no-untyped-def]
+    """A pointer to ``a[i]`` of a 1-D float64 array (with ``numba.carray``: a view of part of
+    ``a`` of any shape that holds no reference, valid only while the caller holds ``a``)."""
+    def codegen(context, builder, sig, args):  # type: ignore[no-untyped-def]
+        ary = context.make_array(sig.args[0])(context, builder, args[0])
+        return cgutils.get_item_pointer(context, builder, sig.args[0], ary, [args[1]])
+    return types.CPointer(types.float64)(a, types.intp), codegen
+
+
+@intrinsic
 def _borrowed(typingctx, a):  # type: ignore[no-untyped-def]
     """A view of array ``a`` (its data, shape and strides) that holds no reference: valid
     only while the caller holds ``a`` (see the module docstring)."""

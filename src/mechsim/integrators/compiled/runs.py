@@ -19,12 +19,13 @@ of threads or on numba's threading layer.
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import carray, njit, prange
 
+from mechsim.integrators.compiled.common import _item, _row
 from mechsim.integrators.compiled.erk import dop853_advance, dopri5_advance, erk_initial_step
 from mechsim.integrators.compiled.outputs import evaluate_outputs
 from mechsim.integrators.compiled.radau import radau15_advance
-from mechsim.integrators.state import Status
+from mechsim.integrators.state import DOP853_STATE, RADAU_STATE, Status
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
@@ -116,43 +117,47 @@ def radau15_run(ks, state, y, p, t_out, Y_out, eps, max_steps, ev_dir, tau, tau2
     return _counters(state, status, k)
 
 
-# A call (``erk_call``, ``radau15_call``): a whole run from a fixed initial state to fixed
-# output times, its rows, outputs and counters written into one buffer the caller made
-# (``integrators.runs.RunLayout``: t | Y | E | I | O | F | p | counters). ``ints`` holds the
-# layout and the options that are integers (``CALL_INTS``), ``floats`` the others.
+# A call (``erk_call``, ``radau15_call``, ``closed_call``): a whole run from a fixed initial
+# state to fixed output times, its rows, outputs and counters written into one buffer the
+# caller made (``integrators.runs.RunLayout``: Y | t | E | I | O | F | p | counters, in a
+# 2-D array of rows as wide as Y's, so that Y is its first rows). Its arguments are three
+# arrays (each one costs its unboxing on every call): ``ints``, the layout and the integer
+# options (``CALL_INTS``, then the events' directions), and ``data``, the float options
+# (``n_floats`` of them), the initial state, the parameters and the output times.
 CALL_INTS = ("want_e", "want_i", "want_o", "want_f", "cols_i", "cols_o", "frames",
-             "work_external", "work_dissipated", "max_steps", "pair", "n_stages",
-             "n_integrated")
+             "work_external", "work_dissipated", "n_y", "n_p", "samples", "n_floats",
+             "max_steps", "pair", "n_stages", "n_integrated")
 COUNTERS = 6  # rows written, steps, evaluations, rejections, error estimate, time reached
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _laid_out(buf, t0, p0, n, ints):
-    """The views of ``buf`` (t, Y, E, I, O, F, p, counters) for ``t0.size`` rows of ``n``
-    entries, with the output times and parameters copied in."""
-    m = t0.size
-    o = 0
-    t = buf[o:o + m]
-    t[:] = t0
+def _laid_out(buf, ints, data):
+    """The float options and the initial state (views of ``data``), then the views of ``buf``
+    (t, Y, E, I, O, F, p, counters; borrowed, ``common._item``) with the output times and
+    parameters copied in."""
+    n, n_p, m, n_f = ints[9], ints[10], ints[11], ints[12]
+    flat = carray(_row(buf, 0), buf.size)
+    Y = carray(_row(buf, 0), (m, n))
+    o = m * n
+    t = flat[o:o + m]
+    t[:] = data[n_f + n + n_p:n_f + n + n_p + m]
     o += m
-    Y = buf[o:o + m * n].reshape((m, n))
-    o += m * n
     ce = 3 if ints[0] else 0
-    E = buf[o:o + m * ce].reshape((m, ce))
+    E = carray(_item(flat, o), (m, ce))
     o += m * ce
     ci = ints[4] if ints[1] else 0
-    I = buf[o:o + m * ci].reshape((m, ci))  # noqa: E741
+    I = carray(_item(flat, o), (m, ci))  # noqa: E741
     o += m * ci
     co = ints[5] if ints[2] else 0
-    O = buf[o:o + m * co].reshape((m, co))  # noqa: E741
+    O = carray(_item(flat, o), (m, co))  # noqa: E741
     o += m * co
     cf = ints[6] if ints[3] else 0
-    F = buf[o:o + m * cf * 7].reshape((m, cf, 7))
+    F = carray(_item(flat, o), (m, cf, 7))
     o += m * cf * 7
-    p = buf[o:o + p0.size]
-    p[:] = p0
-    o += p0.size
-    return t, Y, E, I, O, F, p, buf[o:o + 6]
+    p = flat[o:o + n_p]
+    p[:] = data[n_f + n:n_f + n + n_p]
+    o += n_p
+    return data[:n_f], data[n_f:n_f + n], t, Y, E, I, O, F, p, flat[o:o + COUNTERS]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -173,42 +178,46 @@ def _finish(counters, Y, ints, status, k, n_steps, n_evaluations, n_rejected, er
     return status
 
 
+_EVENTS = len(CALL_INTS)  # where the events' directions start in ``ints``
+
+
 @njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def erk_call(ks, state0, y0, p0, t0, ev_dir, ints, floats, buf):
-    """``erk_run`` from a copy of ``state0`` and ``y0`` into ``buf`` (see above; ``floats``:
-    rtol, atol, h_max); returns the status."""
-    t, Y, E, I, O, F, p, counters = _laid_out(buf, t0, p0, y0.size, ints)  # noqa: E741
+def erk_call(ks, ints, data, buf):
+    """``erk_run`` from a fresh state record and a copy of the initial state into ``buf``
+    (see above; float options: rtol, atol, h_max); returns the status."""
+    floats, y0, t, Y, E, I, O, F, p, counters = _laid_out(buf, ints, data)  # noqa: E741
     status, k, n_steps, n_ev, n_rej, err, t_reached = erk_run(
-        ks, ints[10], ints[11], ints[12], state0.copy(), y0.copy(), p, t, Y, floats[0],
-        floats[1], floats[2], ints[9], ev_dir, ints[0] != 0, ints[1] != 0, ints[2] != 0,
-        ints[3] != 0, E, I, O, F)
+        ks, ints[14], ints[15], ints[16], np.zeros(1, DOP853_STATE), y0.copy(), p, t, Y,
+        floats[0], floats[1], floats[2], ints[13], ints[_EVENTS:], ints[0] != 0, ints[1] != 0,
+        ints[2] != 0, ints[3] != 0, E, I, O, F)
     return _finish(counters, Y, ints, status, k, n_steps, n_ev, n_rej, err, t_reached)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def radau15_call(ks, state0, y0, p0, t0, ev_dir, ints, floats, buf):
-    """``radau15_run`` as ``erk_call`` (``floats``: eps, τ, τ², floor, tolerance, dense
+def radau15_call(ks, ints, data, buf):
+    """``radau15_run`` as ``erk_call`` (float options: eps, τ, τ², floor, tolerance, dense
     tolerance)."""
-    t, Y, E, I, O, F, p, counters = _laid_out(buf, t0, p0, y0.size, ints)  # noqa: E741
+    floats, y0, t, Y, E, I, O, F, p, counters = _laid_out(buf, ints, data)  # noqa: E741
     status, k, n_steps, n_ev, n_rej, err, t_reached = radau15_run(
-        ks, state0.copy(), y0.copy(), p, t, Y, floats[0], ints[9], ev_dir, floats[1],
-        floats[2], floats[3], floats[4], floats[5], ints[0] != 0, ints[1] != 0, ints[2] != 0,
-        ints[3] != 0, E, I, O, F)
+        ks, np.zeros(1, RADAU_STATE), y0.copy(), p, t, Y, floats[0], ints[13],
+        ints[_EVENTS:], floats[1], floats[2], floats[3], floats[4], floats[5], ints[0] != 0,
+        ints[1] != 0, ints[2] != 0, ints[3] != 0, E, I, O, F)
     return _finish(counters, Y, ints, status, k, n_steps, n_ev, n_rej, err, t_reached)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # 1/0 is inf, caught as non-finite
-def closed_call(motion, ks, c, y0, p0, t0, ints, buf):
+def closed_call(motion, ks, ints, data, buf):
     """``exact`` as ``integrators.runs.ClosedFormPlan.run`` does it, into ``buf``: the
-    closed form ``motion`` (``codegen.contract.Motion``, with its constants ``c``) from
-    ``y0`` at 0 to the output times, then the outputs wanted; ``ints`` as ``erk_call``'s up to
-    the work columns, then the entries of each row that must be finite. Returns the status:
-    NOT_CONVERGED where there is no closed form from ``y0``, NOT_FINITE where a row is not."""
-    t, Y, E, I, O, F, p, counters = _laid_out(buf, t0, p0, y0.size, ints)  # noqa: E741
+    closed form ``motion`` (``codegen.contract.Motion``, its constants the float options)
+    from the initial state at 0 to the output times, then the outputs wanted; ``ints`` as
+    ``erk_call``'s up to ``n_floats``, then the entries of each row that must be finite.
+    Returns the status: NOT_CONVERGED where there is no closed form from the initial state,
+    NOT_FINITE where a row is not."""
+    c, y0, t, Y, E, I, O, F, p, counters = _laid_out(buf, ints, data)  # noqa: E741
     if not motion.rows(0.0, y0, t, c, Y):
         return _finish(counters, Y, ints, Status.NOT_CONVERGED.value, 0, 0, 0, 0, 0.0, 0.0)
     for i in range(t.size):
-        for j in range(ints[9]):
+        for j in range(ints[13]):
             if not math.isfinite(Y[i, j]):
                 return _finish(counters, Y, ints, Status.NOT_FINITE.value, 0, 0, 0, 0, 0.0,
                                0.0)
