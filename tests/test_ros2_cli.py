@@ -112,6 +112,34 @@ def test_param_dump_loads_back(ros2_env: dict[str, str], tmp_path: Path) -> None
 ECHOES_AT_ONCE = 4
 
 
+def _echo_each(env: dict[str, str], topics: list[str], types: dict[str, str],
+               latched: tuple[str, ...]) -> list[tuple[str, str]]:
+    """``ros2 topic echo --once`` on each topic, a few at a time (a dozen ros2 processes
+    starting at once on two loaded cores can take longer to join the graph than a test
+    waits), each with its type, as a user who listed them gives it, and so the latched
+    topics' durability, which echo would otherwise learn from the publishers; the topics
+    that gave no message, with why."""
+    silent = []
+    for first in range(0, len(topics), ECHOES_AT_ONCE):
+        echoes = {t: subprocess.Popen(
+            ["ros2", "topic", "echo", "--once", "--no-daemon", t, types[t],
+             *(["--qos-durability", "transient_local", "--qos-reliability", "reliable"]
+               if t in latched else [])],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for t in topics[first:first + ECHOES_AT_ONCE]}
+        for t, p in echoes.items():
+            try:
+                out, err = p.communicate(timeout=DEADLINE)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.communicate()
+                silent.append((t, "no message"))
+                continue
+            if p.returncode != 0 or not out.strip():
+                silent.append((t, f"exit {p.returncode}: {err[-300:]}"))
+    return silent
+
+
 def test_echo_once_answers_on_every_advertised_topic(ros2_env: dict[str, str],
                                                      tmp_path: Path) -> None:
     """A scene whose systems have every kind of topic (invariants, observables, pose and
@@ -141,25 +169,12 @@ def test_echo_once_answers_on_every_advertised_topic(ros2_env: dict[str, str],
                    "/lrc_circuit/system_info", "/pendulum/markers_static",
                    "/rigid_body/markers_static", "/pendulum/markers_trails",
                    "/rigid_body/markers_trails")
-        # A few echoes at a time: a dozen ros2 processes starting at once on two loaded
-        # cores can take longer to join the graph than a test waits.
-        silent = []
-        for first in range(0, len(topics), ECHOES_AT_ONCE):
-            echoes = {t: subprocess.Popen(
-                ["ros2", "topic", "echo", "--once", "--no-daemon", t, types[t],
-                 *(["--qos-durability", "transient_local", "--qos-reliability", "reliable"]
-                   if t in latched else [])],
-                env=ros2_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-                for t in topics[first:first + ECHOES_AT_ONCE]}
-            for t, p in echoes.items():
-                try:
-                    out, err = p.communicate(timeout=DEADLINE)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.communicate()
-                    silent.append((t, "no message"))
-                    continue
-                if p.returncode != 0 or not out.strip():
-                    silent.append((t, f"exit {p.returncode}: {err[-300:]}"))
-        assert not silent, silent
+        silent = _echo_each(ros2_env, topics, types, latched)
+        # A topic silent to its echo gets a second echo: on a loaded machine one echo
+        # process's discovery can miss (it fails here only if both miss), and what the graph
+        # says of the topic is in the message
+        print("silent to a first echo:", silent)
+        silent = _echo_each(ros2_env, [t for t, _ in silent], types, latched)
+        assert not silent, [(t, why, ros2(ros2_env, *graph_verb("topic info", "-v", t),
+                                          check=False).stdout) for t, why in silent]
     assert "/lrc_circuit/invariants" not in topics and "/pendulum/invariants" in topics
