@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import pytest
 
@@ -61,13 +61,30 @@ def ros2_env() -> dict[str, str]:
 
 def ros2(env: dict[str, str], *args: str, timeout: float = DEADLINE,
          check: bool = True) -> subprocess.CompletedProcess[str]:
-    """``ros2 ARGS`` run to its end; its output (an error with it if it failed and ``check``)."""
-    out = subprocess.run(["ros2", *args], env=env, capture_output=True, text=True,
-                         timeout=timeout, check=False)
-    if check and out.returncode != 0:
-        raise AssertionError(f"ros2 {' '.join(args)} exited {out.returncode}:\n{out.stdout}\n"
-                             f"{out.stderr}")
-    return out
+    """``ros2 ARGS`` run to its end; its output (an error with it if it failed and ``check``).
+    It runs in a process group of its own: past ``timeout`` the whole group is stopped
+    (``stop_group``), so that nothing it started (a launch's nodes) outlives the test on its
+    graph, and the error carries what it printed."""
+    with tempfile.TemporaryFile(mode="w+") as out, tempfile.TemporaryFile(mode="w+") as err:
+        p = subprocess.Popen(["ros2", *args], env=env, stdout=out, stderr=err, text=True,
+                             start_new_session=True)
+        try:
+            p.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            stop_group(p)
+            raise AssertionError(f"ros2 {' '.join(args)} still running after {timeout:g} s; "
+                                 f"it printed:\n{_read(out)}\n{_read(err)}") from None
+        done = subprocess.CompletedProcess(["ros2", *args], p.returncode, _read(out), _read(err))
+    if check and done.returncode != 0:
+        raise AssertionError(f"ros2 {' '.join(args)} exited {done.returncode}:\n{done.stdout}"
+                             f"\n{done.stderr}")
+    return done
+
+
+def _read(file: IO[str]) -> str:
+    file.flush()
+    file.seek(0)
+    return file.read()
 
 
 def graph_verb(verb: str, *args: str) -> list[str]:
@@ -105,25 +122,28 @@ def process(cmd: list[str], env: dict[str, str], cwd: Path | None = None
     try:
         yield p
     finally:
-        try:
-            os.killpg(p.pid, signal.SIGINT)
-        except ProcessLookupError:
-            pass  # the whole group has ended already
-        try:
-            p.wait(timeout=60)
-        except subprocess.TimeoutExpired:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.wait()
-        _group_gone(p.pid)
+        stop_group(p)
         log.close()
+
+
+def stop_group(p: subprocess.Popen[str]) -> None:
+    """Stop the process group that ``p`` leads: SIGINT (Ctrl-C), SIGKILL if ``p`` has not
+    ended 60 s later; then wait until no process of the group is left."""
+    try:
+        os.killpg(p.pid, signal.SIGINT)
+    except ProcessLookupError:
+        pass  # the whole group has ended already
+    try:
+        p.wait(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+    _group_gone(p.pid)
 
 
 def output(p: subprocess.Popen[str]) -> str:
     """What a ``process`` wrote so far (stdout and stderr)."""
-    log = p.log  # type: ignore[attr-defined]
-    log.flush()
-    log.seek(0)
-    return str(log.read())
+    return _read(p.log)  # type: ignore[attr-defined]
 
 
 def _group_gone(pgid: int, timeout: float = 60.0) -> None:

@@ -48,6 +48,72 @@ def test_simulator_diagnostics_and_recorder_alone(tmp_path: Path) -> None:
                             if name.startswith("mechsim/spring/")), verdicts
 
 
+#: Loaded by every Python process of a test (``sitecustomize`` on PYTHONPATH): once
+#: ``rclpy.node`` is imported, each node made or destroyed writes the number of the process's
+#: nodes alive after it to ``$MECHSIM_TEST_NODE_LOG/<pid>``.
+_NODE_COUNTER = '''
+import importlib.abc, importlib.util, os, sys
+
+def _count(module):
+    node, made, destroy, alive = module.Node, module.Node.__init__, module.Node.destroy_node, set()
+    log = open(os.path.join(os.environ["MECHSIM_TEST_NODE_LOG"], str(os.getpid())), "a")
+
+    def init(self, *args, **kwargs):
+        made(self, *args, **kwargs)
+        alive.add(id(self))
+        log.write(f"{len(alive)}\\n"); log.flush()
+
+    def destroy_node(self):
+        if id(self) in alive:
+            alive.discard(id(self))
+            log.write(f"{len(alive)}\\n"); log.flush()
+        return destroy(self)
+
+    node.__init__, node.destroy_node = init, destroy_node
+
+class _Finder(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name != "rclpy.node":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        run = spec.loader.exec_module
+        spec.loader.exec_module = lambda module: (run(module), _count(module))
+        return spec
+
+sys.meta_path.insert(0, _Finder())
+'''
+
+
+def test_a_node_process_keeps_its_dds_participant_from_its_first_node_to_its_last(
+        tmp_path: Path) -> None:
+    """No node executable (alone, with its graph check, or a child of ``mechsim run
+    --processes``) lets its node count fall to 0 before its end: the DDS participant ends
+    with a context's last node, and one ending while a launch's other nodes discover it can
+    crash the process (SIGSEGV) or deadlock."""
+    hook, log = tmp_path / "hook", tmp_path / "nodes"
+    hook.mkdir(), log.mkdir()
+    (hook / "sitecustomize.py").write_text(_NODE_COUNTER)
+    env = {**os.environ, "MECHSIM_GRAPH_WAIT": "0.5", "MECHSIM_TEST_NODE_LOG": str(log),
+           "PYTHONPATH": os.pathsep.join([str(hook), os.environ.get("PYTHONPATH", "")])}
+    with process(mechsim_command("recorder", "--ros-args", "-p", f"bag:={tmp_path / 'a'}"),
+                 env), process(mechsim_command("diagnostics"), env):
+        with process(mechsim_command(
+                "simulator", "--ros-args", "-p", "duration:=0.5", "-p",
+                "wait_for_recorder:=true"), env) as sim:
+            status, said = finished(sim)
+            assert status == 0, said
+    out = subprocess.run(mechsim_command("run", "pendulum", "--processes", "--duration", "0.5",
+                                         "--bag", str(tmp_path / "b")),
+                         env=env, capture_output=True, text=True, timeout=DEADLINE * 2)
+    assert out.returncode == 0, out.stderr
+    counts = {f.name: [int(n) for n in f.read_text().split()] for f in log.iterdir()}
+    # the three alone, and of the run: its simulator, diagnostics and recorder processes
+    assert len([c for c in counts.values() if c]) >= 6, counts
+    for pid, seen in counts.items():
+        assert 0 not in seen[:-1], f"process {pid}: nodes alive {seen}"
+
+
 def test_the_swing_up_without_a_ros_install(tmp_path: Path) -> None:
     """docs/ros2.md's commands for swing_up.launch.py: the scene run by ``mechsim run``, the
     controller executable beside it in the pendulum's namespace."""

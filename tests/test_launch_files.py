@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 import mechsim
+from mechsim.outputs.messages import DEFAULT_TIME_OFFSET
 from mechsim.scene import load_scene
 from rosuser import DEADLINE, ROOT, ros2
 
@@ -73,8 +74,13 @@ def test_ros2_launch_starts_nodes_that_publish(launch_file: str, ros2_env: dict[
     assert said.count("process has finished cleanly") == len(started), said
     got = _bag(bag)
     for name in instances:
-        states = got[f"/{name}/state"]
-        assert len(states) == 301  # every sample of 3 s at 100 Hz: the recorder was waited for
+        # every sample of 3 s at 100 Hz: the recorder was waited for
+        got_ticks = {round((s.header.stamp.sec - DEFAULT_TIME_OFFSET) * 100
+                           + s.header.stamp.nanosec * 1e-7) for s in got[f"/{name}/state"]}
+        missing = sorted(set(range(301)) - got_ticks)
+        assert len(got[f"/{name}/state"]) == 301 and not missing, (
+            f"/{name}/state: {len(got[f'/{name}/state'])} samples; missing t/10 ms: "
+            f"{missing[:20]}")
         assert got[f"/{name}/markers"] and got[f"/{name}/system_info"]
         assert len(got[f"/{name}/markers_static"]) == 1
     assert got["/diagnostics"] and got["/clock"]

@@ -17,6 +17,13 @@ that does not answer, a publisher on its topics (and on /clock) that publishes n
 the new node's parameters announced on /parameter_events. Two starts of the same names at the
 same moment can both pass: neither answers the other's check until it has passed its own.
 
+One participant a process: rmw makes a context's DDS participant with its first node and ends
+it with its last, and a participant ending while the graph's other participants are
+discovering it (a launch starting its nodes) can crash the process (SIGSEGV) or deadlock Fast
+DDS. A node made only to look (the check's own, a node executable's probe of its given values)
+is therefore destroyed only once the process's next node exists: the nodes a start makes are
+made before the check's node goes, and begun once the check has passed.
+
 A command joins the graph (:func:`join_graph`) once its input is validated, so that discovery
 runs while it loads the models; the next :func:`joined_context` takes that context. Every
 context of a command starts through :func:`start_context`: a ROS that cannot start in this

@@ -380,22 +380,25 @@ class _Simulator:
         from mechsim.ros.simulator import SimulatorNode
 
         scene, idx = self.scene, self.index
+        waits = bool(self.readers or self.recorder)
+        rtf = 0.0 if scene.pacing == "fast" else scene.real_time_factor
         graph = GraphCheck(self.context) if window > 0 else None
         try:
             _warm(replace(scene, systems=[scene.systems[idx]]))
+            # Made before the check's node goes (one participant), begun once it passed.
+            node = self.node = SimulatorNode(
+                scene.systems[idx], context=self.context, publish_rate=scene.publish_rate,
+                real_time_factor=rtf, publish_clock=(idx == 0), end_time=scene.duration,
+                before_first_message=self._consumers_listen if waits else None,
+                deferred=True)
             if graph is not None:
-                graph.check([scene.systems[idx].name], idx == 0, window)
+                graph.check([scene.systems[idx].name], idx == 0, window, own=[node])
         finally:
             if graph is not None:
                 with bounded_teardown(f"{scene.systems[idx].name}: the graph check's close",
                                       lambda: 1):
                     graph.close()
-        waits = bool(self.readers or self.recorder)
-        rtf = 0.0 if scene.pacing == "fast" else scene.real_time_factor
-        node = self.node = SimulatorNode(
-            scene.systems[idx], context=self.context, publish_rate=scene.publish_rate,
-            real_time_factor=rtf, publish_clock=(idx == 0), end_time=scene.duration,
-            before_first_message=self._consumers_listen if waits else None)
+        node.begin()
         node.run.serve = lambda timeout: self.executor.spin_once(timeout_sec=timeout)
         if waits:
             node.set_paused(True)  # before the executor first runs its pacing timer

@@ -33,7 +33,7 @@ from mechsim.outputs.sink import Sinks
 from mechsim.outputs.wire import message_class
 from mechsim.ros.graph_check import start_context
 from mechsim.ros.outlet import subscription_qos
-from mechsim.ros.process import drain, write_report
+from mechsim.ros.process import bounded_teardown, drain, write_report
 from mechsim.runcore.stops import held_signals
 
 #: Topics outside the instances' namespaces that a scene's nodes publish.
@@ -159,24 +159,36 @@ def _stop_requested() -> Iterator[threading.Event]:
             signal.signal(s, handler)
 
 
-def run_recorder(scene: Any, bag: str | None, rrd: str | None,
-                 report: str | None = None) -> list[str]:
+def run_recorder(scene: Any, bag: str | None, rrd: str | None, report: str | None = None,
+                 *, context: Any = None, probe: Any = None) -> list[str]:
     """The scene's topics from the graph into ``bag`` / ``rrd`` until SIGINT/SIGTERM, then
-    what is in flight, then the outputs completed. Returns the lines describing them."""
+    what is in flight, then the outputs completed. Returns the lines describing them.
+    ``context``: a started context to record in (default: a new one); ``probe``: a node of it
+    that read the recorder's parameters, destroyed once the recorder's node exists (one DDS
+    participant a process: ``graph_check``)."""
     from rclpy.executors import SingleThreadedExecutor
 
     from mechsim.ros.record import open_outputs
 
-    with held_signals():
-        out = open_outputs(scene, bag, rrd)
     try:
-        context = start_context()
+        with held_signals():
+            out = open_outputs(scene, bag, rrd)
+    except BaseException:
+        if probe is not None:
+            probe.destroy_node()
+        raise
+    try:
+        context = start_context() if context is None else context
     except BaseException:
         with held_signals():
             out.finish_after_error()
         raise
     executor = SingleThreadedExecutor(context=context)
-    node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
+    try:
+        node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
+    finally:
+        if probe is not None:
+            probe.destroy_node()
     executor.add_node(node)
     lines: list[str] = []
     try:
@@ -199,7 +211,8 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None,
     finally:
         write_report(report, {"lines": lines, "counts": node.counts,
                                "best_effort": sorted(node.best_effort)})
-        executor.shutdown()
-        node.destroy_node()
-        context.try_shutdown()
+        with bounded_teardown("the recorder's teardown", lambda: 0):
+            executor.shutdown()
+            node.destroy_node()
+            context.try_shutdown()
     return lines

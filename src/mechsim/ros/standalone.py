@@ -24,16 +24,19 @@ from typing import Any
 from mechsim.errors import ParameterError, UnknownSystemError
 from mechsim.ros.graph_check import GraphCheck, discovery_window, start_context
 from mechsim.ros.parameters import overrides
+from mechsim.ros.process import bounded_teardown
 from mechsim.runcore.stops import stopping
 
 #: The system of a simulator started without a ``system`` parameter.
 DEFAULT_SYSTEM = "pendulum"
 
 
-def given_values(context: Any, name: str) -> tuple[dict[str, Any], str, str]:
+def given_values(context: Any, name: str) -> tuple[dict[str, Any], str, str, Any]:
     """(the values given to a node called ``name``, its namespace, its name), both as
-    remapped: read from a short-lived node of that name that offers nothing to the graph
-    (what a node must know before it is made, e.g. which system it runs)."""
+    remapped, and the probe they were read from: a node of that name that offers nothing to
+    the graph (what a node must know before it is made, e.g. which system it runs). The caller
+    destroys the probe once its next node of ``context`` exists, never before: the context's
+    DDS participant ends with its last node (``graph_check``: one participant a process)."""
     from rclpy.node import Node
     from rclpy.parameter import Parameter
 
@@ -41,10 +44,11 @@ def given_values(context: Any, name: str) -> tuple[dict[str, Any], str, str]:
                  parameter_overrides=[Parameter("start_type_description_service", value=False)])
     try:
         values = overrides(probe)
-        values.pop("start_type_description_service", None)
-        return values, probe.get_namespace(), probe.get_name()
-    finally:
+    except BaseException:
         probe.destroy_node()
+        raise
+    values.pop("start_type_description_service", None)
+    return values, probe.get_namespace(), probe.get_name(), probe
 
 
 def _system(values: dict[str, Any]) -> str:
@@ -103,22 +107,27 @@ def simulator_alone() -> int:
     node = None
     executor = SingleThreadedExecutor(context=context)
     try:
-        values, namespace, name = given_values(context, NODE_NAME)
-        system = _system(values)
-        namespace = namespace if namespace != "/" else f"/{system}"
-        clock = values.get("publish_clock", True) is True
+        values, namespace, name, probe = given_values(context, NODE_NAME)
+        try:
+            system = _system(values)
+            namespace = namespace if namespace != "/" else f"/{system}"
+            clock = values.get("publish_clock", True) is True
+            wait = values.get("wait_for_recorder", False) is True
+            # Made before the probe goes (one participant), begun once the graph check passed.
+            node = SimulatorNode(Instance(system, namespace.strip("/").split("/")[-1]),
+                                 context=context, publish_clock=clock, stepped=False,
+                                 node_name=name, deferred=True,
+                                 before_first_message=_recorder_listens if wait else None)
+        finally:
+            probe.destroy_node()
+        _refuse_unknown(node)
         if window > 0:
             graph = GraphCheck(context)
             try:
-                graph.check([f"{namespace}/{name}"], clock, window)
+                graph.check([f"{namespace}/{name}"], clock, window, own=[node])
             finally:
                 graph.close()
-        wait = values.get("wait_for_recorder", False) is True
-        node = SimulatorNode(Instance(system, namespace.strip("/").split("/")[-1]),
-                             context=context, publish_clock=clock, stepped=False,
-                             node_name=name,
-                             before_first_message=_recorder_listens if wait else None)
-        _refuse_unknown(node)
+        node.begin()
         executor.add_node(node)
         while not node.finished and not stopping.is_set():
             executor.spin_once(timeout_sec=0.1)
@@ -130,11 +139,13 @@ def simulator_alone() -> int:
                 wait_acked([ch.publisher for ch in node.outlet.channels.values()])
             except KeyboardInterrupt:
                 pass
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        context.try_shutdown()
-    return 1 if node is not None and node.failed else 0
+        failed = node is not None and node.failed
+        with bounded_teardown("the simulator's teardown", lambda: 1 if failed else 0):
+            executor.shutdown()
+            if node is not None:
+                node.destroy_node()
+            context.try_shutdown()
+    return 1 if failed else 0
 
 
 def recorder_alone(report: str | None = None) -> int:
@@ -145,18 +156,20 @@ def recorder_alone(report: str | None = None) -> int:
     from mechsim.scene import Scene, load_scene
 
     context = start_context()
+    values, _, _, probe = given_values(context, NODE_NAME)
     try:
-        values, _, _ = given_values(context, NODE_NAME)
-    finally:
+        for key in ("scene", "bag", "rrd"):
+            if not isinstance(values.get(key, ""), str):
+                raise ParameterError(key, "must be a string (a path; empty: none)")
+        scene_file = values.get("scene", "")
+        scene = load_scene(scene_file) if scene_file else Scene(name="graph", systems=[])
+        bag = values.get("bag", DEFAULT_BAG) or None
+        rrd = values.get("rrd", "") or None
+        if bag is None and rrd is None:
+            raise ParameterError("bag", "empty, and no rrd: nothing to record to")
+    except BaseException:
+        probe.destroy_node()
         context.try_shutdown()
-    for key in ("scene", "bag", "rrd"):
-        if not isinstance(values.get(key, ""), str):
-            raise ParameterError(key, "must be a string (a path; empty: none)")
-    scene_file = values.get("scene", "")
-    scene = load_scene(scene_file) if scene_file else Scene(name="graph", systems=[])
-    bag = values.get("bag", DEFAULT_BAG) or None
-    rrd = values.get("rrd", "") or None
-    if bag is None and rrd is None:
-        raise ParameterError("bag", "empty, and no rrd: nothing to record to")
-    run_recorder(scene, bag, rrd, report)
+        raise
+    run_recorder(scene, bag, rrd, report, context=context, probe=probe)
     return 0
