@@ -12,7 +12,7 @@ from typing import Any
 
 import yaml
 
-from rosuser import DEADLINE, ROOT, finished, mechsim_command, process
+from rosuser import DEADLINE, ROOT, finished, mechsim_command, output, process, until
 
 
 def _bag(bag: Path) -> dict[str, list[Any]]:
@@ -46,6 +46,28 @@ def test_simulator_diagnostics_and_recorder_alone(tmp_path: Path) -> None:
     verdicts = {s.name: s.level for d in got["/diagnostics"] for s in d.status}
     assert verdicts and all(level == 0 for name, level in verdicts.items()
                             if name.startswith("mechsim/spring/")), verdicts
+
+
+def test_a_simulator_under_the_name_of_a_running_one_is_refused() -> None:
+    """A simulator executable started under the name of one that runs (its node made before
+    the graph check, never begun): one line naming the running node, exit 2; the running one
+    goes on."""
+    name = ["--ros-args", "-r", "__ns:=/twin_alone"]
+    with process(mechsim_command("simulator", *name), os.environ) as first:
+        until(lambda: subprocess.run(mechsim_command("param", "get", "/twin_alone/simulator",
+                                                     "system"), capture_output=True,
+                                     text=True, timeout=DEADLINE).returncode == 0,
+              "the first simulator answers")
+        # (two starts at the same moment can both pass: neither answers the other's check)
+        with process(mechsim_command("simulator", *name, "-p", "duration:=1.0"),
+                     {**os.environ, "MECHSIM_GRAPH_WAIT": "120"}) as second:  # refused once seen
+            status, said = finished(second, timeout=DEADLINE * 2)
+        assert status == 2, said
+        assert said.strip().splitlines() == [
+            f"mechsim: error: /twin_alone/simulator is already running on ROS domain "
+            f"{os.environ['ROS_DOMAIN_ID']}; stop it or start this node under another name "
+            "(-r __ns:=/NAME)"], said
+        assert first.poll() is None, output(first)
 
 
 #: Loaded by every Python process of a test (``sitecustomize`` on PYTHONPATH): once
