@@ -75,12 +75,12 @@ def test_ros2_launch_starts_nodes_that_publish(launch_file: str, ros2_env: dict[
     got = _bag(bag)
     for name in instances:
         # every sample of 3 s at 100 Hz: the recorder was waited for
-        got_ticks = {round((s.header.stamp.sec - DEFAULT_TIME_OFFSET) * 100
-                           + s.header.stamp.nanosec * 1e-7) for s in got[f"/{name}/state"]}
-        missing = sorted(set(range(301)) - got_ticks)
-        assert len(got[f"/{name}/state"]) == 301 and not missing, (
-            f"/{name}/state: {len(got[f'/{name}/state'])} samples; missing t/10 ms: "
-            f"{missing[:20]}")
+        states = got[f"/{name}/state"]
+        ticks = {round((s.header.stamp.sec - DEFAULT_TIME_OFFSET) * 100
+                       + s.header.stamp.nanosec * 1e-7) for s in states}
+        missing = sorted(set(range(301)) - ticks)
+        assert len(states) == 301 and not missing, (
+            f"/{name}/state: {len(states)} samples; missing t/10 ms: {missing[:20]}")
         assert got[f"/{name}/markers"] and got[f"/{name}/system_info"]
         assert len(got[f"/{name}/markers_static"]) == 1
     assert got["/diagnostics"] and got["/clock"]

@@ -173,9 +173,12 @@ def test_echo_once_answers_on_every_advertised_topic(ros2_env: dict[str, str],
         # A topic silent to its echo gets a second echo: on a loaded machine one echo
         # process's discovery can miss (it fails here only if both miss), and what the graph
         # says of the topic is in the message
-        print("silent to a first echo:", [(t, why, ros2(ros2_env, *graph_verb(
-            "topic info", "-v", t), check=False).stdout) for t, why in silent])
+        def as_seen(silent: list[tuple[str, str]]) -> list[tuple[str, str, str]]:
+            """Each silent topic, why, and the graph's view of it (``ros2 topic info -v``)."""
+            return [(t, why, ros2(ros2_env, *graph_verb("topic info", "-v", t),
+                                  check=False).stdout) for t, why in silent]
+
+        print("silent to a first echo:", as_seen(silent))
         silent = _echo_each(ros2_env, [t for t, _ in silent], types, latched)
-        assert not silent, [(t, why, ros2(ros2_env, *graph_verb("topic info", "-v", t),
-                                          check=False).stdout) for t, why in silent]
+        assert not silent, as_seen(silent)
     assert "/lrc_circuit/invariants" not in topics and "/pendulum/invariants" in topics

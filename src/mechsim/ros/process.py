@@ -72,6 +72,17 @@ def bounded_teardown(what: str, code: Callable[[], int],
         faulthandler.cancel_dump_traceback_later()
 
 
+def end_node_process(what: str, code: Callable[[], int], executor: Any, node: Any,
+                     context: Any) -> None:
+    """A node process's DDS teardown, bounded (``bounded_teardown``): its executor, its node
+    (None: never made) and its context (which destroys any node of it still alive)."""
+    with bounded_teardown(what, code):
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        context.try_shutdown()
+
+
 #: Seconds after ``TEARDOWN_LIMIT`` at which a teardown stuck holding the interpreter lock
 #: ends the process (``bounded_teardown``).
 HELD_LOCK_GRACE = 5.0

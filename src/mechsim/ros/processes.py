@@ -37,7 +37,13 @@ from mechsim.ros.graph_check import (
     start_context,
 )
 from mechsim.ros.launch import FAST_CHUNK, SceneRun, _warm
-from mechsim.ros.process import NOTHING_PUBLISHED, bounded_teardown, drain, write_report
+from mechsim.ros.process import (
+    NOTHING_PUBLISHED,
+    bounded_teardown,
+    drain,
+    end_node_process,
+    write_report,
+)
 from mechsim.runcore.stops import stop_on_sigterm, stopping
 
 if TYPE_CHECKING:
@@ -317,11 +323,8 @@ def diagnostics_process(scene: Scene | None, report: str | None = None) -> int:
             pass
         if node is not None:
             write_report(report, {"summary": node.summary(), "messages": node.outlet.counts})
-        with bounded_teardown("the diagnostics process's teardown", lambda: 0):
-            executor.shutdown()
-            if node is not None:
-                node.destroy_node()
-            context.try_shutdown()
+        end_node_process("the diagnostics process's teardown", lambda: 0, executor, node,
+                         context)
     return 0
 
 
@@ -357,11 +360,8 @@ def simulator_process(scene: Scene, name: str, *, readers: int = 0, recorder: bo
         def status() -> int:
             return 1 if sim.node is None or sim.node.failed else 0
 
-        with bounded_teardown(f"{name}: the simulator's teardown", status):
-            executor.shutdown()
-            if sim.node is not None:
-                sim.node.destroy_node()
-            context.try_shutdown()
+        end_node_process(f"{name}: the simulator's teardown", status, executor, sim.node,
+                         context)
     return 1 if sim.node is not None and sim.node.failed else 0
 
 

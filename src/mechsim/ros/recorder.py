@@ -33,7 +33,7 @@ from mechsim.outputs.sink import Sinks
 from mechsim.outputs.wire import message_class
 from mechsim.ros.graph_check import start_context
 from mechsim.ros.outlet import subscription_qos
-from mechsim.ros.process import bounded_teardown, drain, write_report
+from mechsim.ros.process import drain, end_node_process, write_report
 from mechsim.runcore.stops import held_signals
 
 #: Topics outside the instances' namespaces that a scene's nodes publish.
@@ -163,20 +163,15 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None, report: str | Non
                  *, context: Any = None, probe: Any = None) -> list[str]:
     """The scene's topics from the graph into ``bag`` / ``rrd`` until SIGINT/SIGTERM, then
     what is in flight, then the outputs completed. Returns the lines describing them.
-    ``context``: a started context to record in (default: a new one); ``probe``: a node of it
-    that read the recorder's parameters, destroyed once the recorder's node exists (one DDS
-    participant a process: ``graph_check``)."""
+    ``context``: a started context to record in (default: a new one; one given is the caller's
+    to shut down if this raises); ``probe``: a node of it that read the recorder's parameters,
+    destroyed once the recorder's node exists (one DDS participant a process: ``graph_check``)."""
     from rclpy.executors import SingleThreadedExecutor
 
     from mechsim.ros.record import open_outputs
 
-    try:
-        with held_signals():
-            out = open_outputs(scene, bag, rrd)
-    except BaseException:
-        if probe is not None:
-            probe.destroy_node()
-        raise
+    with held_signals():
+        out = open_outputs(scene, bag, rrd)
     try:
         context = start_context() if context is None else context
     except BaseException:
@@ -184,11 +179,9 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None, report: str | Non
             out.finish_after_error()
         raise
     executor = SingleThreadedExecutor(context=context)
-    try:
-        node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
-    finally:
-        if probe is not None:
-            probe.destroy_node()
+    node = RecorderNode([i.name for i in scene.systems], out.sinks, context=context)
+    if probe is not None:
+        probe.destroy_node()
     executor.add_node(node)
     lines: list[str] = []
     try:
@@ -211,8 +204,5 @@ def run_recorder(scene: Any, bag: str | None, rrd: str | None, report: str | Non
     finally:
         write_report(report, {"lines": lines, "counts": node.counts,
                                "best_effort": sorted(node.best_effort)})
-        with bounded_teardown("the recorder's teardown", lambda: 0):
-            executor.shutdown()
-            node.destroy_node()
-            context.try_shutdown()
+        end_node_process("the recorder's teardown", lambda: 0, executor, node, context)
     return lines

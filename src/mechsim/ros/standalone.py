@@ -24,7 +24,7 @@ from typing import Any
 from mechsim.errors import ParameterError, UnknownSystemError
 from mechsim.ros.graph_check import GraphCheck, discovery_window, start_context
 from mechsim.ros.parameters import overrides
-from mechsim.ros.process import bounded_teardown
+from mechsim.ros.process import end_node_process
 from mechsim.runcore.stops import stopping
 
 #: The system of a simulator started without a ``system`` parameter.
@@ -42,11 +42,7 @@ def given_values(context: Any, name: str) -> tuple[dict[str, Any], str, str, Any
 
     probe = Node(name, context=context, enable_rosout=False, start_parameter_services=False,
                  parameter_overrides=[Parameter("start_type_description_service", value=False)])
-    try:
-        values = overrides(probe)
-    except BaseException:
-        probe.destroy_node()
-        raise
+    values = overrides(probe)  # (raising, it leaves the probe to the context's shutdown)
     values.pop("start_type_description_service", None)
     return values, probe.get_namespace(), probe.get_name(), probe
 
@@ -108,18 +104,16 @@ def simulator_alone() -> int:
     executor = SingleThreadedExecutor(context=context)
     try:
         values, namespace, name, probe = given_values(context, NODE_NAME)
-        try:
-            system = _system(values)
-            namespace = namespace if namespace != "/" else f"/{system}"
-            clock = values.get("publish_clock", True) is True
-            wait = values.get("wait_for_recorder", False) is True
-            # Made before the probe goes (one participant), begun once the graph check passed.
-            node = SimulatorNode(Instance(system, namespace.strip("/").split("/")[-1]),
-                                 context=context, publish_clock=clock, stepped=False,
-                                 node_name=name, deferred=True,
-                                 before_first_message=_recorder_listens if wait else None)
-        finally:
-            probe.destroy_node()
+        system = _system(values)
+        namespace = namespace if namespace != "/" else f"/{system}"
+        clock = values.get("publish_clock", True) is True
+        wait = values.get("wait_for_recorder", False) is True
+        # Made before the probe goes (one participant), begun once the graph check passed.
+        node = SimulatorNode(Instance(system, namespace.strip("/").split("/")[-1]),
+                             context=context, publish_clock=clock, stepped=False,
+                             node_name=name, deferred=True,
+                             before_first_message=_recorder_listens if wait else None)
+        probe.destroy_node()
         _refuse_unknown(node)
         if window > 0:
             graph = GraphCheck(context)
@@ -140,11 +134,8 @@ def simulator_alone() -> int:
             except KeyboardInterrupt:
                 pass
         failed = node is not None and node.failed
-        with bounded_teardown("the simulator's teardown", lambda: 1 if failed else 0):
-            executor.shutdown()
-            if node is not None:
-                node.destroy_node()
-            context.try_shutdown()
+        end_node_process("the simulator's teardown", lambda: 1 if failed else 0, executor,
+                         node, context)  # (and the probe, if a failed start left it)
     return 1 if failed else 0
 
 
@@ -156,8 +147,8 @@ def recorder_alone(report: str | None = None) -> int:
     from mechsim.scene import Scene, load_scene
 
     context = start_context()
-    values, _, _, probe = given_values(context, NODE_NAME)
     try:
+        values, _, _, probe = given_values(context, NODE_NAME)
         for key in ("scene", "bag", "rrd"):
             if not isinstance(values.get(key, ""), str):
                 raise ParameterError(key, "must be a string (a path; empty: none)")
@@ -167,9 +158,8 @@ def recorder_alone(report: str | None = None) -> int:
         rrd = values.get("rrd", "") or None
         if bag is None and rrd is None:
             raise ParameterError("bag", "empty, and no rrd: nothing to record to")
+        run_recorder(scene, bag, rrd, report, context=context, probe=probe)
     except BaseException:
-        probe.destroy_node()
-        context.try_shutdown()
+        context.try_shutdown()  # (with its nodes: the probe, if the recorder's never came)
         raise
-    run_recorder(scene, bag, rrd, report, context=context, probe=probe)
     return 0
