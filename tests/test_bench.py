@@ -414,3 +414,47 @@ def test_the_compiled_call_floor_does_a_whole_run() -> None:
                 Status.OK, 2, res.n_steps, res.n_evaluations)
             assert np.array_equal(prepared.layout.rows(buf)[:, :2],
                                   np.column_stack([res.q, res.v]))
+
+
+def _payloads(path: Path) -> dict[int, list[tuple[int, bytes]]]:
+    """(log time, payload) of every message of an MCAP file by channel id, read with the mcap
+    library's reader."""
+    from mcap.reader import make_reader
+
+    got: dict[int, list[tuple[int, bytes]]] = {}
+    with open(path, "rb") as f:
+        for _, ch, m in make_reader(f).iter_messages(log_time_order=False):
+            got.setdefault(ch.id, []).append((m.log_time, bytes(m.data)))
+    return got
+
+
+def test_recording_designs_write_the_shipped_records_or_drop_only_the_chunks(
+        tmp_path: Path) -> None:
+    """The bench's recording designs: ``process`` writes every chunk's messages, byte for
+    byte as the shipped writer does, in its child's file (and the rest in the bag);
+    ``dropped`` keeps only the single messages; each design is undone after its block."""
+    from mechsim.bench.recording_designs import design
+    from mechsim.outputs import bag
+    from mechsim.outputs.bag import mcapfile
+    from mechsim.ros.record import run_with_outputs
+    from mechsim.scene import single_system_scene
+
+    scene = single_system_scene("pendulum")
+    writer, level = bag.BagWriter, mcapfile.ZSTD_LEVEL
+    runs = {}
+    for name in ("shipped", "process", "dropped"):
+        with design(name):
+            runs[name], _ = run_with_outputs(scene, fast=True, duration=3.0,
+                                             bag=str(tmp_path / name))
+        assert (bag.BagWriter, mcapfile.ZSTD_LEVEL) == (writer, level)
+    shipped = _payloads(tmp_path / "shipped" / "shipped_0.mcap")
+    published = sum(runs["shipped"].messages.values())
+    assert sum(map(len, shipped.values())) == published > 0
+    in_bag = _payloads(tmp_path / "process" / "process_0.mcap")
+    in_child = _payloads(tmp_path / "process" / "chunks.mcap")
+    assert in_child and not in_bag.keys() & in_child.keys()
+    assert {**in_bag, **in_child} == shipped
+    dropped = _payloads(tmp_path / "dropped" / "dropped_0.mcap")
+    assert dropped == in_bag  # the single messages alone
+    with pytest.raises(ValueError, match="no recording design"), design("fastest"):
+        pass

@@ -66,36 +66,31 @@ def recording_rtf(system: str, duration: float) -> dict[str, Any]:
 
 
 #: Systems (the slowest to record of those without events, which integrate their blocks one
-#: after the other anyway) recorded again with and without each block's successor integrated
-#: while the block is released, in turn, ``VARIANT_REPEATS`` times each.
+#: after the other anyway) recorded again with each design of ``recording_designs`` in turn,
+#: ``VARIANT_REPEATS`` times each.
 VARIANT_SYSTEMS = 3
 VARIANT_REPEATS = 2
 
 
 def recording_variants(systems: list[str], duration: float) -> list[dict[str, Any]]:
-    """``recording_rtf`` of each system with the next block integrated meanwhile
-    (``SystemRun.integrates_ahead`` on) and with its blocks integrated one after the other
-    (off, as recorded), made in turn: the median real-time factor of each and every run's."""
+    """``recording_rtf`` of each system with each recording design
+    (``recording_designs.DESIGNS``), made in turn: the median real-time factor of each and
+    every run's."""
     import statistics
 
-    from mechsim.runcore.run import SystemRun
+    from mechsim.bench.recording_designs import DESIGNS, design
 
     rows = []
-    default = SystemRun.integrates_ahead
     for s in systems:
-        got: dict[bool, list[float]] = {True: [], False: []}
+        got: dict[str, list[float]] = {name: [] for name in DESIGNS}
         for _ in range(VARIANT_REPEATS):
-            for ahead in (True, False):
-                SystemRun.integrates_ahead = ahead
-                try:
-                    got[ahead].append(recording_rtf(s, duration)["rtf"])
-                finally:
-                    SystemRun.integrates_ahead = default
-        row = {"system": s, "ahead": statistics.median(got[True]), "ahead_runs": got[True],
-               "one_after_the_other": statistics.median(got[False]),
-               "one_after_the_other_runs": got[False]}
-        print(f"  {s:22s} RTF {row['ahead']:8.1f} next block integrated meanwhile, "
-              f"{row['one_after_the_other']:8.1f} one after the other", file=sys.stderr)
+            for name in DESIGNS:
+                with design(name):
+                    got[name].append(recording_rtf(s, duration)["rtf"])
+        row = {"system": s, "designs": {name: {"median": statistics.median(runs), "runs": runs}
+                                        for name, runs in got.items()}}
+        print(f"  {s:22s} RTF " + ", ".join(f"{name} {statistics.median(runs):.0f}"
+                                            for name, runs in got.items()), file=sys.stderr)
         rows.append(row)
     return rows
 

@@ -102,17 +102,24 @@ def _recording_lines(r: dict[str, Any], duration: float) -> list[str]:
                      + f" | {x['messages']} |")
     variants = r.get("recording_variants") or []
     if variants:
-        lines += ["", "The slowest systems without events recorded again, each block's "
-                  "successor integrated on a thread of its own while the block is released "
-                  "(`SystemRun.integrates_ahead`) and the blocks integrated one after the other "
-                  "(as recorded above), in turn (median real-time factor; every run's in "
-                  "brackets):", "",
-                  "| system | next block integrated meanwhile | one after the other |",
-                  "|---|---|---|"]
+        from mechsim.bench.recording_designs import DESIGNS
+
+        names = [n for n in DESIGNS if n in variants[0]["designs"]]
+        lines += ["", "The slowest systems without events recorded again with each design of a "
+                  "recording in turn (`mechsim.bench.recording_designs`): next block integrated "
+                  "meanwhile = each block's successor integrated on a thread of its own while "
+                  "the block is released (`SystemRun.integrates_ahead`); a process of their own "
+                  "= the chunks' layout, compression, checksum and write in a child process, "
+                  "out of reach of the recording process's interpreter lock; dropped = rows "
+                  "encoded and handed to the writer thread, then dropped, the ceiling of any "
+                  "bag writer behind these nodes. Median real-time factor; every run's in "
+                  "brackets:", "",
+                  "| system | " + " | ".join(DESIGNS[n] for n in names) + " |",
+                  "|---|" + "---|" * len(names)]
         for v in variants:
-            lines.append(f"| {v['system']} | {v['ahead']:.0f} ({_runs(v['ahead_runs'])}) | "
-                         f"{v['one_after_the_other']:.0f} "
-                         f"({_runs(v['one_after_the_other_runs'])}) |")
+            cells = [f"{v['designs'][n]['median']:.0f} ({_runs(v['designs'][n]['runs'])})"
+                     for n in names]
+            lines.append(f"| {v['system']} | " + " | ".join(cells) + " |")
     return lines + [""]
 
 
