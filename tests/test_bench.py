@@ -458,3 +458,46 @@ def test_recording_designs_write_the_shipped_records_or_drop_only_the_chunks(
     assert dropped == in_bag  # the single messages alone
     with pytest.raises(ValueError, match="no recording design"), design("fastest"):
         pass
+
+
+def test_the_runs_a_comparison_rests_on_are_timed_again_together_in_rounds() -> None:
+    from mechsim.bench.paired import contested_runs, retime
+
+    rows = [_row("mechsim:a", "mechsim", 1.6e-3, 1e-3, setting=1e-3),  # swept in a slow stretch
+            _row("mechsim:a", "mechsim", 2.0e-3, 1e-5, setting=1e-4),
+            _row("mechsim:a", "mechsim", 3.0e-3, 1e-3, setting=1e-2),  # dominated: off the front
+            _row("mechsim:b", "mechsim", 20e-3, 1e-5, setting=1e-4),  # 10x slower: no contender
+            _row("handwritten:RK4", "handwritten", 0.5e-3, 1e-3, setting=16),
+            _row("handwritten:RK4", "handwritten", 1.2e-3, 8e-5, setting=32),
+            _row("scipy:DOP853", "scipy", 40e-3, 1e-5, setting=1e-4)]
+    runs = contested_runs(rows, [1e-4])
+    assert [(r["contestant"], r["setting"]) for r in runs] == [
+        ("mechsim:a", 1e-3), ("mechsim:a", 1e-4), ("handwritten:RK4", 16),
+        ("handwritten:RK4", 32)]
+    cost = {1e-3: 1.0e-3, 1e-4: 2.0e-3, 16: 0.5e-3, 32: 1.2e-3}  # what each run really costs
+    now, order = [0.0], []
+
+    def runner_of(r: dict[str, Any]) -> Any:
+        def run() -> None:
+            order.append(r["setting"])
+            # every run of the third round meets a stretch twice as slow
+            now[0] += cost[r["setting"]] * (2.0 if len(order) in range(29, 41) else 1.0)
+        return run
+
+    rounds = retime(runs, runner_of, clock=lambda: now[0])
+    assert rounds >= 5
+    timed = order[4:]  # after one warm-up run of each
+    assert len(timed) == 4 * 3 * rounds
+    for n in range(rounds):  # a burst of each per round, each round starting one further on
+        got = timed[12 * n:12 * n + 12]
+        assert got[0::3] == got[1::3] == got[2::3]
+        assert sorted(got[0::3], key=str) == sorted(cost, key=str)
+        assert got[0] == [1e-3, 1e-4, 16, 32][n % 4]
+    for r in runs:
+        assert len(r["paired_times_s"]) == rounds
+        assert math.isclose(r["time_s"], cost[r["setting"]])
+    assert runs[0]["sweep_time_s"] == 1.6e-3
+    # at 1e-4, log-log: mechsim:a halfway between 1 and 2 ms, RK4 0.5 ms x 2.4^(ln 10/ln 12.5)
+    peer, mine = 0.5e-3 * 2.4 ** (math.log(10.0) / math.log(12.5)), math.sqrt(2e-6)
+    assert math.isclose(matched(rows)["1e-04"]["speedup_vs_peer"], peer / mine)
+    assert retime([], runner_of) == 0

@@ -6,7 +6,9 @@ system) every contestant integrates the same IVP over the same horizon, sampling
 times, once per setting of its accuracy knob. Time: median of ``repeats`` runs (more, up to
 21, for runs under 0.1 s; not with ``--quick``) after one warm-up run (the warm-up time is
 kept separately; a setting whose warm-up exceeds ``budget_s`` is timed once and ends that
-contestant's sweep, flagged ``repeats: 1``). Errors against the reference, on the problem's
+contestant's sweep, flagged ``repeats: 1``). The runs each matched-error comparison is
+read from are then timed again together, in rounds (:mod:`mechsim.bench.paired`), and their
+time is the median over the rounds. Errors against the reference, on the problem's
 compared states: the state at the last sample and the largest over the samples (‖C − C_ref‖
 over the largest ‖C_ref‖), and the largest relative drift of the conserved quantity.
 
@@ -35,7 +37,8 @@ JSON schema (``results.json``)::
                      "cold_s": {method: s} or null (fresh cache, separate process)},
          "runs": [{"contestant", "family", "knob", "setting", "status" ("ok" | "skipped: …"
                    | "failed: …" | "n/a: …"), "time_s" (median), "times_s", "warmup_s",
-                   "repeats", "end_error", "max_error", "invariant_error", "n_steps",
+                   "repeats", "sweep_time_s" and "paired_times_s" (runs timed again
+                   together), "end_error", "max_error", "invariant_error", "n_steps",
                    "n_rhs", "method" (resolved, mechsim), "same_as" (auto only)}],
          "matched": {"1e-04": {"mechsim": {"contestant", "time_s", "bound"} | null,
                                "peer": {...} | null, "scipy": {...} | null,
@@ -72,6 +75,8 @@ from typing import Any
 import numpy as np
 
 from mechsim.bench import peers as peers_mod
+from mechsim.bench.front import error_at, pareto, time_at
+from mechsim.bench.paired import contested_runs, retime
 from mechsim.bench.peers import Contestant, Runner
 from mechsim.bench.problems import BUILDERS, Problem, problem, system_of
 from mechsim.files import write_atomic
@@ -276,44 +281,6 @@ def sweep(pb: Problem, c: Contestant, repeats: int, budget_s: float,
 
 
 # --- matched error ----------------------------------------------------------------------------
-def pareto(rows: list[dict[str, Any]], key: str = "end_error") -> list[tuple[float, float]]:
-    """(time, error) points of the front: faster ones first, each more accurate than all the
-    faster ones."""
-    pts = sorted((r["time_s"], r[key]) for r in rows
-                 if r["status"] == "ok" and r[key] is not None and math.isfinite(r[key]))
-    front: list[tuple[float, float]] = []
-    for t, e in pts:
-        if not front or e < front[-1][1]:
-            front.append((t, max(e, 1e-300)))
-    return front
-
-
-def time_at(front: list[tuple[float, float]], level: float) -> tuple[float, bool] | None:
-    """Time to reach error ``level`` on the front (log-log interpolation); (time, bound)."""
-    if not front or front[-1][1] > level:
-        return None
-    if front[0][1] <= level:
-        return front[0][0], True
-    for (t0, e0), (t1, e1) in zip(front, front[1:], strict=False):
-        if e0 > level >= e1:
-            f = math.log(e0 / level) / math.log(e0 / e1)
-            return math.exp(math.log(t0) + f * math.log(t1 / t0)), False
-    return None
-
-
-def error_at(front: list[tuple[float, float]], t: float) -> float | None:
-    """Best error reachable within time ``t`` on the front (log-log interpolation)."""
-    if not front or t < front[0][0]:
-        return None
-    if t >= front[-1][0]:
-        return front[-1][1]
-    for (t0, e0), (t1, e1) in zip(front, front[1:], strict=False):
-        if t0 <= t < t1:
-            f = math.log(t / t0) / math.log(t1 / t0)
-            return math.exp(math.log(e0) + f * math.log(e1 / e0))
-    return None
-
-
 def best_at(rows: list[dict[str, Any]], level: float, family_filter: Any
             ) -> dict[str, Any] | None:
     best: dict[str, Any] | None = None
@@ -517,6 +484,11 @@ def bench_system(name: str, quick: bool, repeats: int, budget_s: float,
             first[c.name] = t_first
         # --quick checks that everything runs: cheap runs are not repeated for steadiness
         rows += sweep(pb, c, repeats, budget_s, done, steady_s=0.0 if quick else 0.3)
+    if not quick:
+        by_name = {c.name: c for c in [*cs, *pc]}
+        runs = contested_runs(rows, ERROR_LEVELS)
+        rounds = retime(runs, lambda r: by_name[r["contestant"]].prepare(pb, r["setting"]))
+        log(f"  {len(runs)} runs timed again together, {rounds} rounds")
     cold_s = None
     if cold:
         meths = [m for m in ("dop853", "yoshida8") if f"mechsim:{m}" in first]

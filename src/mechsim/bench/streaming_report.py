@@ -90,14 +90,16 @@ def _recording_lines(r: dict[str, Any], duration: float) -> list[str]:
     lines = ["## Recording", "",
              f"Recording at 100 Hz output, as fast as possible, bag writer attached "
              f"({duration:g} s simulated per system; real-time factor = simulated / wall "
-             f"seconds after start-up, to the bag complete on disk).", "",
-             "Per-sample cost split, µs of wall time per sample in each stage (write runs in "
-             "the bag writer's thread, alongside the others).", "",
+             f"seconds after start-up, to the bag complete on disk): the median of "
+             f"{len(r['recording'][0].get('runs', [0]))} recordings, every one's in brackets.",
+             "", "Per-sample cost split of the median recording, µs of wall time per sample in "
+             "each stage (write runs in the bag writer's thread, alongside the others).", "",
              "| system | real-time factor | µs per sample | " + " | ".join(STAGES)
              + " | messages |", "|---|---|---|" + "---|" * len(STAGES) + "---|"]
     for x in sorted(r["recording"], key=lambda x: x["rtf"]):
         split = x["split_us"]
-        lines.append(f"| {x['system']} | {x['rtf']:.0f} | {x['us_per_sample']:.1f} | "
+        lines.append(f"| {x['system']} | {x['rtf']:.0f} ({_runs(x.get('runs', []))}) | "
+                     f"{x['us_per_sample']:.1f} | "
                      + " | ".join(f"{split.get(k, 0.0):.1f}" for k in STAGES)
                      + f" | {x['messages']} |")
     variants = r.get("recording_variants") or []
