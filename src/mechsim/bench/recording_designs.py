@@ -6,7 +6,7 @@
   writes the chunks).
 - ``ahead``: each block's successor integrated on a thread of its own while the block is
   released (``SystemRun.integrates_ahead``).
-- ``zstd_3``: chunks compressed at zstd level -3 (faster, larger).
+- ``zstd_1``: chunks compressed at zstd level -1 (smaller, slower).
 - ``process``: the chunks' work (layout, compression, checksum, write) in a process of its own,
   out of reach of the recording process's interpreter lock: the writer thread only hands each
   chunk of rows to it through a pipe.
@@ -28,7 +28,7 @@ from mechsim.outputs.bag.writer import CHUNK_SIZE, BagWriter
 DESIGNS = {
     "shipped": "as recorded above",
     "ahead": "next block integrated meanwhile",
-    "zstd_3": "chunks at zstd level -3",
+    "zstd_1": "chunks at zstd level -1",
     "process": "chunks written by a process of their own",
     "dropped": "chunks dropped before the writer's work (ceiling of any bag writer)",
 }
@@ -93,8 +93,8 @@ def design(name: str) -> Iterator[None]:
     try:
         if name == "ahead":
             SystemRun.integrates_ahead = True
-        elif name == "zstd_3":
-            mcapfile.ZSTD_LEVEL = -3
+        elif name == "zstd_1":
+            mcapfile.ZSTD_LEVEL = -1
         elif name == "process":
             bag.BagWriter = _ChunksInAProcess  # type: ignore[misc]
         elif name == "dropped":

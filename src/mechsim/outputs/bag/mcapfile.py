@@ -61,11 +61,12 @@ _INDEX_MAP_DTYPE = np.dtype([("channel", "<u2"), ("offset", "<u8")])
 _OP_CHUNK_INDEX = 0x08
 _CHUNK_INDEX_HEAD = struct.Struct("<BQQQQQI")  # up to the message index offsets
 _CHUNK_INDEX_TAIL = struct.Struct("<QI4sQQ")  # message index length ... uncompressed size
-#: zstd's first fast (negative) level: a standard zstd frame that every reader decodes with no
-#: setting. It takes less of the writer thread's time than level 1 (the fastest standard
-#: level: larger match tables, which a second busy core's cache holds less well) and gives
-#: nearly the same size on the samples' rows (their byte columns repeat from row to row).
-ZSTD_LEVEL = -1
+#: The level MCAP's own writers call "fast" (zstd level -3): a standard zstd frame that every
+#: reader decodes with no setting. The writer thread shares the machine with the nodes, so its
+#: time per sample bounds a fast recording; the samples' rows (byte columns that repeat from
+#: row to row) still compress several-fold. Slower levels give smaller chunks at a cost the
+#: benchmark's recording designs table shows (``mechsim bench --streaming``).
+ZSTD_LEVEL = -3
 
 
 class RecordBatch(NamedTuple):
