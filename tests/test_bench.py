@@ -501,3 +501,16 @@ def test_the_runs_a_comparison_rests_on_are_timed_again_together_in_rounds() -> 
     peer, mine = 0.5e-3 * 2.4 ** (math.log(10.0) / math.log(12.5)), math.sqrt(2e-6)
     assert math.isclose(matched(rows)["1e-04"]["speedup_vs_peer"], peer / mine)
     assert retime([], runner_of) == 0
+
+
+def test_a_systems_recording_figure_is_its_fastest_recording_with_every_one_beside_it() -> None:
+    from mechsim.bench.streaming import recording_rtf
+    from mechsim.bench.streaming_report import _recording_lines
+
+    row = recording_rtf("pendulum", 20.0, repeats=2)
+    assert len(row["runs"]) == len(row["reference_ms"]) == 2
+    assert row["rtf"] == max(row["runs"]) and min(row["runs"]) <= row["median_rtf"] <= row["rtf"]
+    assert all(r > 0.0 for r in row["reference_ms"]) and row["messages"] > 0
+    lines = _recording_lines({"recording": [row]}, 20.0)
+    cells = next(line for line in lines if line.startswith("| pendulum |")).split(" | ")
+    assert cells[1] == f"{row['rtf']:.0f}" and f"{row['median_rtf']:.0f} (" in cells[2]

@@ -7,7 +7,8 @@ ensembles (``simulate_many``) against what a user would write instead, in one ru
   running stepper by one sample; the compiled call ``simulate`` makes (its arguments
   prepared once, its buffer made each call), through numba's dispatcher and through its
   compiled entry point, as ``simulate`` calls it: the floor of a call; scipy's ``solve_ivp`` and a
-  hand-written numba RK4 loop for the same interval. Median of many calls, in µs.
+  hand-written numba RK4 loop for the same interval. µs per call in batches: the fastest
+  batch and the median one (``per_call``).
 - Ensembles: ``ENSEMBLE`` pendulums released from rest at random amplitudes, ten
   small-oscillation periods, ``SAMPLES`` samples, tolerance 1e-10: ``simulate_many`` (all
   cores and one), a loop of ``simulate``, a loop of scipy's ``solve_ivp`` (DOP853) and a
@@ -31,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from mechsim.bench.host import reference_loop
 from mechsim.files import write_atomic
 
 ENSEMBLE = 10_000
@@ -40,20 +42,33 @@ LOOP_MEMBERS = {"simulate": 500, "solve_ivp": 40}
 SEED = 3
 
 
-def _median_us(call: Callable[[], Any], n: int) -> float:
-    """Median time of ``call`` in µs over ``n`` calls (in batches of 50, after a warm-up)."""
-    call()
-    batches = []
-    for _ in range(max(1, n // 50)):
-        t0 = time.perf_counter()
-        for _ in range(50):
-            call()
-        batches.append((time.perf_counter() - t0) / 50 * 1e6)
-    return float(statistics.median(batches))
+#: Calls timed together in a batch; batches of all the calls are taken in turn.
+BATCH = 50
+#: The host's reference loop (``mechsim.bench.host``), timed before and after the calls.
+REFERENCE = "reference loop"
 
 
-def per_call(n: int = 4000) -> dict[str, float]:
-    """µs per call of each way to run a pendulum for one output interval (module docstring)."""
+def _batches_us(calls: dict[str, Callable[[], Any]], batches: int) -> dict[str, list[float]]:
+    """µs per call of each of ``calls`` in each of ``batches`` batches of ``BATCH`` calls,
+    one call's batches after the other's (after a warm-up call), as a loop of that call
+    runs."""
+    got: dict[str, list[float]] = {}
+    for name, call in calls.items():
+        call()
+        got[name] = []
+        for _ in range(batches):
+            t0 = time.perf_counter()
+            for _ in range(BATCH):
+                call()
+            got[name].append((time.perf_counter() - t0) / BATCH * 1e6)
+    return got
+
+
+def per_call(batches: int = 80) -> dict[str, dict[str, float]]:
+    """µs per call of each way to run a pendulum for one output interval (module docstring):
+    ``best``, the fastest batch (timeit's convention: slower batches met other work on the
+    host), and ``median``, over ``batches`` batches; and the reference loop of
+    :mod:`mechsim.bench.host` timed the same way, before and after them, in ms."""
     from scipy.integrate import solve_ivp
 
     import mechsim
@@ -73,33 +88,36 @@ def per_call(n: int = 4000) -> dict[str, float]:
     g = 9.81
     loop = _rk4_one()
     y0 = model.initial_y()[:2].copy()
-    return {
-        "simulate, every output (auto)": _median_us(
-            lambda: mechsim.simulate(model, dt, dt, tolerance=TOLERANCE), n),
-        "simulate, every output (dop853)": _median_us(
-            lambda: mechsim.simulate(model, dt, dt, tolerance=TOLERANCE, method="dop853"), n),
-        "simulate, every output (dop853), then reading q[-1] and v[-1]": _median_us(
-            lambda: _end_state(mechsim.simulate(model, dt, dt, tolerance=TOLERANCE,
-                                                method="dop853")), n),
-        "simulate, state only (dop853)": _median_us(
-            lambda: mechsim.simulate(model, dt, dt, tolerance=TOLERANCE, method="dop853",
-                                     outputs=(), work_terms=False), n),
-        "simulate, every output (radau15)": _median_us(
-            lambda: mechsim.simulate(model, dt, dt, tolerance=TOLERANCE, method="radau15"), n),
-        "make_stepper + advance (dop853)": _median_us(
-            lambda: make_stepper(model, "dop853", TOLERANCE).advance(t1), n),
-        "advance of a running stepper by one sample": _median_us(advance, n),
-        "the compiled call alone (dop853, every output), numba's dispatcher": _median_us(
-            dispatched.run, n),
-        "the same call through its compiled entry point (as simulate calls it)": _median_us(
-            entry.run, n),
-        "hand-written numba RK4 loop (one call, 4 steps)": _median_us(
-            lambda: loop(g, y0, dt, 4), n),
-        "scipy solve_ivp (DOP853)": _median_us(
-            lambda: solve_ivp(lambda t, y: [y[1], -g * math.sin(y[0])], (0.0, dt), y0,
-                              method="DOP853", rtol=1e-13, atol=1e-13, t_eval=t1),
-            max(100, n // 20)),
+    def simulate(**kw: Any) -> Any:
+        return mechsim.simulate(model, dt, dt, tolerance=TOLERANCE, **kw)
+
+    def scipy_call() -> Any:
+        return solve_ivp(lambda t, y: [y[1], -g * math.sin(y[0])], (0.0, dt), y0,
+                         method="DOP853", rtol=1e-13, atol=1e-13, t_eval=t1)
+
+    calls: dict[str, Callable[[], Any]] = {
+        "simulate, every output (auto)": simulate,
+        "simulate, every output (dop853)": lambda: simulate(method="dop853"),
+        "simulate, every output (dop853), then reading q[-1] and v[-1]":
+            lambda: _end_state(simulate(method="dop853")),
+        "simulate, state only (dop853)":
+            lambda: simulate(method="dop853", outputs=(), work_terms=False),
+        "simulate, every output (radau15)": lambda: simulate(method="radau15"),
+        "make_stepper + advance (dop853)":
+            lambda: make_stepper(model, "dop853", TOLERANCE).advance(t1),
+        "advance of a running stepper by one sample": advance,
+        "the compiled call alone (dop853, every output), numba's dispatcher": dispatched.run,
+        "the same call through its compiled entry point (as simulate calls it)": entry.run,
+        "hand-written numba RK4 loop (one call, 4 steps)": lambda: loop(g, y0, dt, 4),
+        "scipy solve_ivp (DOP853)": scipy_call,
     }
+    before = _batches_us({REFERENCE: reference_loop}, 4)[REFERENCE]
+    got = _batches_us(calls, batches)
+    ref = before + _batches_us({REFERENCE: reference_loop}, 4)[REFERENCE]
+    return {"best": {k: min(v) for k, v in got.items()},
+            "median": {k: statistics.median(v) for k, v in got.items()},
+            "reference_ms": {"best": min(ref) / 1e3, "median": statistics.median(ref) / 1e3,
+                             "slowest": max(ref) / 1e3}}
 
 
 def _end_state(result: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -311,11 +329,19 @@ def _rk4_contest(states: np.ndarray, amplitudes: np.ndarray, ref: np.ndarray, T:
 
 
 def markdown(res: dict[str, Any]) -> str:
+    ref = res.get("reference_ms") or {"best": math.nan, "median": math.nan, "slowest": math.nan}
     lines = ["# Per-call overhead and ensembles", "",
              f"Host: {os.cpu_count()} cores; all figures from one run.", "",
              "## One call: a pendulum for one output interval (two samples)", "",
-             "| call | µs |", "| --- | ---: |"]
-    lines += [f"| {k} | {v:.1f} |" for k, v in res["per_call"].items()]
+             f"µs per call in {BATCH}-call batches of each call back to back: the fastest "
+             "batch (timeit's convention: a slower batch met other work on the host) and the "
+             "median batch. The host's speed before and after: a fixed pure-Python loop "
+             f"(`mechsim.bench.host`) took {ref['best']:.2f} ms in its fastest batch, "
+             f"{ref['median']:.2f} in the median one and {ref['slowest']:.2f} in the slowest.",
+             "", "| call | µs, fastest batch | µs, median batch |", "| --- | ---: | ---: |"]
+    median = res.get("per_call_median", {})
+    lines += [f"| {k} | {v:.1f} | {median.get(k, float('nan')):.1f} |"
+              for k, v in res["per_call"].items()]
     e = res["ensembles"]
     lines += ["", f"## {e['members']} pendulums, random amplitudes 0.1–3 rad, "
               f"{e['t_end']:.4g} s (ten small-oscillation periods), {e['samples']} samples, "
@@ -334,7 +360,9 @@ def markdown(res: dict[str, Any]) -> str:
 def run_throughput(out: Path, members: int = ENSEMBLE) -> dict[str, Any]:
     """Measure, write ``throughput.json`` and ``throughput.md`` into ``out``, print the
     table."""
-    res = {"per_call": per_call(), "ensembles": ensembles(members)}
+    calls = per_call()
+    res = {"per_call": calls["best"], "per_call_median": calls["median"],
+           "reference_ms": calls["reference_ms"], "ensembles": ensembles(members)}
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / "throughput.json", json.dumps(res, indent=1) + "\n")
     text = markdown(res)
