@@ -71,11 +71,10 @@ def _throughput() -> Iterator[str]:
     median = next(iter(res.get("per_call_median", {}).values()), None)
     if one is not None:
         verdict = "met" if one <= 5.0 else "**missed**"
-        also = "" if read is None else f" ({read:.1f} µs with reading its end state)"
-        if median is not None:  # figures of the fastest batch and of the median one
-            also = (" (fastest batch" + ("" if read is None else
-                                         f", {read:.1f} µs with reading its end state")
-                    + f"; median batch {median:.1f} µs)")
+        notes = ["fastest batch"] + ([] if read is None else
+                                     [f"{read:.1f} µs with reading its end state"])
+        also = (f" ({', '.join(notes)}"
+                + ("" if median is None else f"; median batch {median:.1f} µs") + ")")
         yield (f"| one `simulate()` call of one sample ≤ 5 µs | {one:.1f} µs{also} | {verdict} "
                f"| {link} |")
     e = res["ensembles"]

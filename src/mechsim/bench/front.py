@@ -19,9 +19,15 @@ def front_rows(rows: list[dict[str, Any]], key: str = "end_error") -> list[dict[
     return front
 
 
+def points(front: list[dict[str, Any]], key: str = "end_error") -> list[tuple[float, float]]:
+    """(time, error) of each run of a front (an error of 0 as the smallest positive one, for
+    the log-log interpolation)."""
+    return [(r["time_s"], max(r[key], 1e-300)) for r in front]
+
+
 def pareto(rows: list[dict[str, Any]], key: str = "end_error") -> list[tuple[float, float]]:
     """(time, error) points of the front (:func:`front_rows`)."""
-    return [(r["time_s"], max(r[key], 1e-300)) for r in front_rows(rows, key)]
+    return points(front_rows(rows, key), key)
 
 
 def bracket(front: list[Any], errors: list[float], level: float) -> list[Any]:

@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from mechsim.bench.front import bracket, front_rows, time_at
+from mechsim.bench.front import bracket, front_rows, points, time_at
 
 #: A contestant whose time at a level is within this factor of its side's fastest there is
 #: timed again with it.
@@ -52,8 +52,7 @@ def contested_runs(rows: Rows, levels: Iterable[float]) -> Rows:
     for level in levels:
         for mine in (True, False):
             side = {n: f for n, f in fronts.items() if (family[n] == "mechsim") == mine and f}
-            times = {n: time_at([(r["time_s"], max(r["end_error"], 1e-300)) for r in f], level)
-                     for n, f in side.items()}
+            times = {n: time_at(points(f), level) for n, f in side.items()}
             reached = {n: t[0] for n, t in times.items() if t is not None}
             if not reached:
                 continue

@@ -81,8 +81,9 @@ def markdown(res: dict[str, Any]) -> str:
            + f"Time: median of {st['repeats']} runs (up to 21 for runs under 0.1 s) after a "
            "warm-up run (a run over "
            f"{st['budget_s']:g} s is timed once and ends its sweep); then the runs each "
-           "matched-error comparison is read from are timed again together, one run of each in "
-           "turn per round, and their time is the median over the rounds. Errors: ‖[q, v] − ref‖ / "
+           "matched-error comparison is read from are timed again together, in rounds of a "
+           "burst of each in turn (the last run of each burst timed), and their time is the "
+           "median over the rounds. Errors: ‖[q, v] − ref‖ / "
            "max‖ref‖ at the last sample (end) and over all samples (max); invariant: max "
            "relative drift of the conserved quantity. All numbers are from this run.", "",
            "## Summary: time to reach an end-point error", "",

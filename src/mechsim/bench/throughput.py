@@ -42,7 +42,7 @@ LOOP_MEMBERS = {"simulate": 500, "solve_ivp": 40}
 SEED = 3
 
 
-#: Calls timed together in a batch; batches of all the calls are taken in turn.
+#: Calls timed together in a batch.
 BATCH = 50
 #: The host's reference loop (``mechsim.bench.host``), timed before and after the calls.
 REFERENCE = "reference loop"
