@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import warnings
 from pathlib import Path
 from types import SimpleNamespace
@@ -501,6 +502,39 @@ def test_the_runs_a_comparison_rests_on_are_timed_again_together_in_rounds() -> 
     peer, mine = 0.5e-3 * 2.4 ** (math.log(10.0) / math.log(12.5)), math.sqrt(2e-6)
     assert math.isclose(matched(rows)["1e-04"]["speedup_vs_peer"], peer / mine)
     assert retime([], runner_of) == 0
+
+
+def test_the_recordings_of_the_systems_are_made_in_rounds(monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    """Every system warmed up once, then recorded once a round; each row: its fastest
+    recording, the median and every recording's figure in the order made."""
+    import mechsim.ros.record
+    import mechsim.scene
+    from mechsim.bench import streaming
+
+    made: list[str] = []
+    figures = {"a": [900.0, 1200.0, 1000.0], "b": [2000.0, 1500.0, 1800.0]}
+
+    def warm_up(scene: str, fast: bool, duration: float, bag: str) -> None:
+        made.append(f"warm {scene}")
+        os.mkdir(bag)
+
+    def record(scene: str, duration: float, bag: str) -> dict[str, Any]:
+        os.mkdir(bag)
+        made.append(scene)
+        rtf = figures[scene][made.count(scene) - 1]
+        return {"rtf": rtf, "reference_ms": rtf / 1000.0, "us_per_sample": 1e4 / rtf}
+
+    monkeypatch.setattr(mechsim.scene, "single_system_scene", lambda s: s)
+    monkeypatch.setattr(mechsim.ros.record, "run_with_outputs", warm_up)
+    monkeypatch.setattr(streaming, "_record", record)
+    rows = streaming.recordings_in_rounds(["a", "b"], 10.0, 3)
+    assert made == ["warm a", "warm b", "a", "b", "a", "b", "a", "b"]
+    assert [r["system"] for r in rows] == ["a", "b"]
+    for row, runs in zip(rows, figures.values(), strict=True):
+        assert row["runs"] == runs and row["reference_ms"] == [x / 1000.0 for x in runs]
+        assert row["rtf"] == max(runs) and row["us_per_sample"] == 1e4 / max(runs)
+        assert row["median_rtf"] == sorted(runs)[1]
 
 
 def test_a_systems_recording_figure_is_its_fastest_recording_with_every_one_beside_it() -> None:

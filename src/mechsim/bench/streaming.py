@@ -5,10 +5,11 @@
    the bag writer attached, so every message is built, published, serialized and written.
    Real-time factor = simulated seconds / wall seconds after start-up, up to the bag being
    complete on disk (the writer's queue drained), measured after a warm-up recording
-   (compilation excluded): the fastest of ``RECORDING_REPEATS`` recordings, the median beside
-   it. The per-sample cost split: wall time per sample in each stage (integrate, evaluate,
-   encode, publish incl. the hand-off to the recorder, diagnostics, and write: the bag writer's
-   thread, which overlaps the others on a second core).
+   (compilation excluded): the fastest of ``RECORDING_REPEATS`` recordings, made in rounds
+   (every system once a round), the median beside it. The per-sample cost split: wall time
+   per sample in each stage (integrate, evaluate, encode, publish incl. the hand-off to the
+   recorder, diagnostics, and write: the bag writer's thread, which overlaps the others on a
+   second core).
 2. Live consumers in another process of a fast ``--lossless`` run (no bag): on the per-sample
    topics (one subscription per streamed topic: Python, or a subscriber written against rcl
    alone) and on the batch topic (``mechsim.bench.live_batches``: the Python helper, the rcl
@@ -47,9 +48,10 @@ def _cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-#: Recordings of each system in the first pass: its figure is the fastest one's (timeit's
-#: convention: a slower one met other work on the host), the median beside it.
-RECORDING_REPEATS = 3
+#: Recordings of each system in the first pass (timeit's default repeat count): its figure is
+#: the fastest one's (timeit's convention: a slower one met other work on the host), the
+#: median beside it.
+RECORDING_REPEATS = 5
 
 
 def _record(scene: Any, duration: float, bag: str) -> dict[str, Any]:
@@ -72,19 +74,41 @@ def recording_rtf(system: str, duration: float, repeats: int = 1) -> dict[str, A
     fastest recording's figures, the median real-time factor (``median_rtf``), and every
     recording's real-time factor (``runs``) and host speed before it (``reference_ms``, see
     :mod:`mechsim.bench.host`)."""
+    return recordings_in_rounds([system], duration, repeats)[0]
+
+
+def recordings_in_rounds(systems: list[str], duration: float,
+                         rounds: int) -> list[dict[str, Any]]:
+    """:func:`recording_rtf` of each of ``systems``, its ``rounds`` recordings made in rounds
+    (every system once a round, after a warm-up recording of each): a slow stretch of the host
+    meets one recording of several systems, not every recording of one (as the compared runs
+    of the long problems are timed again in rounds, ``paired``)."""
+    import shutil
     import statistics
 
     from mechsim.ros.record import run_with_outputs
     from mechsim.scene import single_system_scene
 
-    scene = single_system_scene(system)
+    scenes = {s: single_system_scene(s) for s in systems}
+    got: dict[str, list[dict[str, Any]]] = {s: [] for s in systems}
     with tempfile.TemporaryDirectory() as tmp:
-        # Warm-up: kernels loaded or compiled (numba compiles a loop at its first call).
-        run_with_outputs(scene, fast=True, duration=0.2, bag=os.path.join(tmp, "warm"))
-        got = [_record(scene, duration, os.path.join(tmp, f"bag{i}")) for i in range(repeats)]
-    fastest = max(got, key=lambda g: g["rtf"])
-    return {"system": system, **fastest, "median_rtf": statistics.median(g["rtf"] for g in got),
-            "runs": [g["rtf"] for g in got], "reference_ms": [g["reference_ms"] for g in got]}
+        for scene in scenes.values():
+            # Warm-up: kernels loaded or compiled (numba compiles a loop at its first call).
+            run_with_outputs(scene, fast=True, duration=0.2, bag=os.path.join(tmp, "warm"))
+            shutil.rmtree(os.path.join(tmp, "warm"))
+        for _ in range(rounds):
+            for s, scene in scenes.items():
+                bag = os.path.join(tmp, "bag")
+                got[s].append(_record(scene, duration, bag))
+                shutil.rmtree(bag)  # (the bench's own scratch recording)
+    rows = []
+    for s in systems:
+        fastest = max(got[s], key=lambda g: g["rtf"])
+        rows.append({"system": s, **fastest,
+                     "median_rtf": statistics.median(g["rtf"] for g in got[s]),
+                     "runs": [g["rtf"] for g in got[s]],
+                     "reference_ms": [g["reference_ms"] for g in got[s]]})
+    return rows
 
 
 #: Systems (the slowest to record of those without events, which integrate their blocks one
@@ -471,12 +495,10 @@ def run_streaming(out: Path, systems: list[str], duration: float = 1000.0,
 
     out.mkdir(parents=True, exist_ok=True)
     ids = systems or system_ids()
-    rows = []
-    for s in ids:
-        row = recording_rtf(s, duration, RECORDING_REPEATS)
-        print(f"  {s:22s} RTF {row['rtf']:8.1f}  ({row['us_per_sample']:.1f} µs/sample: "
-              f"{_split(row['split_us'])})", file=sys.stderr)
-        rows.append(row)
+    rows = recordings_in_rounds(list(ids), duration, RECORDING_REPEATS)
+    for row in rows:
+        print(f"  {row['system']:22s} RTF {row['rtf']:8.1f}  ({row['us_per_sample']:.1f} "
+              f"µs/sample: {_split(row['split_us'])})", file=sys.stderr)
     ahead = [r["system"] for r in sorted(rows, key=lambda r: r["rtf"])
              if not load_system(r["system"]).events]  # (with events: one after the other)
     variants = recording_variants(ahead[:VARIANT_SYSTEMS], duration)

@@ -94,7 +94,9 @@ def _recording_lines(r: dict[str, Any], duration: float) -> list[str]:
              f"({duration:g} s simulated per system; real-time factor = simulated / wall "
              f"seconds after start-up, to the bag complete on disk): the fastest of "
              f"{len(r['recording'][0].get('runs', [0]))} recordings (timeit's convention: a "
-             "slower one met other work on the host), then the median and every one's. "
+             "slower one met other work on the host), made in rounds (every system once a "
+             "round, so a slow stretch of the host meets one recording of several systems), "
+             "then the median and every one's. "
              "Reference loop: the host's speed before each recording, the ms a fixed "
              "pure-Python loop took (`mechsim.bench.host`; lower is faster).", "",
              "Per-sample cost split of the fastest recording, µs of wall time per sample in "
