@@ -10,8 +10,8 @@ system would keep publishing garbage.
 
 from __future__ import annotations
 
-import gc
 import math
+import weakref
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,25 @@ DURATION = 2.5 * FAST_CHUNK / RATE
 FAULT_AT = 0.5
 
 
+#: The simulator nodes made in this test (weak references): where a sink finds its victim.
+_MADE: list[weakref.ref[Any]] = []
+
+
+@pytest.fixture(autouse=True)
+def _nodes_made(monkeypatch: pytest.MonkeyPatch) -> Any:
+    from mechsim.ros.simulator import SimulatorNode
+
+    made = SimulatorNode.__init__
+
+    def init(self: Any, *args: Any, **kwargs: Any) -> None:
+        made(self, *args, **kwargs)
+        _MADE.append(weakref.ref(self))
+
+    monkeypatch.setattr(SimulatorNode, "__init__", init)
+    yield
+    _MADE.clear()
+
+
 class Injector:
     """Sink: when ``<victim>/state`` passes ``FAULT_AT``, corrupt the victim's stepper state."""
 
@@ -44,16 +63,8 @@ class Injector:
         self.last_state: dict[str, Any] = {}
 
     def _node(self) -> Any:
-        from mechsim.ros.simulator import SimulatorNode
-
-        def victim(o: Any) -> bool:  # gc also holds dead weak proxies of earlier tests
-            try:
-                return (isinstance(o, SimulatorNode) and o.instance.name == self.victim
-                        and o.failed is None and bool(o.context.ok()))
-            except ReferenceError:
-                return False
-
-        nodes = [o for o in gc.get_objects() if victim(o)]
+        nodes = [o for o in (ref() for ref in _MADE) if o is not None
+                 and o.instance.name == self.victim and o.failed is None and o.context.ok()]
         assert len(nodes) == 1
         return nodes[0]
 

@@ -167,8 +167,8 @@ def _start_frozen() -> Iterator[None]:
     """The objects alive as the loop starts (modules, nodes, kernels, the caller's own: most
     outlive the run) left out of the garbage collector's passes until it ends
     (``gc.freeze``), so a full collection during the run traverses only what the run made
-    since instead of the whole heap. Undone after; left alone if the caller froze objects of
-    its own."""
+    since instead of the whole heap (``gc.get_objects()`` does not list them meanwhile).
+    Undone after; left alone if the caller froze objects of its own."""
     if gc.get_freeze_count():
         yield
         return
