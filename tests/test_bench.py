@@ -5,6 +5,7 @@ No wall-clock thresholds: timings are not asserted, only present."""
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -502,6 +503,30 @@ def test_the_runs_a_comparison_rests_on_are_timed_again_together_in_rounds() -> 
     peer, mine = 0.5e-3 * 2.4 ** (math.log(10.0) / math.log(12.5)), math.sqrt(2e-6)
     assert math.isclose(matched(rows)["1e-04"]["speedup_vs_peer"], peer / mine)
     assert retime([], runner_of) == 0
+
+
+def test_calls_are_timed_in_rounds_and_each_gets_its_fastest_run(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``throughput.best_in_rounds``: each call once a round, each round starting one call
+    further on; a slow stretch met by one round leaves every call's fastest run as it was."""
+    from mechsim.bench import throughput
+
+    now, order = [0.0], []
+    cost = {"two cores": 1.0, "one core": 1.9, "auto": 4.0}
+
+    def call(name: str) -> None:
+        order.append(name)
+        slow = 2.0 if len(order) <= 3 else 1.0  # the host is slow for the first round
+        now[0] += cost[name] * slow
+
+    monkeypatch.setattr(throughput.time, "perf_counter", lambda: now[0])
+    best = throughput.best_in_rounds({n: functools.partial(call, n) for n in cost}, 4)
+    assert order == ["two cores", "one core", "auto", "one core", "auto", "two cores",
+                     "auto", "two cores", "one core", "two cores", "one core", "auto"]
+    assert best.keys() == cost.keys()
+    assert all(math.isclose(best[n], cost[n]) for n in cost)
+    assert throughput.best_in_rounds({"x": functools.partial(call, "auto")}, 0) == {
+        "x": math.inf}
 
 
 def test_the_recordings_of_the_systems_are_made_in_rounds(monkeypatch: pytest.MonkeyPatch
