@@ -48,7 +48,8 @@ class Serving:
         self._stop = True
         self.executor.wake()
         self.lock.release()
-        self._thread.join(timeout=10.0)
+        if self._thread.ident is not None:  # (not a thread a stop kept from starting)
+            self._thread.join(timeout=10.0)
 
     @contextlib.contextmanager
     def paused(self) -> Iterator[None]:
