@@ -64,6 +64,23 @@ def contested_runs(rows: Rows, levels: Iterable[float]) -> Rows:
     return [r for r in rows if id(r) in chosen and r["time_s"] <= LONGEST_S]
 
 
+def timed_in_rounds(calls: list[Callable[[], Any]], rounds: int, burst: int = 1,
+                    clock: Callable[[], float] = time.perf_counter) -> list[list[float]]:
+    """Each call's times, one a round: ``calls`` run in ``rounds`` rounds, each round starting
+    one call further on, each call ``burst`` times back to back with only the last timed."""
+    got: list[list[float]] = [[] for _ in calls]
+    k = len(calls)
+    for n in range(rounds):
+        for j in range(k):
+            i = (n + j) % k
+            for _ in range(burst - 1):
+                calls[i]()
+            t0 = clock()
+            calls[i]()
+            got[i].append(clock() - t0)
+    return got
+
+
 def retime(runs: Rows, runner_of: Callable[[dict[str, Any]], Callable[[], Any]],
            clock: Callable[[], float] = time.perf_counter) -> int:
     """Time ``runs`` again in rounds (module docstring); ``runner_of(row)`` gives a row's
@@ -75,16 +92,7 @@ def retime(runs: Rows, runner_of: Callable[[dict[str, Any]], Callable[[], Any]],
         call()
     per_round = BURST * sum(r["time_s"] for r in runs)
     rounds = int(min(MAX_ROUNDS, max(MIN_ROUNDS, BUDGET_S / per_round)))
-    got: list[list[float]] = [[] for _ in runs]
-    k = len(runs)
-    for n in range(rounds):
-        for j in range(k):
-            i = (n + j) % k
-            for _ in range(BURST - 1):
-                calls[i]()
-            t0 = clock()
-            calls[i]()
-            got[i].append(clock() - t0)
+    got = timed_in_rounds(calls, rounds, BURST, clock)
     for r, times in zip(runs, got, strict=True):
         r["sweep_time_s"] = r["time_s"]
         r["paired_times_s"] = times

@@ -221,14 +221,10 @@ def best_in_rounds(calls: dict[str, Callable[[], Any]], rounds: int) -> dict[str
     round, each round starting one call further on), so a slow stretch of the host meets one
     run of several calls rather than every run of one (a ratio of two calls, such as the
     scaling from one core to all, compares runs that met the same host)."""
-    names = list(calls)
-    best = dict.fromkeys(names, math.inf)
-    for r in range(rounds):
-        for name in names[r % len(names):] + names[:r % len(names)]:
-            t0 = time.perf_counter()
-            calls[name]()
-            best[name] = min(best[name], time.perf_counter() - t0)
-    return best
+    from mechsim.bench.paired import timed_in_rounds
+
+    got = timed_in_rounds(list(calls.values()), rounds, clock=time.perf_counter)
+    return {name: min(times, default=math.inf) for name, times in zip(calls, got, strict=True)}
 
 
 def ensembles(n: int = ENSEMBLE, repeats: int = 5) -> dict[str, Any]:
