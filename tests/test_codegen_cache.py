@@ -41,6 +41,7 @@ class _Spring(LagrangianModel):
 @pytest.fixture
 def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(codegen, "_recalled", {})  # as in a new process
     return tmp_path / "cache"
 
 
@@ -242,6 +243,20 @@ def test_a_summary_that_does_not_match_its_key_is_not_recalled(cache: Path) -> N
     path.symlink_to(cache / "elsewhere.json")
     (cache / "elsewhere.json").write_text(json.dumps(record))
     assert codegen.recall("summary_key") is None  # never read through a link
+
+
+def test_a_summary_is_read_from_its_file_once_a_process(cache: Path) -> None:
+    """What ``recall`` read stands for its key until ``remember`` replaces it or the cache is
+    cleared: the file is not read again (here: removed, and still recalled)."""
+    codegen.remember("summary_key", {"coordinates": ["x"]})
+    path = cache / "summaries" / "summary_key.json"
+    assert codegen.recall("summary_key") == {"coordinates": ["x"]}
+    path.unlink()
+    assert codegen.recall("summary_key") == {"coordinates": ["x"]}
+    codegen.remember("summary_key", {"coordinates": ["y"]})
+    assert codegen.recall("summary_key") == {"coordinates": ["y"]}
+    codegen.cache_clear()
+    assert codegen.recall("summary_key") is None
 
 
 def test_summaries_stay_bounded_when_a_sweep_remembers_many(

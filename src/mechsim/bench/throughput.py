@@ -3,7 +3,8 @@ ensembles (``simulate_many``) against what a user would write instead, in one ru
 
 - Per call: ``simulate`` of a pendulum for one output interval (two samples), with every
   output (and with reading its end state: a result makes its arrays when they are first
-  read) and with the state only; ``make_stepper`` and its ``advance``; ``advance`` of a
+  read) and with the state only, and on a new model each call (another gravity, as a fit or
+  a sweep calls it); ``make_stepper`` and its ``advance``; ``advance`` of a
   running stepper by one sample; the compiled call ``simulate`` makes (its arguments
   prepared once, its buffer made each call), through numba's dispatcher and through its
   compiled entry point, as ``simulate`` calls it: the floor of a call; scipy's ``solve_ivp`` and a
@@ -22,6 +23,7 @@ ensembles (``simulate_many``) against what a user would write instead, in one ru
 from __future__ import annotations
 
 import functools
+import itertools
 import json
 import math
 import os
@@ -92,6 +94,13 @@ def per_call(batches: int = 80) -> dict[str, dict[str, float]]:
     def simulate(**kw: Any) -> Any:
         return mechsim.simulate(model, dt, dt, tolerance=TOLERANCE, **kw)
 
+    other = itertools.count(1)
+
+    def new_model() -> Any:  # a fit's or a sweep's call: a value changed each time
+        changed = model.with_values(gravity=9.81 + 1e-9 * next(other))
+        return mechsim.simulate(changed, dt, dt, tolerance=TOLERANCE, method="dop853",
+                                outputs=(), work_terms=False)
+
     def scipy_call() -> Any:
         return solve_ivp(lambda t, y: [y[1], -g * math.sin(y[0])], (0.0, dt), y0,
                          method="DOP853", rtol=1e-13, atol=1e-13, t_eval=t1)
@@ -104,6 +113,8 @@ def per_call(batches: int = 80) -> dict[str, dict[str, float]]:
         "simulate, state only (dop853)":
             lambda: simulate(method="dop853", outputs=(), work_terms=False),
         "simulate, every output (radau15)": lambda: simulate(method="radau15"),
+        "simulate of a model with another gravity each call (with_values; dop853, state only)":
+            new_model,
         "make_stepper + advance (dop853)":
             lambda: make_stepper(model, "dop853", TOLERANCE).advance(t1),
         "advance of a running stepper by one sample": advance,

@@ -420,9 +420,27 @@ def _summary_dir() -> Path:
     return cache_dir() / "summaries"
 
 
+#: What ``recall`` read in this process, by key: a key stands for every input of what it
+#: holds, so it is read from disk once a process (a sweep of a value the declaration does not
+#: read sets up each model from one summary); ``remember`` and ``cache_clear`` drop what they
+#: replace or remove. Emptied when full.
+_recalled: dict[str, dict[str, Any]] = {}
+_MAX_RECALLED = 4096
+
+
+def _keep(key: str, value: dict[str, Any]) -> None:
+    if len(_recalled) >= _MAX_RECALLED:
+        _recalled.clear()
+    _recalled[key] = value
+
+
 def recall(key: str) -> dict[str, Any] | None:
     """What ``remember`` stored under ``key`` (a hash of every input of what it holds), or
-    None when there is nothing, or nothing readable (then the caller makes it again)."""
+    None when there is nothing, or nothing readable (then the caller makes it again). The
+    value is the caller's to read, not to change."""
+    kept = _recalled.get(key)
+    if kept is not None:
+        return kept
     path = _summary_dir() / f"{key}.json"
     try:
         with files.open_regular(path, follow=False) as f:
@@ -436,6 +454,7 @@ def recall(key: str) -> dict[str, Any] | None:
             and record.get("check") == _summary_check(key, record["value"])):
         return None
     _touch_file(path)
+    _keep(key, record["value"])
     return record["value"]
 
 
@@ -446,8 +465,9 @@ def _summary_check(key: str, value: dict[str, Any]) -> str:
 
 
 #: ``remember`` looks at the size of the summaries' folder on its first call in a process and
-#: then on every ``_PRUNE_EVERY``-th (a sweep over parameter values remembers a summary per
-#: value: listing and sorting the whole folder each time would cost more than the run).
+#: then on every ``_PRUNE_EVERY``-th (a sweep over a value a declaration reads, a count or a
+#: curve, remembers a summary per value: listing and sorting the whole folder each time would
+#: cost more than the run).
 _PRUNE_EVERY = 64
 _remembered = [0]
 
@@ -457,6 +477,7 @@ def remember(key: str, value: dict[str, Any]) -> None:
     left as it is. At most ``MAX_SUMMARIES`` are kept (beyond by fewer than ``_PRUNE_EVERY``
     per process between looks), the least recently used go first."""
     folder = _summary_dir()
+    _recalled.pop(key, None)  # the file is what the next ``recall`` reads
     with contextlib.suppress(OSError):
         write_atomic(folder / f"{key}.json", json.dumps(
             {"check": _summary_check(key, value), "value": value}, sort_keys=True))
@@ -569,6 +590,7 @@ def cache_clear() -> int:
                 with contextlib.suppress(OSError):
                     p.unlink()
     summaries = _summary_dir()
+    _recalled.clear()
     if summaries.is_dir():
         for p in summaries.glob("*.json"):
             with contextlib.suppress(OSError):

@@ -33,15 +33,19 @@ Where things are: what a system declares, ``declaration.LagrangianBuilder``; the
 the kernel printing, ``lagrangian_kernels`` (imported only to derive); the model, here. A model
 reads its shape and structure (coordinates, invariants, frames, events, modes, separability,
 canonical form) and the derivation key of its kernels from a *summary*: made from the
-declaration the first time a class is built with these parameter values and this code, then
-recalled from the cache (``codegen.recall``), so that a model derived before is set up without
-importing sympy (``_symbolic``), which would otherwise be much of the CPU of a warm
-``mechsim run``.
+declaration the first time a class is built with this code and the values its declaration
+reads, then recalled from the cache (``codegen.recall``), so that a model derived before is set
+up without importing sympy (``_symbolic``), which would otherwise be much of the CPU of a warm
+``mechsim run``. The summary is keyed on the values the declaration *read* (a pendulum's
+declaration reads none: every gravity and initial angle of a sweep shares one summary; a bead's
+on a curve reads its initial position), noted as it was made (``_ReadValues``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+from collections.abc import Iterator, Mapping
 from functools import cached_property
 from pathlib import Path
 from typing import Any, ClassVar
@@ -50,6 +54,7 @@ import numpy as np
 
 from mechsim import codegen
 from mechsim.errors import ParameterError
+from mechsim.params import Value
 from mechsim.systems._symbolic import sympy as sp
 from mechsim.systems.base import Event, FrameSpec, Law, Model, Quantity, Structure
 from mechsim.systems.declaration import LagrangianBuilder
@@ -69,6 +74,33 @@ GENERATOR_SOURCE = codegen.source_fingerprint([_HERE / "lagrangian.py", _HERE / 
 _SUMMARY_KEYS = frozenset({"derivation_key", "coordinates", "invariants", "observables",
                            "frames", "events", "modes", "structure", "canonical",
                            "energy_function_conserved"})
+
+
+#: How many sets of read values a class's summaries are keyed by that the cache keeps (the
+#: most recently made): a declaration reads the same values whatever they are, unless it
+#: branches on one (a bead's curve), so a class has a few.
+MAX_READ_SETS = 16
+
+
+class _ReadValues(Mapping[str, Value]):
+    """A model's values that note the name of each one read (names looked up and absent
+    too); whoever iterates them, or asks their number, has read them all."""
+
+    def __init__(self, values: Mapping[str, Value]) -> None:
+        self._values = values
+        self.read: set[str] = set()
+
+    def __getitem__(self, name: str) -> Value:
+        self.read.add(name)
+        return self._values[name]
+
+    def __iter__(self) -> Iterator[str]:
+        self.read.update(self._values)
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        self.read.update(self._values)
+        return len(self._values)
 
 
 #: The formulation a Lagrangian system may offer besides its own (by listing it last in its
@@ -114,34 +146,49 @@ class LagrangianModel(Model):
     @cached_property
     def _summary(self) -> dict[str, Any]:
         """The declaration's summary (``_summarize``) and the derivation key of its kernels:
-        recalled from the cache when this class, with these parameter values and this code,
-        was declared before (``_recall_key``), so that a model whose kernels are cached is
-        set up without sympy; otherwise made from the declaration and remembered."""
-        recall_key = self._recall_key()
-        if recall_key is not None:
-            recalled = codegen.recall(recall_key)
+        recalled from the cache when this class and this code were declared before with the
+        same values of every parameter that declaration read (``_summary_key``), so that a
+        model whose kernels are cached is set up without sympy; otherwise made from the
+        declaration and remembered under the values it read."""
+        class_key = self._recall_key()
+        if class_key is None:
+            return {"derivation_key": self.derivation_key(), **self._summarize()}
+        read_sets = _recall_read_sets(class_key)
+        for names in read_sets:
+            recalled = codegen.recall(self._summary_key(class_key, names))
             if recalled is not None and recalled.keys() == _SUMMARY_KEYS:
                 return recalled
-        made = {"derivation_key": self.derivation_key(), **self._summarize()}
-        if recall_key is not None:
-            codegen.remember(recall_key, made)
+        made, names = self._summary_made()
+        codegen.remember(self._summary_key(class_key, names), made)
+        if names not in read_sets:
+            codegen.remember(class_key, {"read_sets": [names, *read_sets][:MAX_READ_SETS]})
         return made
 
+    def _summary_made(self) -> tuple[dict[str, Any], list[str]]:
+        """The summary made from the declaration, and the names of the values it read.
+
+        It is made by a bare instance of this class whose only state is this model's values,
+        seen through ``_ReadValues``: nothing it computes from a value can have been computed
+        before and so go unnoted. Deterministic code that reads the same values gets the same
+        summary, so it stands for every model that agrees with this one on those values. Its
+        declaration is this model's too (the same values)."""
+        probe = object.__new__(type(self))
+        values = _ReadValues(self.values)
+        probe.__dict__["values"] = values
+        made = {"derivation_key": probe.derivation_key(), **probe._summarize()}
+        self.__dict__.setdefault("declaration", probe.declaration)
+        return made, sorted(values.read)
+
+    def _summary_key(self, class_key: str, names: list[str]) -> str:
+        """The key of the summary of this class's declaration with this model's values of
+        ``names`` (an absent name is part of the key as absent)."""
+        return codegen.fingerprint(class_key, [(k, k in self.values, repr(self.values.get(k)))
+                                               for k in names])
+
     def _recall_key(self) -> str | None:
-        """Every input of the declaration and of its derivation key: this class, its
-        parameter values, the source of every module of ``mechsim`` (where the class and all
-        the code it can call live), and the versions of Python, numba, sympy, mpmath, numpy
-        and scipy (a declaration may bake in numbers they computed). None for a class outside
-        ``mechsim.systems`` (a plug-in, a test): its code is not in that source, so it is
-        always declared afresh."""
-        cls = type(self)
-        if not cls.__module__.startswith("mechsim.systems."):
-            return None
-        return codegen.fingerprint(
-            "recall", GENERATOR_VERSION, cls.__module__, cls.__qualname__,
-            self.declaration_version, sorted((k, repr(v)) for k, v in self.values.items()),
-            codegen.package_fingerprint(), codegen.RUNTIME,
-            [codegen.distribution_version(d) for d in ("sympy", "mpmath", "numpy", "scipy")])
+        """Every input of the declaration and of its derivation key but the parameter values
+        (``_summary_key`` adds those it reads): see ``_class_recall_key``."""
+        return _class_recall_key(type(self))
 
     def _summarize(self) -> dict[str, Any]:
         """What the model's shape and structure are, from its declaration, as JSON values
@@ -348,3 +395,30 @@ class LagrangianModel(Model):
             laws.insert(1 if laws[0].kind == "energy" else 0,
                         Law("energy_function", "energy_function"))
         return tuple(laws)
+
+
+def _recall_read_sets(class_key: str) -> list[list[str]]:
+    """The sets of names the declarations of a class read (``LagrangianModel._summary``), the
+    latest first; none when the cache holds nothing readable."""
+    record = codegen.recall(class_key)
+    sets = record.get("read_sets") if record is not None else None
+    if not (isinstance(sets, list) and all(
+            isinstance(names, list) and all(isinstance(k, str) for k in names)
+            for names in sets)):
+        return []
+    return sets[:MAX_READ_SETS]
+
+
+@functools.cache
+def _class_recall_key(cls: type[LagrangianModel]) -> str | None:
+    """The class, the source of every module of ``mechsim`` (where the class and all the code
+    it can call live), and the versions of Python, numba, sympy, mpmath, numpy and scipy (a
+    declaration may bake in numbers they computed): under this key the cache holds the sets
+    of names the class's declarations read. None for a class outside ``mechsim.systems`` (a
+    plug-in, a test): its code is not in that source, so it is always declared afresh."""
+    if not cls.__module__.startswith("mechsim.systems."):
+        return None
+    return codegen.fingerprint(
+        "recall", GENERATOR_VERSION, cls.__module__, cls.__qualname__,
+        cls.declaration_version, codegen.package_fingerprint(), codegen.RUNTIME,
+        [codegen.distribution_version(d) for d in ("sympy", "mpmath", "numpy", "scipy")])
