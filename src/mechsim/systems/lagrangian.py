@@ -37,8 +37,9 @@ declaration the first time a class is built with this code and the values its de
 reads, then recalled from the cache (``codegen.recall``), so that a model derived before is set
 up without importing sympy (``_symbolic``), which would otherwise be much of the CPU of a warm
 ``mechsim run``. The summary is keyed on the values the declaration *read* (a pendulum's
-declaration reads none: every gravity and initial angle of a sweep shares one summary; a bead's
-on a curve reads its initial position), noted as it was made (``_ReadValues``).
+declaration reads only its formulation: every gravity and initial angle of a sweep shares one
+summary; a bead's on a wire reads the wire's shape, and on a custom wire its curve), noted as
+it was made (``_ReadValues``).
 """
 
 from __future__ import annotations
